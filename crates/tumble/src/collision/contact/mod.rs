@@ -1,0 +1,1 @@
+//! Pair functions (placeholder: being written).

@@ -1,0 +1,6 @@
+//! Geometry shared by the stages: the dynamic AABB tree, contact manifolds and the pair
+//! functions that make them.
+
+pub mod contact;
+pub mod dbvt;
+pub mod manifold;

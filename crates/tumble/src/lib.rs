@@ -1,0 +1,12 @@
+//! Tumble: a rigid-body physics engine whose step runs stage by stage on the CPU or the GPU,
+//! after Bullet's GPU pipeline (Erwin Coumans, "OpenCL Game Physics").
+//!
+//! The step, in order (`pipeline/step.rs` walks it top to bottom): world AABBs → broadphase
+//! (two dynamic AABB trees) → pair cache (added / removed / kept pairs) → narrowphase
+//! (persistent manifolds) → constraint rows → batching (graph coloring) → projected
+//! Gauss-Seidel → integration.
+
+pub mod collision;
+pub mod math;
+pub mod shape;
+pub mod stages;

@@ -1,0 +1,1 @@
+//! Two-tree DBVT broadphase (placeholder: being written).

@@ -1,0 +1,1 @@
+//! Pair cache (placeholder: being written).
