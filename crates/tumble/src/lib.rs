@@ -8,5 +8,6 @@
 
 pub mod collision;
 pub mod math;
+pub mod profile;
 pub mod shape;
 pub mod stages;
