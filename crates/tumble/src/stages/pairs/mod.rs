@@ -248,7 +248,7 @@ mod tests {
         for (&value, &key) in cache.values().iter().zip(cache.keys()) {
             // Multiples of 6 were kept and carry their key; the others are new.
             let body = pair_bodies(key).0;
-            assert_eq!(value, if body % 2 == 0 { key } else { 0 });
+            assert_eq!(value, if body.is_multiple_of(2) { key } else { 0 });
         }
 
         // Both buffers have seen the largest set: later updates reuse them in place.
