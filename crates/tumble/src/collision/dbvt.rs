@@ -148,7 +148,7 @@ impl Dbvt {
 
     /// Calls `visit(user)` for every leaf whose fat AABB overlaps (or touches) `aabb`, in a
     /// deterministic order, until `visit` returns false. Allocates nothing unless the tree is
-    /// deeper than [`INLINE_STACK_DEPTH`].
+    /// deeper than 63 levels, which the rotations make all but impossible.
     pub fn query(&self, aabb: &Aabb, mut visit: impl FnMut(u32) -> bool) {
         if self.root == NULL_NODE {
             return;
