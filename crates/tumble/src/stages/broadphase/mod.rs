@@ -1,1 +1,398 @@
-//! Two-tree DBVT broadphase (placeholder: being written).
+//! Broadphase, CPU: two dynamic AABB trees as in the talk's "Dynamic BVH tree Broadphase"
+//! slides. `moving` holds dynamic bodies, `fixed` holds static (and, later, sleeping) bodies;
+//! a body moves from one tree to the other with [`Broadphase::set_moving`]. Candidate pairs
+//! are moving × moving and moving × fixed overlaps; fixed × fixed pairs never need solving and
+//! are never looked for.
+//!
+//! Each body's proxy stores a *fat* AABB: its AABB grown by [`Broadphase::fat_margin`] when it
+//! was last (re-)inserted. [`Broadphase::update`] re-inserts a proxy only when the body's AABB
+//! has left its fat box, so a body creeping less than the margin costs one containment test.
+//!
+//! Invariants:
+//! - Every body is in at most one tree, and after [`Broadphase::update`] each proxy's fat AABB
+//!   contains the AABB it was last given.
+//! - [`Broadphase::find_pairs`] returns exactly the keys
+//!   ([`pair_key`](crate::stages::pairs::pair_key)) of the body pairs whose fat AABBs overlap
+//!   or touch and of which at least one body is moving: each pair once, sorted ascending, no
+//!   duplicates.
+//! - That output is bitwise the same for any rayon thread count: tasks only read the trees,
+//!   and the sort fixes the order however the tasks were scheduled.
+//! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
+
+mod cpu;
+
+use crate::collision::dbvt::{Dbvt, ProxyId};
+use crate::math::Aabb;
+
+/// Default of [`Broadphase::fat_margin`] (m).
+pub const DEFAULT_FAT_MARGIN: f32 = 0.1;
+
+/// Where one body's proxy lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BodyProxy {
+    proxy: ProxyId,
+    /// True: in the `moving` tree; false: in the `fixed` tree.
+    moving: bool,
+}
+
+/// The two-tree broadphase. Bodies are named by their `u32` index; indices need not be dense.
+#[derive(Clone, Debug)]
+pub struct Broadphase {
+    /// How far a proxy's fat AABB reaches past the body's AABB on every side (m); default
+    /// [`DEFAULT_FAT_MARGIN`]. Larger: fewer re-insertions, more candidate pairs for the
+    /// narrowphase to reject. Applies to proxies (re-)inserted after it is changed.
+    pub fat_margin: f32,
+    moving: Dbvt,
+    fixed: Dbvt,
+    /// Indexed by body; `None` for an index with no body.
+    proxies: Vec<Option<BodyProxy>>,
+    /// One pair buffer per task of [`Broadphase::find_pairs`], kept from step to step so that
+    /// their capacity is reused.
+    task_pairs: Vec<Vec<u64>>,
+}
+
+impl Default for Broadphase {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Broadphase {
+    pub fn new() -> Self {
+        Self {
+            fat_margin: DEFAULT_FAT_MARGIN,
+            moving: Dbvt::new(),
+            fixed: Dbvt::new(),
+            proxies: Vec::new(),
+            task_pairs: Vec::new(),
+        }
+    }
+
+    /// Adds `body` with AABB `aabb` to the moving or the fixed tree; its fat AABB is `aabb`
+    /// grown by [`Self::fat_margin`]. A body already present is replaced.
+    pub fn insert(&mut self, body: u32, aabb: Aabb, moving: bool) {
+        self.remove(body);
+        let index = body as usize;
+        if self.proxies.len() <= index {
+            self.proxies.resize(index + 1, None);
+        }
+        let fat = aabb.expanded(self.fat_margin);
+        let proxy = self.tree_mut(moving).insert(fat, body);
+        self.proxies[index] = Some(BodyProxy { proxy, moving });
+    }
+
+    /// Removes `body`; returns false if it was not in the broadphase.
+    pub fn remove(&mut self, body: u32) -> bool {
+        let Some(BodyProxy { proxy, moving }) = self.proxy(body) else {
+            return false;
+        };
+        self.tree_mut(moving).remove(proxy);
+        self.proxies[body as usize] = None;
+        true
+    }
+
+    /// Moves `body` to the moving or the fixed tree, keeping its fat AABB (a body that falls
+    /// asleep, or wakes up). Returns false if `body` is not in the broadphase.
+    pub fn set_moving(&mut self, body: u32, moving: bool) -> bool {
+        let Some(current) = self.proxy(body) else {
+            return false;
+        };
+        if current.moving != moving {
+            let fat = self.tree(current.moving).fat_aabb(current.proxy);
+            self.tree_mut(current.moving).remove(current.proxy);
+            let proxy = self.tree_mut(moving).insert(fat, body);
+            self.proxies[body as usize] = Some(BodyProxy { proxy, moving });
+        }
+        true
+    }
+
+    /// Incremental update from this step's AABBs, indexed by body: every proxy whose body's
+    /// AABB has left its fat AABB is re-inserted with a new fat AABB (the AABB grown by
+    /// [`Self::fat_margin`]). Fixed proxies are checked too, so a static body that is
+    /// teleported stays correct. Entries of indices with no body are ignored. Returns how many
+    /// proxies were re-inserted.
+    ///
+    /// Sequential: tree updates do not parallelize well (the talk's "tree update hard to
+    /// parallelize"), and most bodies stay inside their fat box.
+    ///
+    /// Panics if `aabbs` is shorter than the highest body index in the broadphase + 1.
+    pub fn update(&mut self, aabbs: &[Aabb]) -> usize {
+        let mut reinserted = 0;
+        for (body, slot) in self.proxies.iter().enumerate() {
+            let Some(BodyProxy { proxy, moving }) = *slot else {
+                continue;
+            };
+            let tree = if moving {
+                &mut self.moving
+            } else {
+                &mut self.fixed
+            };
+            reinserted += usize::from(tree.update(proxy, aabbs[body], self.fat_margin));
+        }
+        reinserted
+    }
+
+    /// The body's fat AABB, or `None` if it is not in the broadphase.
+    pub fn fat_aabb(&self, body: u32) -> Option<Aabb> {
+        let BodyProxy { proxy, moving } = self.proxy(body)?;
+        Some(self.tree(moving).fat_aabb(proxy))
+    }
+
+    /// Whether the body is in the moving tree, or `None` if it is not in the broadphase.
+    pub fn is_moving(&self, body: u32) -> Option<bool> {
+        self.proxy(body).map(|proxy| proxy.moving)
+    }
+
+    /// Number of bodies in the broadphase.
+    pub fn len(&self) -> usize {
+        self.moving.len() + self.fixed.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn proxy(&self, body: u32) -> Option<BodyProxy> {
+        self.proxies.get(body as usize).copied().flatten()
+    }
+
+    fn tree(&self, moving: bool) -> &Dbvt {
+        if moving { &self.moving } else { &self.fixed }
+    }
+
+    fn tree_mut(&mut self, moving: bool) -> &mut Dbvt {
+        if moving {
+            &mut self.moving
+        } else {
+            &mut self.fixed
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collision::dbvt::tests::TestRng;
+    use crate::math::{Vec3, vec3};
+    use crate::stages::pairs::{pair_bodies, pair_key};
+
+    /// Runs `find_pairs` inside a rayon pool of `threads` threads.
+    fn find_pairs_with_threads(broadphase: &mut Broadphase, threads: usize) -> Vec<u64> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut pairs = Vec::new();
+        pool.install(|| broadphase.find_pairs(&mut pairs));
+        pairs
+    }
+
+    /// All pairs of bodies, at least one moving, whose fat AABBs overlap: the specification.
+    fn brute_force_pairs(broadphase: &Broadphase) -> Vec<u64> {
+        let bodies: Vec<(u32, Aabb, bool)> = (0..broadphase.proxies.len() as u32)
+            .filter_map(|body| {
+                Some((
+                    body,
+                    broadphase.fat_aabb(body)?,
+                    broadphase.is_moving(body)?,
+                ))
+            })
+            .collect();
+        let mut pairs = Vec::new();
+        for (index, &(body_a, aabb_a, moving_a)) in bodies.iter().enumerate() {
+            for &(body_b, aabb_b, moving_b) in &bodies[index + 1..] {
+                if (moving_a || moving_b) && aabb_a.overlaps(&aabb_b) {
+                    pairs.push(pair_key(body_a, body_b));
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs
+    }
+
+    fn assert_find_pairs_exact(broadphase: &mut Broadphase) -> Vec<u64> {
+        broadphase.moving.validate();
+        broadphase.fixed.validate();
+        let single = find_pairs_with_threads(broadphase, 1);
+        let double = find_pairs_with_threads(broadphase, 2);
+        assert_eq!(single, double, "1 and 2 threads disagree");
+        assert!(single.windows(2).all(|window| window[0] < window[1]));
+        for &key in &single {
+            let (low, high) = pair_bodies(key);
+            assert!(low < high);
+            assert!(
+                broadphase.is_moving(low) == Some(true) || broadphase.is_moving(high) == Some(true),
+                "fixed × fixed pair {low}, {high}"
+            );
+        }
+        assert_eq!(single, brute_force_pairs(broadphase));
+        single
+    }
+
+    /// A random scene of `count` bodies with holes in their indices, a third of them fixed,
+    /// stepped a few times: bodies creep or teleport, some swap trees, some leave and return.
+    fn run_random_scene(count: usize, seed: u64) {
+        let mut rng = TestRng::new(seed);
+        // About 1.5 boxes per 10 m³: enough overlaps to make pairs, few enough to stay sparse.
+        let world = (count as f32 * 7.0).cbrt().max(2.0);
+        let body_count = count + count / 4;
+        let mut aabbs = vec![Aabb::default(); body_count];
+        let mut present = vec![false; body_count];
+        let mut broadphase = Broadphase::new();
+        let mut placed = 0;
+        while placed < count {
+            let body = rng.below(body_count);
+            if present[body] {
+                continue;
+            }
+            present[body] = true;
+            aabbs[body] = rng.aabb(world);
+            broadphase.insert(body as u32, aabbs[body], rng.below(3) != 0);
+            placed += 1;
+        }
+        assert_eq!(broadphase.len(), count);
+        let pairs = assert_find_pairs_exact(&mut broadphase);
+        let mut total_pairs = pairs.len();
+
+        for _ in 0..4 {
+            for body in 0..body_count {
+                if !present[body] || broadphase.is_moving(body as u32) != Some(true) {
+                    continue;
+                }
+                let offset = if rng.below(10) == 0 {
+                    rng.vec3(-0.5 * world, 0.5 * world)
+                } else {
+                    // Often within the fat margin, so some proxies stay put and some not.
+                    rng.vec3(-0.08, 0.08)
+                };
+                aabbs[body] = Aabb::new(aabbs[body].min + offset, aabbs[body].max + offset);
+            }
+            broadphase.update(&aabbs);
+            for (body, aabb) in aabbs.iter().enumerate() {
+                if let Some(fat) = broadphase.fat_aabb(body as u32) {
+                    assert!(fat.contains(aabb), "body {body} escaped its fat AABB");
+                }
+            }
+            // The empty scene has no index to draw from: it stays empty.
+            let churn = if body_count == 0 { 0 } else { count / 10 + 1 };
+            for _ in 0..churn {
+                let body = rng.below(body_count);
+                if present[body] {
+                    let moving = rng.below(2) == 0;
+                    assert!(broadphase.set_moving(body as u32, moving));
+                    assert_eq!(broadphase.is_moving(body as u32), Some(moving));
+                }
+            }
+            for _ in 0..churn.div_ceil(2) {
+                let body = rng.below(body_count);
+                if present[body] {
+                    assert!(broadphase.remove(body as u32));
+                } else {
+                    aabbs[body] = rng.aabb(world);
+                    broadphase.insert(body as u32, aabbs[body], rng.below(3) != 0);
+                }
+                present[body] = !present[body];
+            }
+            assert_eq!(broadphase.len(), present.iter().filter(|&&p| p).count());
+            total_pairs += assert_find_pairs_exact(&mut broadphase).len();
+        }
+        if count >= 100 {
+            assert!(total_pairs > 0, "the scene should make some pairs");
+        }
+    }
+
+    #[test]
+    fn random_scenes_match_brute_force() {
+        for (count, seed) in [(0, 1), (1, 2), (2, 3), (100, 4), (2000, 5)] {
+            run_random_scene(count, seed);
+        }
+    }
+
+    #[test]
+    fn two_bodies_pair_unless_both_fixed() {
+        let mut broadphase = Broadphase::new();
+        let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        broadphase.insert(5, unit, true);
+        broadphase.insert(2, unit, false);
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(2, 5)]);
+        assert!(broadphase.set_moving(5, false));
+        assert!(assert_find_pairs_exact(&mut broadphase).is_empty());
+        assert!(broadphase.set_moving(2, true));
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(2, 5)]);
+
+        // Fat margins touch at 2 × 0.1 m apart, and not beyond.
+        let gap = |distance: f32| Aabb::new(vec3(1.0 + distance, 0.0, 0.0), vec3(2.0, 1.0, 1.0));
+        broadphase.insert(5, gap(0.2), true);
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(2, 5)]);
+        broadphase.insert(5, gap(0.21), true);
+        assert!(assert_find_pairs_exact(&mut broadphase).is_empty());
+    }
+
+    #[test]
+    fn update_reinserts_only_escaped_proxies() {
+        let mut broadphase = Broadphase::new();
+        let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let far = Aabb::new(Vec3::splat(10.0), Vec3::splat(11.0));
+        broadphase.insert(0, unit, true);
+        broadphase.insert(1, far, false);
+        assert!(assert_find_pairs_exact(&mut broadphase).is_empty());
+
+        let shift = |aabb: Aabb, offset: Vec3| Aabb::new(aabb.min + offset, aabb.max + offset);
+        let crept = shift(unit, Vec3::splat(0.05));
+        assert_eq!(broadphase.update(&[crept, far]), 0);
+        assert_eq!(broadphase.fat_aabb(0), Some(unit.expanded(0.1)));
+
+        let escaped = shift(unit, Vec3::splat(0.5));
+        assert_eq!(broadphase.update(&[escaped, far]), 1);
+        assert_eq!(broadphase.fat_aabb(0), Some(escaped.expanded(0.1)));
+
+        // A fixed body that is teleported is re-inserted as well, and found where it now is.
+        broadphase.fat_margin = 0.0;
+        assert_eq!(broadphase.update(&[escaped, unit]), 1);
+        assert_eq!(broadphase.fat_aabb(1), Some(unit));
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(0, 1)]);
+    }
+
+    #[test]
+    fn unknown_bodies_and_replacement() {
+        let mut broadphase = Broadphase::new();
+        assert!(!broadphase.remove(3));
+        assert!(!broadphase.set_moving(3, true));
+        assert_eq!(
+            (broadphase.fat_aabb(3), broadphase.is_moving(3)),
+            (None, None)
+        );
+        let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        broadphase.insert(3, unit, true);
+        broadphase.insert(3, unit, false);
+        assert_eq!(broadphase.len(), 1);
+        assert_eq!(broadphase.is_moving(3), Some(false));
+        assert_eq!(
+            broadphase.fat_aabb(3),
+            Some(unit.expanded(DEFAULT_FAT_MARGIN))
+        );
+        assert!(broadphase.remove(3) && broadphase.is_empty());
+    }
+
+    #[test]
+    fn warmed_up_find_pairs_reuses_its_buffers() {
+        let mut rng = TestRng::new(9);
+        let mut broadphase = Broadphase::new();
+        for body in 0..500 {
+            broadphase.insert(body, rng.aabb(15.0), body % 3 != 0);
+        }
+        let mut pairs = Vec::new();
+        broadphase.find_pairs(&mut pairs);
+        let capacities = |broadphase: &Broadphase, pairs: &Vec<u64>| {
+            let mut capacities: Vec<usize> =
+                broadphase.task_pairs.iter().map(Vec::capacity).collect();
+            capacities.push(pairs.capacity());
+            capacities
+        };
+        let warmed = capacities(&broadphase, &pairs);
+        let first = pairs.clone();
+        broadphase.find_pairs(&mut pairs);
+        assert_eq!(pairs, first);
+        assert_eq!(capacities(&broadphase, &pairs), warmed);
+    }
+}

@@ -1,1 +1,277 @@
-//! Pair cache (placeholder: being written).
+//! Pair cache: the talk's "persistent pairs". Each step the broadphase hands over the sorted keys
+//! of this step's pairs; the cache diffs them against last step's in one linear merge and
+//! reports which pairs were added and which removed. Pairs that stay keep their value (a contact
+//! manifold, say), which is what lets the solver warm start from last step's impulses.
+//!
+//! Invariants:
+//! - A pair key packs two body indices as `(low << 32) | high` with `low < high` (see
+//!   [`pair_key`]), so sorting keys sorts pairs by their first body, then their second.
+//! - [`PairCache::keys`] is sorted ascending with no duplicates, and `values()[i]` belongs to
+//!   `keys()[i]`.
+//! - After [`PairCache::update`], [`PairCache::added`] and [`PairCache::removed`] hold exactly
+//!   that update's differences, each sorted ascending; a kept pair's value is the one it had
+//!   before, an added pair's is `T::default()`.
+//! - Buffers are swapped, never rebuilt: once they have grown to the largest pair count seen,
+//!   an update allocates nothing.
+
+/// The key of the unordered pair {a, b}: the lower index in the high 32 bits. `a != b`.
+#[inline]
+pub fn pair_key(a: u32, b: u32) -> u64 {
+    debug_assert_ne!(a, b, "a body does not pair with itself");
+    let (low, high) = if a < b { (a, b) } else { (b, a) };
+    (u64::from(low) << 32) | u64::from(high)
+}
+
+/// The two bodies of a pair key, lower index first.
+#[inline]
+pub fn pair_bodies(key: u64) -> (u32, u32) {
+    ((key >> 32) as u32, key as u32)
+}
+
+/// Sorted pair keys with one persistent `T` per pair; see the module documentation.
+#[derive(Clone, Debug, Default)]
+pub struct PairCache<T> {
+    keys: Vec<u64>,
+    values: Vec<T>,
+    /// The buffers the next update writes into, then swaps with `keys` and `values`.
+    next_keys: Vec<u64>,
+    next_values: Vec<T>,
+    added: Vec<u64>,
+    removed: Vec<u64>,
+}
+
+impl<T: Default> PairCache<T> {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Replaces the cached pairs with `new_keys`, which must be sorted ascending and unique (as
+    /// the broadphase returns them; panics otherwise). One merge pass over the old and new
+    /// keys: kept pairs move their value over, added pairs get `T::default()`, removed pairs
+    /// drop theirs.
+    pub fn update(&mut self, new_keys: &[u64]) {
+        assert!(
+            new_keys.windows(2).all(|window| window[0] < window[1]),
+            "pair keys must be sorted ascending and unique"
+        );
+        self.next_keys.clear();
+        self.next_values.clear();
+        self.added.clear();
+        self.removed.clear();
+
+        let mut old_keys = self.keys.iter().copied().peekable();
+        // Draining keeps the old value buffer's capacity for the update after this one.
+        let mut old_values = self.values.drain(..);
+        for &key in new_keys {
+            // Old keys below `key` are absent from the new set.
+            while let Some(&old_key) = old_keys.peek()
+                && old_key < key
+            {
+                self.removed.push(old_key);
+                old_keys.next();
+                old_values.next();
+            }
+            let value = if old_keys.peek() == Some(&key) {
+                old_keys.next();
+                old_values
+                    .next()
+                    .expect("the cache holds one value per key")
+            } else {
+                self.added.push(key);
+                T::default()
+            };
+            self.next_keys.push(key);
+            self.next_values.push(value);
+        }
+        self.removed.extend(old_keys);
+        drop(old_values);
+
+        std::mem::swap(&mut self.keys, &mut self.next_keys);
+        std::mem::swap(&mut self.values, &mut self.next_values);
+    }
+
+    /// This step's pair keys, sorted ascending.
+    pub fn keys(&self) -> &[u64] {
+        &self.keys
+    }
+
+    /// One value per key, in the order of [`Self::keys`].
+    pub fn values(&self) -> &[T] {
+        &self.values
+    }
+
+    pub fn values_mut(&mut self) -> &mut [T] {
+        &mut self.values
+    }
+
+    /// Keys that the last update added, sorted ascending.
+    pub fn added(&self) -> &[u64] {
+        &self.added
+    }
+
+    /// Keys that the last update removed, sorted ascending.
+    pub fn removed(&self) -> &[u64] {
+        &self.removed
+    }
+
+    pub fn len(&self) -> usize {
+        self.keys.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.keys.is_empty()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The talk's particles A..F as body indices 0..5.
+    fn key(pair: &str) -> u64 {
+        let bodies: Vec<u32> = pair
+            .bytes()
+            .map(|letter| u32::from(letter - b'A'))
+            .collect();
+        pair_key(bodies[0], bodies[1])
+    }
+
+    fn sorted_keys(pairs: &[&str]) -> Vec<u64> {
+        let mut keys: Vec<u64> = pairs.iter().map(|pair| key(pair)).collect();
+        keys.sort_unstable();
+        keys
+    }
+
+    #[test]
+    fn pair_key_orders_and_round_trips() {
+        assert_eq!(pair_key(3, 9), pair_key(9, 3));
+        assert_eq!(pair_key(3, 9), (3 << 32) | 9);
+        assert_eq!(pair_bodies(pair_key(9, 3)), (3, 9));
+        assert_eq!(pair_bodies(pair_key(u32::MAX, 0)), (0, u32::MAX));
+        assert!(pair_key(1, u32::MAX) < pair_key(2, 3));
+    }
+
+    /// The "Persistent Pairs" slide: before and after columns and their differences.
+    ///
+    /// The slide's differences column also lists "B,C removed", but B,C is in its after
+    /// column too; the set difference of the two columns has A,B as the only removal, and that
+    /// is what a cache must report.
+    #[test]
+    fn talk_example() {
+        let before = sorted_keys(&["DF", "BC", "BE", "CE", "AD", "AF", "AB", "AC", "AE"]);
+        let after = sorted_keys(&["DF", "BC", "BE", "CE", "AD", "AF", "AC", "AE", "CF", "CD"]);
+
+        let mut cache = PairCache::<u32>::new();
+        cache.update(&before);
+        assert_eq!(cache.added(), before);
+        assert!(cache.removed().is_empty());
+        // Tag every pair with a value derived from its key, to see which values survive.
+        for (value, &key) in cache.values_mut().iter_mut().zip(&before) {
+            *value = key as u32 + 100;
+        }
+
+        cache.update(&after);
+        assert_eq!(cache.keys(), after);
+        assert_eq!(cache.added(), sorted_keys(&["CF", "CD"]));
+        assert_eq!(cache.removed(), sorted_keys(&["AB"]));
+        for (&value, &key) in cache.values().iter().zip(cache.keys()) {
+            let expected = if cache.added().contains(&key) {
+                0
+            } else {
+                key as u32 + 100
+            };
+            assert_eq!(value, expected, "value of pair {:?}", pair_bodies(key));
+        }
+
+        // With B,C dropped as well, the cache reports the slide's differences column.
+        let after_without_bc = sorted_keys(&["DF", "BE", "CE", "AD", "AF", "AC", "AE", "CF", "CD"]);
+        cache.update(&before);
+        cache.update(&after_without_bc);
+        assert_eq!(cache.added(), sorted_keys(&["CF", "CD"]));
+        assert_eq!(cache.removed(), sorted_keys(&["AB", "BC"]));
+    }
+
+    #[test]
+    fn empty_full_empty() {
+        let mut cache = PairCache::<Vec<u8>>::new();
+        cache.update(&[]);
+        assert!(cache.is_empty() && cache.added().is_empty() && cache.removed().is_empty());
+
+        let full: Vec<u64> = (0..50).map(|body| pair_key(body, body + 1)).collect();
+        cache.update(&full);
+        assert_eq!((cache.keys(), cache.added()), (&full[..], &full[..]));
+        assert!(cache.removed().is_empty());
+        assert_eq!(cache.len(), 50);
+        cache.values_mut()[7].push(42);
+
+        // The same keys again: nothing added or removed, values kept.
+        cache.update(&full);
+        assert!(cache.added().is_empty() && cache.removed().is_empty());
+        assert_eq!(cache.values()[7], [42]);
+
+        cache.update(&[]);
+        assert!(cache.is_empty() && cache.values().is_empty());
+        assert_eq!(cache.removed(), full);
+        assert!(cache.added().is_empty());
+    }
+
+    #[test]
+    fn interleaved_changes_and_no_growth_after_warm_up() {
+        // Even keys first, then every multiple of 3: adds and removes interleave in the merge.
+        let evens: Vec<u64> = (0..300u32)
+            .step_by(2)
+            .map(|body| pair_key(body, 1000))
+            .collect();
+        let threes: Vec<u64> = (0..300u32)
+            .step_by(3)
+            .map(|body| pair_key(body, 1000))
+            .collect();
+        let mut cache = PairCache::<u64>::new();
+        cache.update(&evens);
+        for (value, &key) in cache.values_mut().iter_mut().zip(&evens) {
+            *value = key;
+        }
+        cache.update(&threes);
+        assert_eq!(cache.keys(), threes);
+        let expected_added: Vec<u64> = threes
+            .iter()
+            .copied()
+            .filter(|key| !evens.contains(key))
+            .collect();
+        let expected_removed: Vec<u64> = evens
+            .iter()
+            .copied()
+            .filter(|key| !threes.contains(key))
+            .collect();
+        assert_eq!(cache.added(), expected_added);
+        assert_eq!(cache.removed(), expected_removed);
+        for (&value, &key) in cache.values().iter().zip(cache.keys()) {
+            // Multiples of 6 were kept and carry their key; the others are new.
+            let body = pair_bodies(key).0;
+            assert_eq!(value, if body.is_multiple_of(2) { key } else { 0 });
+        }
+
+        // Both buffers have seen the largest set: later updates reuse them in place.
+        cache.update(&evens);
+        let capacities = |cache: &PairCache<u64>| {
+            [
+                cache.keys.capacity(),
+                cache.values.capacity(),
+                cache.next_keys.capacity(),
+                cache.next_values.capacity(),
+            ]
+        };
+        let warmed = capacities(&cache);
+        for _ in 0..4 {
+            cache.update(&threes);
+            cache.update(&evens);
+            assert_eq!(capacities(&cache), warmed);
+        }
+    }
+
+    #[test]
+    #[should_panic(expected = "sorted ascending and unique")]
+    fn unsorted_keys_are_refused() {
+        PairCache::<u32>::new().update(&[pair_key(2, 3), pair_key(0, 1)]);
+    }
+}
