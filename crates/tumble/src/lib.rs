@@ -7,7 +7,15 @@
 //! Gauss-Seidel → integration.
 
 pub mod collision;
+pub mod dynamics;
 pub mod math;
+pub mod pipeline;
 pub mod profile;
+pub mod scene;
 pub mod shape;
 pub mod stages;
+
+pub use dynamics::body::{BodyDesc, BodyError, BodyHandle};
+pub use pipeline::config::{ConfigError, StepConfig};
+pub use pipeline::world::{StepStats, World};
+pub use shape::Shape;

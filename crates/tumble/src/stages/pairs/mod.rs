@@ -104,6 +104,24 @@ impl<T: Default> PairCache<T> {
         &mut self.values
     }
 
+    /// Keys and values together, the values writable (the narrowphase reads one, writes the
+    /// other).
+    pub fn keys_and_values_mut(&mut self) -> (&[u64], &mut [T]) {
+        (&self.keys, &mut self.values)
+    }
+
+    /// Sets the value of `key`, adding the pair if it is not cached (keeps the keys sorted).
+    /// For restoring saved state between steps; a step's pairs come from [`Self::update`].
+    pub fn insert(&mut self, key: u64, value: T) {
+        match self.keys.binary_search(&key) {
+            Ok(index) => self.values[index] = value,
+            Err(index) => {
+                self.keys.insert(index, key);
+                self.values.insert(index, value);
+            }
+        }
+    }
+
     /// Keys that the last update added, sorted ascending.
     pub fn added(&self) -> &[u64] {
         &self.added
@@ -126,6 +144,17 @@ impl<T: Default> PairCache<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn insert_keeps_keys_sorted_and_update_keeps_inserted_values() {
+        let mut cache = PairCache::<u32>::new();
+        cache.insert(pair_key(2, 3), 23);
+        cache.insert(pair_key(0, 1), 1);
+        cache.insert(pair_key(2, 3), 32);
+        assert_eq!(cache.keys(), [pair_key(0, 1), pair_key(2, 3)]);
+        cache.update(&[pair_key(2, 3)]);
+        assert_eq!(cache.values(), [32]);
+    }
 
     /// The talk's particles A..F as body indices 0..5.
     fn key(pair: &str) -> u64 {

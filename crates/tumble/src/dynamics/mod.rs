@@ -1,0 +1,3 @@
+//! Body data: what the solver and integrator read and write each step.
+
+pub mod body;

@@ -1,0 +1,6 @@
+//! The public face of the engine: [`World`], its [`StepConfig`], and the step that walks the
+//! stages in order.
+
+pub mod config;
+mod step;
+pub mod world;

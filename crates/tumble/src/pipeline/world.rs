@@ -1,0 +1,315 @@
+//! [`World`]: add and remove bodies, step, read poses and velocities back.
+//!
+//! ```
+//! use tumble::{BodyDesc, Shape, StepConfig, World, math::Vec3};
+//!
+//! let mut world = World::new(StepConfig::default()).unwrap();
+//! world.add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0))).unwrap();
+//! let ball = world
+//!     .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(Vec3::new(0.0, 2.0, 0.0)))
+//!     .unwrap();
+//! for _ in 0..120 {
+//!     world.step();
+//! }
+//! let height = world.pose(ball).unwrap().position.y;
+//! assert!((height - 0.5).abs() < 0.01, "the ball rests on the ground: y = {height}");
+//! ```
+
+use crate::dynamics::body::{BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider};
+use crate::math::{Mat3, Transform, Vec3};
+use crate::pipeline::config::{ConfigError, StepConfig};
+use crate::pipeline::step::StepScratch;
+use crate::profile::Profiler;
+use crate::stages::broadphase::Broadphase;
+use crate::stages::narrowphase::PairContact;
+use crate::stages::pairs::PairCache;
+
+/// Counts from the last step, for reports and the profiler.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepStats {
+    /// Candidate pairs from the broadphase (fat AABBs overlap).
+    pub pairs: usize,
+    /// Pairs new this step / gone this step (the talk's persistent pairs).
+    pub pairs_added: usize,
+    pub pairs_removed: usize,
+    /// Pairs with at least one contact point.
+    pub manifolds: usize,
+    /// Contact points.
+    pub contacts: usize,
+    /// Deepest overlap of any contact (m, ≥ 0).
+    pub max_penetration: f32,
+    /// Constraints per batch: the talk's batch histogram.
+    pub batch_histogram: Vec<u32>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum SlotState {
+    Free,
+    Static,
+    Dynamic,
+}
+
+#[derive(Clone, Debug)]
+struct Slot {
+    generation: u32,
+    state: SlotState,
+    /// The mass the body was made with (kg), reported back in dumps.
+    mass: f32,
+    name: Option<String>,
+}
+
+/// A physics world: bodies, the persistent state between steps, and the step itself.
+pub struct World {
+    pub(crate) config: StepConfig,
+    // Body arrays, indexed by slot (see `dynamics::body`).
+    pub(crate) poses: Vec<BodyPose>,
+    pub(crate) velocities: Vec<BodyVelocity>,
+    pub(crate) masses: Vec<BodyMass>,
+    pub(crate) colliders: Vec<Collider>,
+    slots: Vec<Slot>,
+    free_slots: Vec<u32>,
+    // State carried from step to step.
+    pub(crate) broadphase: Broadphase,
+    pub(crate) pairs: PairCache<PairContact>,
+    pub(crate) scratch: StepScratch,
+    pub(crate) stats: StepStats,
+    pub(crate) profiler: Profiler,
+    pub(crate) steps: u64,
+}
+
+impl World {
+    pub fn new(config: StepConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let mut broadphase = Broadphase::default();
+        broadphase.fat_margin = config.aabb_margin;
+        Ok(Self {
+            config,
+            poses: Vec::new(),
+            velocities: Vec::new(),
+            masses: Vec::new(),
+            colliders: Vec::new(),
+            slots: Vec::new(),
+            free_slots: Vec::new(),
+            broadphase,
+            pairs: PairCache::default(),
+            scratch: StepScratch::default(),
+            stats: StepStats::default(),
+            profiler: Profiler::new("step"),
+            steps: 0,
+        })
+    }
+
+    pub fn config(&self) -> &StepConfig {
+        &self.config
+    }
+
+    /// Changes the step parameters; takes effect at the next step.
+    pub fn set_config(&mut self, config: StepConfig) -> Result<(), ConfigError> {
+        config.validate()?;
+        self.broadphase.fat_margin = config.aabb_margin;
+        self.config = config;
+        Ok(())
+    }
+
+    /// Adds a body; `Err` says which field of `desc` is invalid.
+    pub fn add_body(&mut self, desc: BodyDesc) -> Result<BodyHandle, BodyError> {
+        desc.validate()?;
+        if let Some(name) = &desc.name {
+            if self.find(name).is_some() {
+                return Err(BodyError::DuplicateName(name.clone()));
+            }
+        }
+        let dynamic = !desc.is_static();
+        let pose = BodyPose::new(desc.position, desc.rotation.normalize());
+        let velocity = if dynamic { BodyVelocity::new(desc.linear_velocity, desc.angular_velocity) } else { BodyVelocity::default() };
+        let mass_properties = desc.shape.mass_properties(desc.mass);
+        let mass = BodyMass { inverse_inertia: mass_properties.inverse_inertia, inverse_mass: mass_properties.inverse_mass };
+        let collider = Collider { shape: desc.shape, friction: desc.friction, restitution: desc.restitution };
+        let state = if dynamic { SlotState::Dynamic } else { SlotState::Static };
+        let index = match self.free_slots.pop() {
+            Some(index) => {
+                let i = index as usize;
+                self.poses[i] = pose;
+                self.velocities[i] = velocity;
+                self.masses[i] = mass;
+                self.colliders[i] = collider;
+                let slot = &mut self.slots[i];
+                slot.state = state;
+                slot.mass = desc.mass;
+                slot.name = desc.name;
+                index
+            }
+            None => {
+                self.poses.push(pose);
+                self.velocities.push(velocity);
+                self.masses.push(mass);
+                self.colliders.push(collider);
+                self.slots.push(Slot { generation: 0, state, mass: desc.mass, name: desc.name });
+                (self.slots.len() - 1) as u32
+            }
+        };
+        let aabb = collider.shape.aabb(&pose.transform()).expanded(self.config.contact_margin);
+        self.broadphase.insert(index, aabb, dynamic);
+        Ok(BodyHandle { index, generation: self.slots[index as usize].generation })
+    }
+
+    /// Removes a body; its contacts go with it at the next step.
+    pub fn remove_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
+        let i = self.check(handle)?;
+        self.broadphase.remove(handle.index);
+        let slot = &mut self.slots[i];
+        slot.state = SlotState::Free;
+        slot.generation = slot.generation.wrapping_add(1);
+        slot.name = None;
+        // A free slot is static and shapeless for the stages: it never moves or collides.
+        self.masses[i] = BodyMass::default();
+        self.velocities[i] = BodyVelocity::default();
+        self.free_slots.push(handle.index);
+        Ok(())
+    }
+
+    /// Advances the world by `config.dt`.
+    pub fn step(&mut self) {
+        self.profiler.begin_frame();
+        let dt = self.config.dt / self.config.substeps as f32;
+        for _ in 0..self.config.substeps {
+            self.substep(dt);
+        }
+        self.profiler.end_frame();
+        self.steps += 1;
+    }
+
+    /// Number of live bodies.
+    pub fn body_count(&self) -> usize {
+        self.slots.len() - self.free_slots.len()
+    }
+
+    /// Handles of all live bodies, in slot order.
+    pub fn bodies(&self) -> impl Iterator<Item = BodyHandle> + '_ {
+        self.slots
+            .iter()
+            .enumerate()
+            .filter(|(_, slot)| slot.state != SlotState::Free)
+            .map(|(index, slot)| BodyHandle { index: index as u32, generation: slot.generation })
+    }
+
+    /// The body named `name`, if any.
+    pub fn find(&self, name: &str) -> Option<BodyHandle> {
+        self.slots
+            .iter()
+            .position(|slot| slot.state != SlotState::Free && slot.name.as_deref() == Some(name))
+            .map(|index| BodyHandle { index: index as u32, generation: self.slots[index].generation })
+    }
+
+    pub fn pose(&self, handle: BodyHandle) -> Result<Transform, BodyError> {
+        Ok(self.poses[self.check(handle)?].transform())
+    }
+
+    pub fn linear_velocity(&self, handle: BodyHandle) -> Result<Vec3, BodyError> {
+        Ok(self.velocities[self.check(handle)?].linear)
+    }
+
+    pub fn angular_velocity(&self, handle: BodyHandle) -> Result<Vec3, BodyError> {
+        Ok(self.velocities[self.check(handle)?].angular)
+    }
+
+    /// Sets a dynamic body's velocities (static bodies ignore this).
+    pub fn set_velocity(&mut self, handle: BodyHandle, linear: Vec3, angular: Vec3) -> Result<(), BodyError> {
+        let i = self.check(handle)?;
+        if !(linear.is_finite() && angular.is_finite()) {
+            return Err(BodyError::NotFinite { field: "velocity" });
+        }
+        if self.slots[i].state == SlotState::Dynamic {
+            self.velocities[i] = BodyVelocity::new(linear, angular);
+        }
+        Ok(())
+    }
+
+    /// The description the body would be re-created from now (current pose and velocity).
+    pub fn body_desc(&self, handle: BodyHandle) -> Result<BodyDesc, BodyError> {
+        let i = self.check(handle)?;
+        let (pose, velocity, collider, slot) = (&self.poses[i], &self.velocities[i], &self.colliders[i], &self.slots[i]);
+        Ok(BodyDesc {
+            shape: collider.shape,
+            position: pose.position,
+            rotation: pose.rotation,
+            mass: slot.mass,
+            linear_velocity: velocity.linear,
+            angular_velocity: velocity.angular,
+            friction: collider.friction,
+            restitution: collider.restitution,
+            name: slot.name.clone(),
+        })
+    }
+
+    pub fn is_dynamic(&self, handle: BodyHandle) -> Result<bool, BodyError> {
+        Ok(self.slots[self.check(handle)?].state == SlotState::Dynamic)
+    }
+
+    /// Counts from the last step.
+    pub fn stats(&self) -> &StepStats {
+        &self.stats
+    }
+
+    /// Stage timings since creation or the last [`Profiler::reset`].
+    pub fn profiler(&self) -> &Profiler {
+        &self.profiler
+    }
+
+    pub fn profiler_mut(&mut self) -> &mut Profiler {
+        &mut self.profiler
+    }
+
+    /// Steps taken so far.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Kinetic energy of all bodies (J): ½ m v² + ½ ω·Iω.
+    pub fn kinetic_energy(&self) -> f64 {
+        let mut energy = 0.0f64;
+        for (i, velocity) in self.velocities.iter().enumerate() {
+            let mass = &self.masses[i];
+            if mass.inverse_mass == 0.0 {
+                continue;
+            }
+            let rotation = Mat3::from_quat(self.poses[i].rotation);
+            let local_omega = rotation.transpose() * velocity.angular;
+            let inertia = mass.inverse_inertia.recip();
+            let linear = velocity.linear.length_squared() / mass.inverse_mass;
+            let angular = (local_omega * local_omega * inertia).element_sum();
+            energy += 0.5 * (linear as f64 + angular as f64);
+        }
+        energy
+    }
+
+    /// Persistent contacts as (body A, body B, pair data), in pair order.
+    pub fn contacts(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, &PairContact)> + '_ {
+        self.pairs.keys().iter().zip(self.pairs.values()).filter(|(_, c)| c.manifold.count > 0).map(|(&key, contact)| {
+            let (a, b) = crate::stages::pairs::pair_bodies(key);
+            (self.handle_of(a), self.handle_of(b), contact)
+        })
+    }
+
+    /// Seeds the warm-start impulses of a pair (used when loading a dumped scene, so the run
+    /// continues bitwise). The manifold is recomputed at the next step; points keep these
+    /// impulses where their feature ids match.
+    pub fn restore_contact(&mut self, a: BodyHandle, b: BodyHandle, contact: PairContact) -> Result<(), BodyError> {
+        let (ia, ib) = (self.check(a)?, self.check(b)?);
+        let key = crate::stages::pairs::pair_key(ia as u32, ib as u32);
+        let contact = if ia < ib { contact } else { PairContact { manifold: contact.manifold.flipped(), ..contact } };
+        self.pairs.insert(key, contact);
+        Ok(())
+    }
+
+    pub(crate) fn handle_of(&self, index: u32) -> BodyHandle {
+        BodyHandle { index, generation: self.slots[index as usize].generation }
+    }
+
+    fn check(&self, handle: BodyHandle) -> Result<usize, BodyError> {
+        match self.slots.get(handle.index as usize) {
+            Some(slot) if slot.generation == handle.generation && slot.state != SlotState::Free => Ok(handle.index as usize),
+            _ => Err(BodyError::StaleHandle),
+        }
+    }
+}

@@ -1,0 +1,120 @@
+//! The talk's scenes, sized as in Bullet's benchmark demo, each with a `scale` so they run from
+//! tiny (tests) to huge (benchmarks). `scale = 1` is the talk's size.
+
+use crate::dynamics::body::BodyDesc;
+use crate::math::Vec3;
+use crate::pipeline::config::StepConfig;
+use crate::scene::format::{Scene, SceneError};
+use crate::shape::Shape;
+
+/// Built-in scene names with a line on each.
+pub const BUILTIN_SCENES: &[(&str, &str)] = &[
+    ("falling-boxes", "3008 boxes (47 layers of 8 x 8) falling on a ground plane"),
+    ("stacked-boxes", "about 1000 boxes at rest: a pyramid, a brick wall and a tower"),
+];
+
+/// The built-in scene `name` at `scale` (1 = the talk's size; body counts scale linearly).
+pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(SceneError::BadScale(scale));
+    }
+    match name {
+        "falling-boxes" => Ok(falling_boxes(scale)),
+        "stacked-boxes" => Ok(stacked_boxes(scale)),
+        _ => Err(SceneError::UnknownScene(name.to_string())),
+    }
+}
+
+fn ground() -> BodyDesc {
+    BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)).name("ground")
+}
+
+/// Bullet's BenchmarkDemo test 1: boxes of 2 m on a 3 m pitch, layer after layer, each layer
+/// shifted a little so the boxes do not land square on each other.
+fn falling_boxes(scale: f32) -> Scene {
+    const HALF_EXTENT: f32 = 1.0;
+    const PITCH: f32 = 3.0;
+    let target = 3008.0 * scale;
+    let side = ((8.0 * scale.cbrt()).round() as usize).max(1);
+    let layers = ((target / (side * side) as f32).round() as usize).max(1);
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    let mut offset = -(side as f32) * PITCH * 0.5;
+    let mut y = 2.0 * HALF_EXTENT;
+    for _ in 0..layers {
+        for j in 0..side {
+            for i in 0..side {
+                let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
+                scene.bodies.push(BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF_EXTENT))).position(position));
+            }
+        }
+        offset -= 0.05 * (side as f32 - 1.0);
+        y += PITCH;
+    }
+    scene
+}
+
+/// A square pyramid, a brick wall and a tower of 1 m boxes, all resting on the ground.
+fn stacked_boxes(scale: f32) -> Scene {
+    const HALF: f32 = 0.5;
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    // Up to scale 1 the structures shrink (about scale³ of the boxes per dimension cubed);
+    // past it, whole copies are set side by side.
+    let (size, copies) = if scale < 1.0 { (scale.cbrt(), 1) } else { (1.0, scale.round() as usize) };
+    let grid = (copies as f32).sqrt().ceil() as usize;
+    let cube = |position: Vec3| BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF))).position(position);
+    for copy in 0..copies {
+        let origin = Vec3::new((copy % grid) as f32 * 60.0, 0.0, (copy / grid) as f32 * 60.0);
+        // Pyramid: square layers base², (base−1)², ..., 1.
+        let base = ((11.0 * size).round() as usize).max(1);
+        for layer in 0..base {
+            let n = base - layer;
+            let start = -(n as f32 - 1.0) * 0.5;
+            for j in 0..n {
+                for i in 0..n {
+                    let p = Vec3::new(start + i as f32, HALF + layer as f32, start + j as f32);
+                    scene.bodies.push(cube(origin + p));
+                }
+            }
+        }
+        // Brick wall along x, every other row shifted by half a box.
+        let width = ((24.0 * size).round() as usize).max(1);
+        let height = ((16.0 * size).round() as usize).max(1);
+        for row in 0..height {
+            let shift = if row % 2 == 1 { 0.5 } else { 0.0 };
+            for i in 0..width {
+                let p = Vec3::new(-(width as f32) * 0.5 + i as f32 + shift, HALF + row as f32, -12.0);
+                scene.bodies.push(cube(origin + p));
+            }
+        }
+        // Tower: 2 x 2 boxes per layer.
+        let layers = ((28.0 * size).round() as usize).max(1);
+        for layer in 0..layers {
+            for k in 0..4 {
+                let p = Vec3::new(12.0 + (k % 2) as f32 - 0.5, HALF + layer as f32, (k / 2) as f32 - 0.5);
+                scene.bodies.push(cube(origin + p));
+            }
+        }
+    }
+    scene
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn talk_sizes() {
+        assert_eq!(builtin("falling-boxes", 1.0).unwrap().bodies.len(), 3008 + 1);
+        let stacked = builtin("stacked-boxes", 1.0).unwrap().bodies.len() - 1;
+        assert!((950..=1050).contains(&stacked), "{stacked} boxes");
+    }
+
+    #[test]
+    fn bad_names_and_scales_are_errors() {
+        assert!(matches!(builtin("nope", 1.0), Err(SceneError::UnknownScene(_))));
+        assert!(matches!(builtin("falling-boxes", 0.0), Err(SceneError::BadScale(_))));
+        assert!(matches!(builtin("falling-boxes", f32::NAN), Err(SceneError::BadScale(_))));
+    }
+}

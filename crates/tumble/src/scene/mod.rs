@@ -1,0 +1,8 @@
+//! Scenes: the JSON scene format v1 (DESIGN.md), loading into a [`World`], dumping a world back
+//! to a scene that continues the run, and the built-in scenes of the talk.
+
+pub mod builtin;
+pub mod format;
+
+pub use builtin::{BUILTIN_SCENES, builtin};
+pub use format::{Scene, SceneError, SceneFile};
