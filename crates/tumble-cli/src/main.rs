@@ -6,7 +6,11 @@ use std::process::ExitCode;
 use tumble::scene::{BUILTIN_SCENES, Scene, builtin};
 
 #[derive(Parser)]
-#[command(name = "tumble", version, about = "Rigid-body physics on the GPU or the CPU, after Bullet's GPU pipeline")]
+#[command(
+    name = "tumble",
+    version,
+    about = "Rigid-body physics on the GPU or the CPU, after Bullet's GPU pipeline"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -41,7 +45,7 @@ struct RunArgs {
     #[arg(long, default_value_t = 300)]
     steps: u32,
     /// Size of a built-in scene (1 = the talk's size).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     scale: f32,
     /// CPU worker threads (default: all cores).
     #[arg(long)]
@@ -58,7 +62,16 @@ struct RunArgs {
 }
 
 /// Stage names a `--stages` list may assign.
-const STAGES: &[&str] = &["aabb", "broadphase", "pairs", "narrowphase", "constraints", "batching", "solver", "integrate"];
+const STAGES: &[&str] = &[
+    "aabb",
+    "broadphase",
+    "pairs",
+    "narrowphase",
+    "constraints",
+    "batching",
+    "solver",
+    "integrate",
+];
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
@@ -92,19 +105,27 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
 /// The device the step runs on, after `--device` and `--stages`. The GPU step does not exist
 /// yet, so asking for it is a clear error and `auto` means the CPU.
 fn resolve_device(args: &RunArgs) -> Result<&'static str, String> {
-    const NO_GPU: &str = "the GPU step is not implemented yet (see the GPU issues); run with --device cpu";
+    const NO_GPU: &str =
+        "the GPU step is not implemented yet (see the GPU issues); run with --device cpu";
     if let Some(stages) = &args.stages {
         for assignment in stages.split(',').filter(|s| !s.is_empty()) {
-            let (stage, device) = assignment
-                .split_once('=')
-                .ok_or_else(|| format!("--stages: {assignment:?} is not stage=device (e.g. broadphase=cpu)"))?;
+            let (stage, device) = assignment.split_once('=').ok_or_else(|| {
+                format!("--stages: {assignment:?} is not stage=device (e.g. broadphase=cpu)")
+            })?;
             if !STAGES.contains(&stage) {
-                return Err(format!("--stages: unknown stage {stage:?}; stages are {}", STAGES.join(", ")));
+                return Err(format!(
+                    "--stages: unknown stage {stage:?}; stages are {}",
+                    STAGES.join(", ")
+                ));
             }
             match device {
                 "cpu" => {}
                 "gpu" => return Err(format!("--stages {stage}=gpu: {NO_GPU}")),
-                other => return Err(format!("--stages: unknown device {other:?} for {stage}; use cpu or gpu")),
+                other => {
+                    return Err(format!(
+                        "--stages: unknown device {other:?} for {stage}; use cpu or gpu"
+                    ));
+                }
             }
         }
     }
@@ -120,7 +141,10 @@ fn run(args: &RunArgs) -> Result<(), String> {
         if threads == 0 {
             return Err("--threads must be at least 1".into());
         }
-        rayon::ThreadPoolBuilder::new().num_threads(threads).build_global().map_err(|e| e.to_string())?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global()
+            .map_err(|e| e.to_string())?;
     }
     let scene = load_scene(&args.scene, args.scale)?;
     let mut world = scene.build().map_err(|e| e.to_string())?;
@@ -143,17 +167,25 @@ fn run(args: &RunArgs) -> Result<(), String> {
             stats.contacts,
             stats.max_penetration
         );
-        println!("batches on {device} ({} constraints per batch):", stats.batch_histogram.len());
+        println!(
+            "batches on {device} ({} constraints per batch):",
+            stats.batch_histogram.len()
+        );
         for (batch, count) in stats.batch_histogram.iter().enumerate() {
             println!("{batch:4} : {count}");
         }
     }
     if let Some(path) = &args.dump {
-        Scene::from_world(&world).save(path).map_err(|e| e.to_string())?;
+        Scene::from_world(&world)
+            .save(path)
+            .map_err(|e| e.to_string())?;
     }
     if args.json {
-        let stage_ms: serde_json::Map<String, serde_json::Value> =
-            report.stage_ms().into_iter().map(|(name, ms)| (name.to_string(), ms.into())).collect();
+        let stage_ms: serde_json::Map<String, serde_json::Value> = report
+            .stage_ms()
+            .into_iter()
+            .map(|(name, ms)| (name.to_string(), ms.into()))
+            .collect();
         let summary = serde_json::json!({
             "scene": args.scene,
             "bodies": world.body_count(),

@@ -10,13 +10,19 @@ pub const G: f32 = 9.81;
 pub fn world_with_ground(friction: f32, restitution: f32) -> World {
     let mut world = World::new(StepConfig::default()).unwrap();
     world
-        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)).friction(friction).restitution(restitution))
+        .add_body(
+            BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0))
+                .friction(friction)
+                .restitution(restitution),
+        )
         .unwrap();
     world
 }
 
 pub fn unit_box(world: &mut World, position: Vec3) -> BodyHandle {
-    world.add_body(BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position)).unwrap()
+    world
+        .add_body(BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position))
+        .unwrap()
 }
 
 pub fn run(world: &mut World, seconds: f32) {
@@ -28,5 +34,8 @@ pub fn run(world: &mut World, seconds: f32) {
 
 /// Angle between two rotations (rad).
 pub fn angle_between(a: Quat, b: Quat) -> f32 {
-    (a.inverse() * b).to_axis_angle().1.min(std::f32::consts::TAU - (a.inverse() * b).to_axis_angle().1)
+    (a.inverse() * b)
+        .to_axis_angle()
+        .1
+        .min(std::f32::consts::TAU - (a.inverse() * b).to_axis_angle().1)
 }

@@ -11,7 +11,11 @@ fn ball_rebounds_to_e_squared_of_its_height() {
     let radius = 0.1;
     let mut world = world_with_ground(0.5, e);
     let ball = world
-        .add_body(BodyDesc::dynamic(Shape::sphere(radius)).position(Vec3::new(0.0, 1.0 + radius, 0.0)).restitution(e))
+        .add_body(
+            BodyDesc::dynamic(Shape::sphere(radius))
+                .position(Vec3::new(0.0, 1.0 + radius, 0.0))
+                .restitution(e),
+        )
         .unwrap();
     // Fall (≈0.45 s), bounce, and track the highest point of the first rebound.
     let mut bounced = false;
@@ -29,21 +33,44 @@ fn ball_rebounds_to_e_squared_of_its_height() {
     }
     assert!(bounced, "the ball never bounced");
     let expected = e * e;
-    assert!((apex - expected).abs() / expected < 0.1, "rebound to {apex} m, expected {expected} m");
+    assert!(
+        (apex - expected).abs() / expected < 0.1,
+        "rebound to {apex} m, expected {expected} m"
+    );
 }
 
 #[test]
 fn equal_balls_exchange_velocities_and_keep_momentum() {
-    let config = StepConfig { gravity: Vec3::ZERO, ..StepConfig::default() };
+    let config = StepConfig {
+        gravity: Vec3::ZERO,
+        ..StepConfig::default()
+    };
     let mut world = World::new(config).unwrap();
-    let ball = |x: f32, v: f32| BodyDesc::dynamic(Shape::sphere(0.5)).position(Vec3::new(x, 0.0, 0.0)).linear_velocity(Vec3::new(v, 0.0, 0.0)).restitution(1.0);
+    let ball = |x: f32, v: f32| {
+        BodyDesc::dynamic(Shape::sphere(0.5))
+            .position(Vec3::new(x, 0.0, 0.0))
+            .linear_velocity(Vec3::new(v, 0.0, 0.0))
+            .restitution(1.0)
+    };
     let a = world.add_body(ball(-2.0, 3.0)).unwrap();
     let b = world.add_body(ball(2.0, 0.0)).unwrap();
-    let momentum = |world: &World| world.linear_velocity(a).unwrap() + world.linear_velocity(b).unwrap();
+    let momentum =
+        |world: &World| world.linear_velocity(a).unwrap() + world.linear_velocity(b).unwrap();
     let before = momentum(&world);
     run(&mut world, 2.0);
-    let (va, vb) = (world.linear_velocity(a).unwrap(), world.linear_velocity(b).unwrap());
-    assert!((momentum(&world) - before).length() < 1e-5, "momentum {} → {}", before, momentum(&world));
+    let (va, vb) = (
+        world.linear_velocity(a).unwrap(),
+        world.linear_velocity(b).unwrap(),
+    );
+    assert!(
+        (momentum(&world) - before).length() < 1e-5,
+        "momentum {} → {}",
+        before,
+        momentum(&world)
+    );
     assert!(va.length() < 1e-4, "a keeps {va}");
-    assert!((vb - Vec3::new(3.0, 0.0, 0.0)).length() < 1e-4, "b moves at {vb}");
+    assert!(
+        (vb - Vec3::new(3.0, 0.0, 0.0)).length() < 1e-4,
+        "b moves at {vb}"
+    );
 }

@@ -38,7 +38,11 @@ const _: () = assert!(size_of::<BodyPose>() == 32);
 
 impl BodyPose {
     pub fn new(position: Vec3, rotation: Quat) -> Self {
-        Self { position, _pad: 0.0, rotation }
+        Self {
+            position,
+            _pad: 0.0,
+            rotation,
+        }
     }
 
     pub fn transform(&self) -> crate::math::Transform {
@@ -59,7 +63,12 @@ const _: () = assert!(size_of::<BodyVelocity>() == 32);
 
 impl BodyVelocity {
     pub fn new(linear: Vec3, angular: Vec3) -> Self {
-        Self { linear, _pad0: 0.0, angular, _pad1: 0.0 }
+        Self {
+            linear,
+            _pad0: 0.0,
+            angular,
+            _pad1: 0.0,
+        }
     }
 }
 
@@ -127,7 +136,10 @@ impl BodyDesc {
 
     /// A static body: it never moves and has infinite mass.
     pub fn fixed(shape: Shape) -> Self {
-        Self { mass: 0.0, ..Self::dynamic(shape) }
+        Self {
+            mass: 0.0,
+            ..Self::dynamic(shape)
+        }
     }
 
     pub fn position(mut self, position: Vec3) -> Self {
@@ -177,7 +189,11 @@ impl BodyDesc {
     /// Checks the description; `Err` names the offending field.
     pub fn validate(&self) -> Result<(), BodyError> {
         let finite = |field: &'static str, values: &[f32]| {
-            if values.iter().all(|v| v.is_finite()) { Ok(()) } else { Err(BodyError::NotFinite { field }) }
+            if values.iter().all(|v| v.is_finite()) {
+                Ok(())
+            } else {
+                Err(BodyError::NotFinite { field })
+            }
         };
         finite("position", &self.position.to_array())?;
         finite("rotation", &self.rotation.to_array())?;
@@ -190,10 +206,16 @@ impl BodyDesc {
             return Err(BodyError::ZeroRotation);
         }
         if self.mass < 0.0 {
-            return Err(BodyError::Negative { field: "mass", value: self.mass });
+            return Err(BodyError::Negative {
+                field: "mass",
+                value: self.mass,
+            });
         }
         if self.friction < 0.0 {
-            return Err(BodyError::Negative { field: "friction", value: self.friction });
+            return Err(BodyError::Negative {
+                field: "friction",
+                value: self.friction,
+            });
         }
         if !(0.0..=1.0).contains(&self.restitution) {
             return Err(BodyError::RestitutionOutOfRange(self.restitution));
@@ -218,14 +240,23 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
     };
     match shape {
         Shape::Sphere(s) => positive("radius", s.radius),
-        Shape::Cuboid(c) => c.half_extents.to_array().iter().try_for_each(|&e| positive("half_extents", e)),
+        Shape::Cuboid(c) => c
+            .half_extents
+            .to_array()
+            .iter()
+            .try_for_each(|&e| positive("half_extents", e)),
         Shape::Capsule(c) => {
             positive("radius", c.radius)?;
             if !c.half_height.is_finite() {
-                return Err(BodyError::NotFinite { field: "half_height" });
+                return Err(BodyError::NotFinite {
+                    field: "half_height",
+                });
             }
             if c.half_height < 0.0 {
-                return Err(BodyError::Negative { field: "half_height", value: c.half_height });
+                return Err(BodyError::Negative {
+                    field: "half_height",
+                    value: c.half_height,
+                });
             }
             Ok(())
         }
@@ -264,6 +295,19 @@ pub enum BodyError {
     DuplicateName(String),
 }
 
+impl BodyError {
+    /// The problem without the field's name, for callers that name the field themselves
+    /// (the scene loader writes `bodies[3].mass: must be >= 0, got -1`).
+    pub fn requirement(&self) -> String {
+        match self {
+            BodyError::NotFinite { .. } => "must be finite (no NaN or infinity)".into(),
+            BodyError::NotPositive { value, .. } => format!("must be > 0, got {value}"),
+            BodyError::Negative { value, .. } => format!("must be >= 0, got {value}"),
+            other => other.to_string(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -271,13 +315,47 @@ mod tests {
     #[test]
     fn bad_descriptions_name_the_problem() {
         let unit_box = || BodyDesc::dynamic(Shape::cuboid(Vec3::ONE));
-        assert_eq!(unit_box().position(Vec3::new(f32::NAN, 0.0, 0.0)).validate(), Err(BodyError::NotFinite { field: "position" }));
-        assert_eq!(unit_box().mass(-1.0).validate(), Err(BodyError::Negative { field: "mass", value: -1.0 }));
-        assert_eq!(BodyDesc::dynamic(Shape::cuboid(Vec3::new(1.0, 0.0, 1.0))).validate(), Err(BodyError::NotPositive { field: "half_extents", value: 0.0 }));
-        assert_eq!(BodyDesc::dynamic(Shape::sphere(-1.0)).validate(), Err(BodyError::NotPositive { field: "radius", value: -1.0 }));
-        assert_eq!(BodyDesc::dynamic(Shape::plane(Vec3::Y, 0.0)).validate(), Err(BodyError::DynamicPlane));
-        assert_eq!(BodyDesc::fixed(Shape::plane(Vec3::ZERO, 0.0)).validate(), Err(BodyError::ZeroNormal));
-        assert_eq!(unit_box().rotation(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0)).validate(), Err(BodyError::ZeroRotation));
+        assert_eq!(
+            unit_box()
+                .position(Vec3::new(f32::NAN, 0.0, 0.0))
+                .validate(),
+            Err(BodyError::NotFinite { field: "position" })
+        );
+        assert_eq!(
+            unit_box().mass(-1.0).validate(),
+            Err(BodyError::Negative {
+                field: "mass",
+                value: -1.0
+            })
+        );
+        assert_eq!(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::new(1.0, 0.0, 1.0))).validate(),
+            Err(BodyError::NotPositive {
+                field: "half_extents",
+                value: 0.0
+            })
+        );
+        assert_eq!(
+            BodyDesc::dynamic(Shape::sphere(-1.0)).validate(),
+            Err(BodyError::NotPositive {
+                field: "radius",
+                value: -1.0
+            })
+        );
+        assert_eq!(
+            BodyDesc::dynamic(Shape::plane(Vec3::Y, 0.0)).validate(),
+            Err(BodyError::DynamicPlane)
+        );
+        assert_eq!(
+            BodyDesc::fixed(Shape::plane(Vec3::ZERO, 0.0)).validate(),
+            Err(BodyError::ZeroNormal)
+        );
+        assert_eq!(
+            unit_box()
+                .rotation(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0))
+                .validate(),
+            Err(BodyError::ZeroRotation)
+        );
         assert!(unit_box().validate().is_ok());
     }
 }

@@ -71,7 +71,10 @@ impl StepConfig {
             if !value.is_finite() {
                 Err(ConfigError::NotFinite { field })
             } else if value <= 0.0 {
-                Err(ConfigError::NotPositive { field, value: value as f64 })
+                Err(ConfigError::NotPositive {
+                    field,
+                    value: value as f64,
+                })
             } else {
                 Ok(())
             }
@@ -80,14 +83,20 @@ impl StepConfig {
             if !value.is_finite() {
                 Err(ConfigError::NotFinite { field })
             } else if value < 0.0 {
-                Err(ConfigError::Negative { field, value: value as f64 })
+                Err(ConfigError::Negative {
+                    field,
+                    value: value as f64,
+                })
             } else {
                 Ok(())
             }
         };
         positive("dt", self.dt)?;
         if self.substeps == 0 {
-            return Err(ConfigError::NotPositive { field: "substeps", value: 0.0 });
+            return Err(ConfigError::NotPositive {
+                field: "substeps",
+                value: 0.0,
+            });
         }
         non_negative("contact_margin", self.contact_margin)?;
         non_negative("penetration_slop", self.penetration_slop)?;

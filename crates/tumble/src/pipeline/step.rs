@@ -3,7 +3,9 @@
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::world::{StepStats, World};
 use crate::stages::batching::{Batches, color_constraints};
-use crate::stages::constraints::{ContactConstraint, RowInputs, build_constraints, world_inverse_inertia};
+use crate::stages::constraints::{
+    ContactConstraint, RowInputs, build_constraints, world_inverse_inertia,
+};
 use crate::stages::solver::{SolverBody, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
 
@@ -28,7 +30,14 @@ impl World {
         let profiler = &mut self.profiler;
 
         // 1. World AABBs, grown by the speculative contact margin.
-        profiler.scope("aabb", || aabb::compute_aabbs(&self.poses, &self.colliders, config.contact_margin, &mut scratch.aabbs));
+        profiler.scope("aabb", || {
+            aabb::compute_aabbs(
+                &self.poses,
+                &self.colliders,
+                config.contact_margin,
+                &mut scratch.aabbs,
+            )
+        });
 
         // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
         profiler.begin("broadphase");
@@ -42,7 +51,13 @@ impl World {
         // 4. Narrowphase: fresh manifolds, impulses carried over by feature id.
         profiler.scope("narrowphase", || {
             let (keys, contacts) = self.pairs.keys_and_values_mut();
-            narrowphase::update_contacts(keys, contacts, &self.poses, &self.colliders, config.contact_margin)
+            narrowphase::update_contacts(
+                keys,
+                contacts,
+                &self.poses,
+                &self.colliders,
+                config.contact_margin,
+            )
         });
 
         // 5. Constraint rows.
@@ -59,19 +74,36 @@ impl World {
             push_factor: config.push_factor,
             max_push_velocity: config.max_push_velocity,
         };
-        build_constraints(self.pairs.keys(), self.pairs.values(), &inputs, &mut scratch.constraints);
+        build_constraints(
+            self.pairs.keys(),
+            self.pairs.values(),
+            &inputs,
+            &mut scratch.constraints,
+        );
         profiler.end();
 
         // 6. Batching by graph coloring, then the constraints laid out batch after batch.
         profiler.scope("batching", || {
             color_constraints(&scratch.constraints, self.poses.len(), &mut scratch.batches);
             scratch.batched.clear();
-            scratch.batched.extend(scratch.batches.order.iter().map(|&i| scratch.constraints[i as usize]));
+            scratch.batched.extend(
+                scratch
+                    .batches
+                    .order
+                    .iter()
+                    .map(|&i| scratch.constraints[i as usize]),
+            );
         });
 
         // 7. Solver: gravity into the velocities, then projected Gauss-Seidel over the batches.
         profiler.begin("solver");
-        integrate::integrate_velocities(&self.velocities, &self.masses, config.gravity, dt, &mut scratch.solver_bodies);
+        integrate::integrate_velocities(
+            &self.velocities,
+            &self.masses,
+            config.gravity,
+            dt,
+            &mut scratch.solver_bodies,
+        );
         let settings = SolverSettings {
             iterations: config.solver_iterations,
             restitution_threshold: config.restitution_threshold,
@@ -88,10 +120,20 @@ impl World {
 
         // 8. Integrate positions from the solved velocities (+ split-impulse pseudo-velocities).
         profiler.scope("integrate", || {
-            integrate::integrate_positions(&scratch.solver_bodies, dt, &mut self.poses, &mut self.velocities)
+            integrate::integrate_positions(
+                &scratch.solver_bodies,
+                dt,
+                &mut self.poses,
+                &mut self.velocities,
+            )
         });
 
-        self.stats = collect_stats(&scratch.pair_keys, &self.pairs, &scratch.batched, &scratch.batches);
+        self.stats = collect_stats(
+            &scratch.pair_keys,
+            &self.pairs,
+            &scratch.batched,
+            &scratch.batches,
+        );
     }
 }
 
@@ -99,7 +141,11 @@ impl World {
 fn store_impulses(constraints: &[ContactConstraint], contacts: &mut [narrowphase::PairContact]) {
     for constraint in constraints {
         let contact = &mut contacts[constraint.pair as usize];
-        for (impulse, point) in contact.impulses.iter_mut().zip(&constraint.points[..constraint.point_count as usize]) {
+        for (impulse, point) in contact
+            .impulses
+            .iter_mut()
+            .zip(&constraint.points[..constraint.point_count as usize])
+        {
             impulse.normal = point.normal.impulse;
             impulse.tangent = [point.tangent[0].impulse, point.tangent[1].impulse];
         }

@@ -15,7 +15,9 @@
 //! assert!((height - 0.5).abs() < 0.01, "the ball rests on the ground: y = {height}");
 //! ```
 
-use crate::dynamics::body::{BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider};
+use crate::dynamics::body::{
+    BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
+};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
@@ -121,11 +123,26 @@ impl World {
         }
         let dynamic = !desc.is_static();
         let pose = BodyPose::new(desc.position, desc.rotation.normalize());
-        let velocity = if dynamic { BodyVelocity::new(desc.linear_velocity, desc.angular_velocity) } else { BodyVelocity::default() };
+        let velocity = if dynamic {
+            BodyVelocity::new(desc.linear_velocity, desc.angular_velocity)
+        } else {
+            BodyVelocity::default()
+        };
         let mass_properties = desc.shape.mass_properties(desc.mass);
-        let mass = BodyMass { inverse_inertia: mass_properties.inverse_inertia, inverse_mass: mass_properties.inverse_mass };
-        let collider = Collider { shape: desc.shape, friction: desc.friction, restitution: desc.restitution };
-        let state = if dynamic { SlotState::Dynamic } else { SlotState::Static };
+        let mass = BodyMass {
+            inverse_inertia: mass_properties.inverse_inertia,
+            inverse_mass: mass_properties.inverse_mass,
+        };
+        let collider = Collider {
+            shape: desc.shape,
+            friction: desc.friction,
+            restitution: desc.restitution,
+        };
+        let state = if dynamic {
+            SlotState::Dynamic
+        } else {
+            SlotState::Static
+        };
         let index = match self.free_slots.pop() {
             Some(index) => {
                 let i = index as usize;
@@ -144,13 +161,24 @@ impl World {
                 self.velocities.push(velocity);
                 self.masses.push(mass);
                 self.colliders.push(collider);
-                self.slots.push(Slot { generation: 0, state, mass: desc.mass, name: desc.name });
+                self.slots.push(Slot {
+                    generation: 0,
+                    state,
+                    mass: desc.mass,
+                    name: desc.name,
+                });
                 (self.slots.len() - 1) as u32
             }
         };
-        let aabb = collider.shape.aabb(&pose.transform()).expanded(self.config.contact_margin);
+        let aabb = collider
+            .shape
+            .aabb(&pose.transform())
+            .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
-        Ok(BodyHandle { index, generation: self.slots[index as usize].generation })
+        Ok(BodyHandle {
+            index,
+            generation: self.slots[index as usize].generation,
+        })
     }
 
     /// Removes a body; its contacts go with it at the next step.
@@ -190,7 +218,10 @@ impl World {
             .iter()
             .enumerate()
             .filter(|(_, slot)| slot.state != SlotState::Free)
-            .map(|(index, slot)| BodyHandle { index: index as u32, generation: slot.generation })
+            .map(|(index, slot)| BodyHandle {
+                index: index as u32,
+                generation: slot.generation,
+            })
     }
 
     /// The body named `name`, if any.
@@ -198,7 +229,10 @@ impl World {
         self.slots
             .iter()
             .position(|slot| slot.state != SlotState::Free && slot.name.as_deref() == Some(name))
-            .map(|index| BodyHandle { index: index as u32, generation: self.slots[index].generation })
+            .map(|index| BodyHandle {
+                index: index as u32,
+                generation: self.slots[index].generation,
+            })
     }
 
     pub fn pose(&self, handle: BodyHandle) -> Result<Transform, BodyError> {
@@ -214,7 +248,12 @@ impl World {
     }
 
     /// Sets a dynamic body's velocities (static bodies ignore this).
-    pub fn set_velocity(&mut self, handle: BodyHandle, linear: Vec3, angular: Vec3) -> Result<(), BodyError> {
+    pub fn set_velocity(
+        &mut self,
+        handle: BodyHandle,
+        linear: Vec3,
+        angular: Vec3,
+    ) -> Result<(), BodyError> {
         let i = self.check(handle)?;
         if !(linear.is_finite() && angular.is_finite()) {
             return Err(BodyError::NotFinite { field: "velocity" });
@@ -228,7 +267,12 @@ impl World {
     /// The description the body would be re-created from now (current pose and velocity).
     pub fn body_desc(&self, handle: BodyHandle) -> Result<BodyDesc, BodyError> {
         let i = self.check(handle)?;
-        let (pose, velocity, collider, slot) = (&self.poses[i], &self.velocities[i], &self.colliders[i], &self.slots[i]);
+        let (pose, velocity, collider, slot) = (
+            &self.poses[i],
+            &self.velocities[i],
+            &self.colliders[i],
+            &self.slots[i],
+        );
         Ok(BodyDesc {
             shape: collider.shape,
             position: pose.position,
@@ -285,30 +329,52 @@ impl World {
 
     /// Persistent contacts as (body A, body B, pair data), in pair order.
     pub fn contacts(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, &PairContact)> + '_ {
-        self.pairs.keys().iter().zip(self.pairs.values()).filter(|(_, c)| c.manifold.count > 0).map(|(&key, contact)| {
-            let (a, b) = crate::stages::pairs::pair_bodies(key);
-            (self.handle_of(a), self.handle_of(b), contact)
-        })
+        self.pairs
+            .keys()
+            .iter()
+            .zip(self.pairs.values())
+            .filter(|(_, c)| c.manifold.count > 0)
+            .map(|(&key, contact)| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                (self.handle_of(a), self.handle_of(b), contact)
+            })
     }
 
     /// Seeds the warm-start impulses of a pair (used when loading a dumped scene, so the run
     /// continues bitwise). The manifold is recomputed at the next step; points keep these
     /// impulses where their feature ids match.
-    pub fn restore_contact(&mut self, a: BodyHandle, b: BodyHandle, contact: PairContact) -> Result<(), BodyError> {
+    pub fn restore_contact(
+        &mut self,
+        a: BodyHandle,
+        b: BodyHandle,
+        contact: PairContact,
+    ) -> Result<(), BodyError> {
         let (ia, ib) = (self.check(a)?, self.check(b)?);
         let key = crate::stages::pairs::pair_key(ia as u32, ib as u32);
-        let contact = if ia < ib { contact } else { PairContact { manifold: contact.manifold.flipped(), ..contact } };
+        let contact = if ia < ib {
+            contact
+        } else {
+            PairContact {
+                manifold: contact.manifold.flipped(),
+                ..contact
+            }
+        };
         self.pairs.insert(key, contact);
         Ok(())
     }
 
     pub(crate) fn handle_of(&self, index: u32) -> BodyHandle {
-        BodyHandle { index, generation: self.slots[index as usize].generation }
+        BodyHandle {
+            index,
+            generation: self.slots[index as usize].generation,
+        }
     }
 
     fn check(&self, handle: BodyHandle) -> Result<usize, BodyError> {
         match self.slots.get(handle.index as usize) {
-            Some(slot) if slot.generation == handle.generation && slot.state != SlotState::Free => Ok(handle.index as usize),
+            Some(slot) if slot.generation == handle.generation && slot.state != SlotState::Free => {
+                Ok(handle.index as usize)
+            }
             _ => Err(BodyError::StaleHandle),
         }
     }

@@ -9,8 +9,14 @@ use crate::shape::Shape;
 
 /// Built-in scene names with a line on each.
 pub const BUILTIN_SCENES: &[(&str, &str)] = &[
-    ("falling-boxes", "3008 boxes (47 layers of 8 x 8) falling on a ground plane"),
-    ("stacked-boxes", "about 1000 boxes at rest: a pyramid, a brick wall and a tower"),
+    (
+        "falling-boxes",
+        "3008 boxes (47 layers of 8 x 8) falling on a ground plane",
+    ),
+    (
+        "stacked-boxes",
+        "about 1000 boxes at rest: a pyramid, a brick wall and a tower",
+    ),
 ];
 
 /// The built-in scene `name` at `scale` (1 = the talk's size; body counts scale linearly).
@@ -45,7 +51,9 @@ fn falling_boxes(scale: f32) -> Scene {
         for j in 0..side {
             for i in 0..side {
                 let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
-                scene.bodies.push(BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF_EXTENT))).position(position));
+                scene.bodies.push(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF_EXTENT))).position(position),
+                );
             }
         }
         offset -= 0.05 * (side as f32 - 1.0);
@@ -61,11 +69,20 @@ fn stacked_boxes(scale: f32) -> Scene {
     scene.bodies.push(ground());
     // Up to scale 1 the structures shrink (about scale³ of the boxes per dimension cubed);
     // past it, whole copies are set side by side.
-    let (size, copies) = if scale < 1.0 { (scale.cbrt(), 1) } else { (1.0, scale.round() as usize) };
+    let (size, copies) = if scale < 1.0 {
+        (scale.cbrt(), 1)
+    } else {
+        (1.0, scale.round() as usize)
+    };
     let grid = (copies as f32).sqrt().ceil() as usize;
-    let cube = |position: Vec3| BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF))).position(position);
+    let cube =
+        |position: Vec3| BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF))).position(position);
     for copy in 0..copies {
-        let origin = Vec3::new((copy % grid) as f32 * 60.0, 0.0, (copy / grid) as f32 * 60.0);
+        let origin = Vec3::new(
+            (copy % grid) as f32 * 60.0,
+            0.0,
+            (copy / grid) as f32 * 60.0,
+        );
         // Pyramid: square layers base², (base−1)², ..., 1.
         let base = ((11.0 * size).round() as usize).max(1);
         for layer in 0..base {
@@ -84,7 +101,11 @@ fn stacked_boxes(scale: f32) -> Scene {
         for row in 0..height {
             let shift = if row % 2 == 1 { 0.5 } else { 0.0 };
             for i in 0..width {
-                let p = Vec3::new(-(width as f32) * 0.5 + i as f32 + shift, HALF + row as f32, -12.0);
+                let p = Vec3::new(
+                    -(width as f32) * 0.5 + i as f32 + shift,
+                    HALF + row as f32,
+                    -12.0,
+                );
                 scene.bodies.push(cube(origin + p));
             }
         }
@@ -92,7 +113,11 @@ fn stacked_boxes(scale: f32) -> Scene {
         let layers = ((28.0 * size).round() as usize).max(1);
         for layer in 0..layers {
             for k in 0..4 {
-                let p = Vec3::new(12.0 + (k % 2) as f32 - 0.5, HALF + layer as f32, (k / 2) as f32 - 0.5);
+                let p = Vec3::new(
+                    12.0 + (k % 2) as f32 - 0.5,
+                    HALF + layer as f32,
+                    (k / 2) as f32 - 0.5,
+                );
                 scene.bodies.push(cube(origin + p));
             }
         }
@@ -106,15 +131,27 @@ mod tests {
 
     #[test]
     fn talk_sizes() {
-        assert_eq!(builtin("falling-boxes", 1.0).unwrap().bodies.len(), 3008 + 1);
+        assert_eq!(
+            builtin("falling-boxes", 1.0).unwrap().bodies.len(),
+            3008 + 1
+        );
         let stacked = builtin("stacked-boxes", 1.0).unwrap().bodies.len() - 1;
         assert!((950..=1050).contains(&stacked), "{stacked} boxes");
     }
 
     #[test]
     fn bad_names_and_scales_are_errors() {
-        assert!(matches!(builtin("nope", 1.0), Err(SceneError::UnknownScene(_))));
-        assert!(matches!(builtin("falling-boxes", 0.0), Err(SceneError::BadScale(_))));
-        assert!(matches!(builtin("falling-boxes", f32::NAN), Err(SceneError::BadScale(_))));
+        assert!(matches!(
+            builtin("nope", 1.0),
+            Err(SceneError::UnknownScene(_))
+        ));
+        assert!(matches!(
+            builtin("falling-boxes", 0.0),
+            Err(SceneError::BadScale(_))
+        ));
+        assert!(matches!(
+            builtin("falling-boxes", f32::NAN),
+            Err(SceneError::BadScale(_))
+        ));
     }
 }

@@ -18,14 +18,22 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     #[error("cannot read scene file {path}: {source}")]
-    Io { path: String, source: std::io::Error },
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("cannot write {path}: {source}")]
-    Write { path: String, source: std::io::Error },
+    Write {
+        path: String,
+        source: std::io::Error,
+    },
     #[error("{field}: {message}")]
     Parse { field: String, message: String },
     #[error("{field}: {message}")]
     Invalid { field: String, message: String },
-    #[error("unknown scene {0:?}: give a JSON file or a built-in name (`tumble scenes` lists them)")]
+    #[error(
+        "unknown scene {0:?}: give a JSON file or a built-in name (`tumble scenes` lists them)"
+    )]
     UnknownScene(String),
     #[error("scale must be a positive finite number, got {0}")]
     BadScale(f32),
@@ -77,10 +85,21 @@ pub struct BodyFile {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", deny_unknown_fields)]
 pub enum ShapeFile {
-    Sphere { radius: f32 },
-    Box { half_extents: [f32; 3] },
-    Capsule { radius: f32, half_height: f32 },
-    Plane { normal: [f32; 3], #[serde(default)] offset: f32 },
+    Sphere {
+        radius: f32,
+    },
+    Box {
+        half_extents: [f32; 3],
+    },
+    Capsule {
+        radius: f32,
+        half_height: f32,
+    },
+    Plane {
+        normal: [f32; 3],
+        #[serde(default)]
+        offset: f32,
+    },
 }
 
 /// One persistent contact: the two bodies (indices into `bodies`) and its points' impulses.
@@ -134,12 +153,19 @@ pub struct Scene {
 impl Scene {
     /// An empty scene with the default settings.
     pub fn new(config: StepConfig) -> Self {
-        Self { config, bodies: Vec::new(), contacts: Vec::new() }
+        Self {
+            config,
+            bodies: Vec::new(),
+            contacts: Vec::new(),
+        }
     }
 
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.display().to_string(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.display().to_string(),
+            source,
+        })?;
         Self::from_json(&text)
     }
 
@@ -147,9 +173,21 @@ impl Scene {
     pub fn from_json(text: &str) -> Result<Self, SceneError> {
         let deserializer = &mut serde_json::Deserializer::from_str(text);
         let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|error| {
-            let field = error.path().to_string();
-            let field = if field == "." { "scene".to_string() } else { field };
-            SceneError::Parse { field, message: error.into_inner().to_string() }
+            let path = error.path().to_string();
+            let inner = error.into_inner();
+            // A syntax error before any field was reached: the file is not JSON at all.
+            let at_root = path == ".";
+            let field = if at_root { "scene".to_string() } else { path };
+            let syntax = matches!(
+                inner.classify(),
+                serde_json::error::Category::Syntax | serde_json::error::Category::Eof
+            );
+            let message = if at_root && syntax {
+                format!("not valid JSON: {inner}")
+            } else {
+                inner.to_string()
+            };
+            SceneError::Parse { field, message }
         })?;
         Self::from_file(&file)
     }
@@ -158,7 +196,10 @@ impl Scene {
     pub fn from_file(file: &SceneFile) -> Result<Self, SceneError> {
         let invalid = |field: String, message: String| SceneError::Invalid { field, message };
         if !file.joints.is_empty() {
-            return Err(invalid("joints".into(), "joints are not supported yet; remove them to run this scene".into()));
+            return Err(invalid(
+                "joints".into(),
+                "joints are not supported yet; remove them to run this scene".into(),
+            ));
         }
         let config = StepConfig {
             gravity: Vec3::from_array(file.gravity),
@@ -167,14 +208,20 @@ impl Scene {
             solver_iterations: file.solver_iterations,
             ..StepConfig::default()
         };
-        config.validate().map_err(|e| invalid("scene".into(), e.to_string()))?;
+        config
+            .validate()
+            .map_err(|e| invalid("scene".into(), e.to_string()))?;
         let mut names = std::collections::HashSet::new();
         let mut bodies = Vec::with_capacity(file.bodies.len());
         for (i, body) in file.bodies.iter().enumerate() {
-            let desc = body_desc(body).map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
+            let desc = body_desc(body)
+                .map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
             if let Some(name) = &desc.name {
                 if !names.insert(name.clone()) {
-                    return Err(invalid(format!("bodies[{i}].name"), format!("{name:?} is used by an earlier body; names must be unique")));
+                    return Err(invalid(
+                        format!("bodies[{i}].name"),
+                        format!("{name:?} is used by an earlier body; names must be unique"),
+                    ));
                 }
             }
             bodies.push(desc);
@@ -183,39 +230,75 @@ impl Scene {
         for (i, contact) in file.contacts.iter().enumerate() {
             let [a, b] = contact.bodies;
             if a >= bodies.len() || b >= bodies.len() || a == b {
-                return Err(invalid(format!("contacts[{i}].bodies"), format!("[{a}, {b}] must name two different bodies of the {} in `bodies`", bodies.len())));
+                return Err(invalid(
+                    format!("contacts[{i}].bodies"),
+                    format!(
+                        "[{a}, {b}] must name two different bodies of the {} in `bodies`",
+                        bodies.len()
+                    ),
+                ));
             }
             if contact.points.len() > crate::collision::manifold::MAX_MANIFOLD_POINTS {
-                return Err(invalid(format!("contacts[{i}].points"), "at most 4 points".into()));
+                return Err(invalid(
+                    format!("contacts[{i}].points"),
+                    "at most 4 points".into(),
+                ));
             }
             let mut pair = PairContact::default();
             for (j, point) in contact.points.iter().enumerate() {
-                let numbers = [point.normal_impulse, point.tangent_impulse[0], point.tangent_impulse[1]];
+                let numbers = [
+                    point.normal_impulse,
+                    point.tangent_impulse[0],
+                    point.tangent_impulse[1],
+                ];
                 if !numbers.iter().all(|v| v.is_finite()) {
-                    return Err(invalid(format!("contacts[{i}].points[{j}]"), "impulses must be finite".into()));
+                    return Err(invalid(
+                        format!("contacts[{i}].points[{j}]"),
+                        "impulses must be finite".into(),
+                    ));
                 }
-                pair.manifold.push(crate::collision::manifold::ContactPoint { id: point.id, ..Default::default() });
-                pair.impulses[j] = PointImpulse { normal: point.normal_impulse, tangent: point.tangent_impulse };
+                pair.manifold
+                    .push(crate::collision::manifold::ContactPoint {
+                        id: point.id,
+                        ..Default::default()
+                    });
+                pair.impulses[j] = PointImpulse {
+                    normal: point.normal_impulse,
+                    tangent: point.tangent_impulse,
+                };
             }
             contacts.push((a, b, pair));
         }
-        Ok(Scene { config, bodies, contacts })
+        Ok(Scene {
+            config,
+            bodies,
+            contacts,
+        })
     }
 
     /// Builds a world holding the scene's bodies, in order (body `i` gets slot `i`).
     pub fn build(&self) -> Result<World, SceneError> {
-        let mut world = World::new(self.config).map_err(|e| SceneError::Invalid { field: "scene".into(), message: e.to_string() })?;
+        let mut world = World::new(self.config).map_err(|e| SceneError::Invalid {
+            field: "scene".into(),
+            message: e.to_string(),
+        })?;
         let mut handles = Vec::with_capacity(self.bodies.len());
         for (i, desc) in self.bodies.iter().enumerate() {
             let handle = world
                 .add_body(desc.clone())
-                .map_err(|e| SceneError::Invalid { field: format!("bodies[{i}]"), message: e.to_string() })?;
+                .map_err(|e| SceneError::Invalid {
+                    field: format!("bodies[{i}]"),
+                    message: e.to_string(),
+                })?;
             handles.push(handle);
         }
         for (i, &(a, b, contact)) in self.contacts.iter().enumerate() {
             world
                 .restore_contact(handles[a], handles[b], contact)
-                .map_err(|e| SceneError::Invalid { field: format!("contacts[{i}]"), message: e.to_string() })?;
+                .map_err(|e| SceneError::Invalid {
+                    field: format!("contacts[{i}]"),
+                    message: e.to_string(),
+                })?;
         }
         Ok(world)
     }
@@ -236,7 +319,11 @@ impl Scene {
             .contacts()
             .filter_map(|(a, b, contact)| Some((*index_of.get(&a)?, *index_of.get(&b)?, *contact)))
             .collect();
-        Scene { config: *world.config(), bodies, contacts }
+        Scene {
+            config: *world.config(),
+            bodies,
+            contacts,
+        }
     }
 
     /// The scene as a JSON document.
@@ -276,7 +363,10 @@ impl Scene {
 
     /// Writes the scene as JSON to `path`.
     pub fn save(&self, path: &Path) -> Result<(), SceneError> {
-        std::fs::write(path, self.to_json()).map_err(|source| SceneError::Write { path: path.display().to_string(), source })
+        std::fs::write(path, self.to_json()).map_err(|source| SceneError::Write {
+            path: path.display().to_string(),
+            source,
+        })
     }
 }
 
@@ -285,12 +375,18 @@ fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
     let shape = match &body.shape {
         ShapeFile::Sphere { radius } => Shape::sphere(*radius),
         ShapeFile::Box { half_extents } => Shape::cuboid(Vec3::from_array(*half_extents)),
-        ShapeFile::Capsule { radius, half_height } => Shape::capsule(*radius, *half_height),
+        ShapeFile::Capsule {
+            radius,
+            half_height,
+        } => Shape::capsule(*radius, *half_height),
         ShapeFile::Plane { normal, offset } => Shape::plane(Vec3::from_array(*normal), *offset),
     };
     let mut rotation = Quat::from_array(body.rotation);
     // Normalize only what is visibly off unit length: a dumped rotation is kept bit for bit.
-    if rotation.is_finite() && rotation.length_squared() > 0.0 && (rotation.length_squared() - 1.0).abs() > 1e-5 {
+    if rotation.is_finite()
+        && rotation.length_squared() > 0.0
+        && (rotation.length_squared() - 1.0).abs() > 1e-5
+    {
         rotation = rotation.normalize();
     }
     let desc = BodyDesc {
@@ -304,7 +400,8 @@ fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
         restitution: body.restitution,
         name: body.name.clone(),
     };
-    desc.validate().map_err(|error| (field_of(&body.shape, &error), error.to_string()))?;
+    desc.validate()
+        .map_err(|error| (field_of(&body.shape, &error), error.requirement()))?;
     Ok(desc)
 }
 
@@ -317,13 +414,13 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         ShapeFile::Plane { .. } => "plane",
     };
     match error {
-        BodyError::NotFinite { field } | BodyError::NotPositive { field, .. } | BodyError::Negative { field, .. } => {
-            match *field {
-                "radius" | "half_extents" | "half_height" => format!("shape.{shape_name}.{field}"),
-                "plane" => "shape.plane".into(),
-                other => other.into(),
-            }
-        }
+        BodyError::NotFinite { field }
+        | BodyError::NotPositive { field, .. }
+        | BodyError::Negative { field, .. } => match *field {
+            "radius" | "half_extents" | "half_height" => format!("shape.{shape_name}.{field}"),
+            "plane" => "shape.plane".into(),
+            other => other.into(),
+        },
         BodyError::RestitutionOutOfRange(_) => "restitution".into(),
         BodyError::ZeroRotation => "rotation".into(),
         BodyError::ZeroNormal => "shape.plane.normal".into(),
@@ -335,9 +432,17 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
 fn body_file(desc: &BodyDesc) -> BodyFile {
     let shape = match desc.shape {
         Shape::Sphere(s) => ShapeFile::Sphere { radius: s.radius },
-        Shape::Cuboid(c) => ShapeFile::Box { half_extents: c.half_extents.to_array() },
-        Shape::Capsule(c) => ShapeFile::Capsule { radius: c.radius, half_height: c.half_height },
-        Shape::Plane(p) => ShapeFile::Plane { normal: p.normal.to_array(), offset: p.offset },
+        Shape::Cuboid(c) => ShapeFile::Box {
+            half_extents: c.half_extents.to_array(),
+        },
+        Shape::Capsule(c) => ShapeFile::Capsule {
+            radius: c.radius,
+            half_height: c.half_height,
+        },
+        Shape::Plane(p) => ShapeFile::Plane {
+            normal: p.normal.to_array(),
+            offset: p.offset,
+        },
     };
     BodyFile {
         name: desc.name.clone(),

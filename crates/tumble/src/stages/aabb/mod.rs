@@ -12,11 +12,18 @@ use rayon::prelude::*;
 const MIN_BODIES_PER_TASK: usize = 512;
 
 /// CPU executor: one AABB per body slot.
-pub fn compute_aabbs(poses: &[BodyPose], colliders: &[Collider], margin: f32, aabbs: &mut Vec<Aabb>) {
+pub fn compute_aabbs(
+    poses: &[BodyPose],
+    colliders: &[Collider],
+    margin: f32,
+    aabbs: &mut Vec<Aabb>,
+) {
     aabbs.resize(poses.len(), Aabb::default());
     aabbs
         .par_iter_mut()
         .zip(poses.par_iter().zip(colliders.par_iter()))
         .with_min_len(MIN_BODIES_PER_TASK)
-        .for_each(|(aabb, (pose, collider))| *aabb = collider.shape.aabb(&pose.transform()).expanded(margin));
+        .for_each(|(aabb, (pose, collider))| {
+            *aabb = collider.shape.aabb(&pose.transform()).expanded(margin)
+        });
 }

@@ -54,7 +54,11 @@ impl Batches {
 }
 
 /// CPU executor: colors `constraints` (bodies indexed below `body_count`).
-pub fn color_constraints(constraints: &[ContactConstraint], body_count: usize, batches: &mut Batches) {
+pub fn color_constraints(
+    constraints: &[ContactConstraint],
+    body_count: usize,
+    batches: &mut Batches,
+) {
     batches.masks.clear();
     batches.masks.resize(body_count, 0);
     batches.colors.clear();
@@ -62,9 +66,20 @@ pub fn color_constraints(constraints: &[ContactConstraint], body_count: usize, b
     batches.counts.resize(MAX_COLORS + 1, 0);
     let overflow = MAX_COLORS as u8;
     for constraint in constraints {
-        let mask_of = |masks: &[u64], body: u32| if body == STATIC_BODY { 0 } else { masks[body as usize] };
-        let used = mask_of(&batches.masks, constraint.body_a) | mask_of(&batches.masks, constraint.body_b);
-        let color = if used == u64::MAX { overflow } else { (!used).trailing_zeros() as u8 };
+        let mask_of = |masks: &[u64], body: u32| {
+            if body == STATIC_BODY {
+                0
+            } else {
+                masks[body as usize]
+            }
+        };
+        let used =
+            mask_of(&batches.masks, constraint.body_a) | mask_of(&batches.masks, constraint.body_b);
+        let color = if used == u64::MAX {
+            overflow
+        } else {
+            (!used).trailing_zeros() as u8
+        };
         if color != overflow {
             for body in [constraint.body_a, constraint.body_b] {
                 if body != STATIC_BODY {
@@ -76,7 +91,10 @@ pub fn color_constraints(constraints: &[ContactConstraint], body_count: usize, b
         batches.counts[color as usize] += 1;
     }
     // Counting sort by color keeps constraint order inside each batch.
-    let used_colors = batches.counts[..MAX_COLORS].iter().rposition(|&n| n > 0).map_or(0, |c| c + 1);
+    let used_colors = batches.counts[..MAX_COLORS]
+        .iter()
+        .rposition(|&n| n > 0)
+        .map_or(0, |c| c + 1);
     batches.has_overflow = batches.counts[MAX_COLORS] > 0;
     batches.offsets.clear();
     batches.offsets.push(0);
@@ -106,7 +124,11 @@ mod tests {
     use super::*;
 
     fn constraint(a: u32, b: u32) -> ContactConstraint {
-        ContactConstraint { body_a: a, body_b: b, ..Default::default() }
+        ContactConstraint {
+            body_a: a,
+            body_b: b,
+            ..Default::default()
+        }
     }
 
     /// Deterministic pseudo-random numbers for tests (xorshift).
@@ -120,7 +142,12 @@ mod tests {
     #[test]
     fn talk_example_four_bodies() {
         // The slide: constraints 1 (A,B), 2 (B,C), 3 (C,D), 4 (A,D) → batches {1,3} and {2,4}.
-        let constraints = [constraint(0, 1), constraint(1, 2), constraint(2, 3), constraint(0, 3)];
+        let constraints = [
+            constraint(0, 1),
+            constraint(1, 2),
+            constraint(2, 3),
+            constraint(0, 3),
+        ];
         let mut batches = Batches::default();
         color_constraints(&constraints, 4, &mut batches);
         assert_eq!(batches.len(), 2);
@@ -131,12 +158,22 @@ mod tests {
     #[test]
     fn random_graphs_batches_share_no_dynamic_body() {
         let mut state = 0x9e37_79b9_7f4a_7c15;
-        for &(bodies, count) in &[(1usize, 0usize), (2, 1), (10, 200), (1000, 5000), (20_000, 100_000)] {
+        for &(bodies, count) in &[
+            (1usize, 0usize),
+            (2, 1),
+            (10, 200),
+            (1000, 5000),
+            (20_000, 100_000),
+        ] {
             let constraints: Vec<_> = (0..count)
                 .map(|_| {
                     let a = (next(&mut state) % bodies as u64) as u32;
                     // Some constraints are against a static body.
-                    let b = if next(&mut state) % 4 == 0 { STATIC_BODY } else { (next(&mut state) % bodies as u64) as u32 };
+                    let b = if next(&mut state) % 4 == 0 {
+                        STATIC_BODY
+                    } else {
+                        (next(&mut state) % bodies as u64) as u32
+                    };
                     constraint(a, b)
                 })
                 .collect();
@@ -153,11 +190,17 @@ mod tests {
                     // A constraint of a body with itself cannot exist; skip the check for those.
                     if !is_overflow && constraint.body_a != constraint.body_b {
                         for body in [constraint.body_a, constraint.body_b] {
-                            assert!(body == STATIC_BODY || used.insert(body), "body {body} twice in batch {batch}");
+                            assert!(
+                                body == STATIC_BODY || used.insert(body),
+                                "body {body} twice in batch {batch}"
+                            );
                         }
                     }
                 }
-                assert!(batches.batch(batch).windows(2).all(|w| w[0] < w[1]), "batch keeps constraint order");
+                assert!(
+                    batches.batch(batch).windows(2).all(|w| w[0] < w[1]),
+                    "batch keeps constraint order"
+                );
             }
             assert!(seen.iter().all(|&s| s), "every constraint gets a batch");
         }

@@ -100,16 +100,22 @@ pub struct RowInputs<'a> {
 pub fn world_inverse_inertia(poses: &[BodyPose], masses: &[BodyMass], out: &mut Vec<Mat3>) {
     use rayon::prelude::*;
     out.resize(poses.len(), Mat3::ZERO);
-    out.par_iter_mut().zip(poses.par_iter().zip(masses.par_iter())).with_min_len(1024).for_each(
-        |(inertia, (pose, mass))| {
+    out.par_iter_mut()
+        .zip(poses.par_iter().zip(masses.par_iter()))
+        .with_min_len(1024)
+        .for_each(|(inertia, (pose, mass))| {
             let r = Mat3::from_quat(pose.rotation);
             *inertia = r * Mat3::from_diagonal(mass.inverse_inertia) * r.transpose();
-        },
-    );
+        });
 }
 
 /// CPU executor: rows of every manifold with points, in pair order.
-pub fn build_constraints(keys: &[u64], contacts: &[PairContact], inputs: &RowInputs, out: &mut Vec<ContactConstraint>) {
+pub fn build_constraints(
+    keys: &[u64],
+    contacts: &[PairContact],
+    inputs: &RowInputs,
+    out: &mut Vec<ContactConstraint>,
+) {
     out.clear();
     for (pair, (contact, &key)) in contacts.iter().zip(keys).enumerate() {
         if contact.manifold.count == 0 {
@@ -119,7 +125,12 @@ pub fn build_constraints(keys: &[u64], contacts: &[PairContact], inputs: &RowInp
     }
 }
 
-fn build_constraint(pair: u32, key: u64, contact: &PairContact, inputs: &RowInputs) -> ContactConstraint {
+fn build_constraint(
+    pair: u32,
+    key: u64,
+    contact: &PairContact,
+    inputs: &RowInputs,
+) -> ContactConstraint {
     let (a, b) = pair_bodies(key);
     let (ia, ib) = (a as usize, b as usize);
     let mass_a = inputs.masses[ia].inverse_mass;
@@ -153,19 +164,32 @@ fn build_constraint(pair: u32, key: u64, contact: &PairContact, inputs: &RowInpu
             let angular_a = inertia_a * arm_a;
             let angular_b = inertia_b * arm_b;
             let k = mass_a + mass_b + arm_a.dot(angular_a) + arm_b.dot(angular_b);
-            Row { arm_a, arm_b, angular_a, angular_b, mass: if k > 0.0 { 1.0 / k } else { 0.0 }, impulse }
+            Row {
+                arm_a,
+                arm_b,
+                angular_a,
+                angular_b,
+                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
+                impulse,
+            }
         };
         let warm = contact.impulses[i];
         let normal_row = row(normal, warm.normal);
-        let approach_velocity = normal.dot(va.linear - vb.linear) + normal_row.arm_a.dot(va.angular)
+        let approach_velocity = normal.dot(va.linear - vb.linear)
+            + normal_row.arm_a.dot(va.angular)
             - normal_row.arm_b.dot(vb.angular);
         let separation = point.separation;
         let penetration = (-separation - inputs.penetration_slop).max(0.0);
         constraint.points[i] = ConstraintPoint {
             normal: normal_row,
             tangent: [row(t1, warm.tangent[0]), row(t2, warm.tangent[1])],
-            velocity_target: if separation > 0.0 { -separation / inputs.dt } else { 0.0 },
-            push_target: (inputs.push_factor * penetration / inputs.dt).min(inputs.max_push_velocity),
+            velocity_target: if separation > 0.0 {
+                -separation / inputs.dt
+            } else {
+                0.0
+            },
+            push_target: (inputs.push_factor * penetration / inputs.dt)
+                .min(inputs.max_push_velocity),
             push_impulse: 0.0,
             approach_velocity,
             max_normal_impulse: 0.0,

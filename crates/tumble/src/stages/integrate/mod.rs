@@ -16,25 +16,50 @@ pub const MAX_ROTATION_PER_STEP: f32 = 0.25 * std::f32::consts::PI;
 const MIN_BODIES_PER_TASK: usize = 512;
 
 /// Velocity half: gravity into the solver's bodies (dynamic bodies only).
-pub fn integrate_velocities(velocities: &[BodyVelocity], masses: &[BodyMass], gravity: Vec3, dt: f32, bodies: &mut Vec<SolverBody>) {
+pub fn integrate_velocities(
+    velocities: &[BodyVelocity],
+    masses: &[BodyMass],
+    gravity: Vec3,
+    dt: f32,
+    bodies: &mut Vec<SolverBody>,
+) {
     bodies.resize(velocities.len(), SolverBody::default());
-    bodies.par_iter_mut().zip(velocities.par_iter().zip(masses.par_iter())).with_min_len(MIN_BODIES_PER_TASK).for_each(
-        |(body, (velocity, mass))| {
+    bodies
+        .par_iter_mut()
+        .zip(velocities.par_iter().zip(masses.par_iter()))
+        .with_min_len(MIN_BODIES_PER_TASK)
+        .for_each(|(body, (velocity, mass))| {
             let dynamic = mass.inverse_mass > 0.0;
             *body = SolverBody {
-                linear_velocity: if dynamic { velocity.linear + gravity * dt } else { Vec3::ZERO },
+                linear_velocity: if dynamic {
+                    velocity.linear + gravity * dt
+                } else {
+                    Vec3::ZERO
+                },
                 inverse_mass: mass.inverse_mass,
-                angular_velocity: if dynamic { velocity.angular } else { Vec3::ZERO },
+                angular_velocity: if dynamic {
+                    velocity.angular
+                } else {
+                    Vec3::ZERO
+                },
                 ..SolverBody::default()
             };
-        },
-    );
+        });
 }
 
 /// Position half: poses from the solved velocities; the solved velocities become the bodies'.
-pub fn integrate_positions(bodies: &[SolverBody], dt: f32, poses: &mut [BodyPose], velocities: &mut [BodyVelocity]) {
-    poses.par_iter_mut().zip(velocities.par_iter_mut()).zip(bodies.par_iter()).with_min_len(MIN_BODIES_PER_TASK).for_each(
-        |((pose, velocity), body)| {
+pub fn integrate_positions(
+    bodies: &[SolverBody],
+    dt: f32,
+    poses: &mut [BodyPose],
+    velocities: &mut [BodyVelocity],
+) {
+    poses
+        .par_iter_mut()
+        .zip(velocities.par_iter_mut())
+        .zip(bodies.par_iter())
+        .with_min_len(MIN_BODIES_PER_TASK)
+        .for_each(|((pose, velocity), body)| {
             if body.inverse_mass == 0.0 {
                 return;
             }
@@ -43,19 +68,27 @@ pub fn integrate_positions(bodies: &[SolverBody], dt: f32, poses: &mut [BodyPose
             pose.position += (body.linear_velocity + body.push_linear) * dt;
             let spin = clamp_rotation(angular + body.push_angular, dt);
             pose.rotation = integrate_rotation(pose.rotation, spin, dt);
-        },
-    );
+        });
 }
 
 fn clamp_rotation(angular_velocity: Vec3, dt: f32) -> Vec3 {
     let angle = angular_velocity.length() * dt;
-    if angle > MAX_ROTATION_PER_STEP { angular_velocity * (MAX_ROTATION_PER_STEP / angle) } else { angular_velocity }
+    if angle > MAX_ROTATION_PER_STEP {
+        angular_velocity * (MAX_ROTATION_PER_STEP / angle)
+    } else {
+        angular_velocity
+    }
 }
 
 /// q' = normalize(q + ½ dt (ω, 0) q), with ω in the world frame.
 #[inline]
 pub fn integrate_rotation(rotation: Quat, angular_velocity: Vec3, dt: f32) -> Quat {
-    let spin = Quat::from_xyzw(angular_velocity.x, angular_velocity.y, angular_velocity.z, 0.0) * rotation;
+    let spin = Quat::from_xyzw(
+        angular_velocity.x,
+        angular_velocity.y,
+        angular_velocity.z,
+        0.0,
+    ) * rotation;
     (rotation + spin * (0.5 * dt)).normalize()
 }
 
@@ -80,7 +113,13 @@ mod tests {
         let mut velocities = [BodyVelocity::default()];
         let masses = [BodyMass::default()];
         let mut bodies = Vec::new();
-        integrate_velocities(&velocities, &masses, Vec3::new(0.0, -9.81, 0.0), 0.1, &mut bodies);
+        integrate_velocities(
+            &velocities,
+            &masses,
+            Vec3::new(0.0, -9.81, 0.0),
+            0.1,
+            &mut bodies,
+        );
         integrate_positions(&bodies, 0.1, &mut poses, &mut velocities);
         assert_eq!(poses[0].position, Vec3::ONE);
     }

@@ -34,22 +34,32 @@ pub struct PairContact {
 const MIN_PAIRS_PER_TASK: usize = 64;
 
 /// CPU executor: refresh the manifold of every pair.
-pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], poses: &[BodyPose], colliders: &[Collider], margin: f32) {
+pub fn update_contacts(
+    keys: &[u64],
+    contacts: &mut [PairContact],
+    poses: &[BodyPose],
+    colliders: &[Collider],
+    margin: f32,
+) {
     debug_assert_eq!(keys.len(), contacts.len());
-    contacts.par_iter_mut().zip(keys.par_iter()).with_min_len(MIN_PAIRS_PER_TASK).for_each(|(contact, &key)| {
-        let (a, b) = pair_bodies(key);
-        let (a, b) = (a as usize, b as usize);
-        let mut manifold = Manifold::default();
-        collide(
-            &colliders[a].shape,
-            &poses[a].transform(),
-            &colliders[b].shape,
-            &poses[b].transform(),
-            margin,
-            &mut manifold,
-        );
-        *contact = carry_impulses(manifold, contact);
-    });
+    contacts
+        .par_iter_mut()
+        .zip(keys.par_iter())
+        .with_min_len(MIN_PAIRS_PER_TASK)
+        .for_each(|(contact, &key)| {
+            let (a, b) = pair_bodies(key);
+            let (a, b) = (a as usize, b as usize);
+            let mut manifold = Manifold::default();
+            collide(
+                &colliders[a].shape,
+                &poses[a].transform(),
+                &colliders[b].shape,
+                &poses[b].transform(),
+                margin,
+                &mut manifold,
+            );
+            *contact = carry_impulses(manifold, contact);
+        });
 }
 
 /// The new manifold with the impulses of last step's points that have the same feature id.
@@ -71,7 +81,11 @@ mod tests {
 
     #[test]
     fn impulses_follow_feature_ids() {
-        let point = |id| ContactPoint { position: Vec3::ZERO, separation: 0.0, id };
+        let point = |id| ContactPoint {
+            position: Vec3::ZERO,
+            separation: 0.0,
+            id,
+        };
         let mut old = PairContact::default();
         old.manifold.push(point(7));
         old.manifold.push(point(3));

@@ -63,12 +63,18 @@ pub fn solve(
 ) {
     let access = BodyAccess(bodies.as_mut_ptr(), bodies.len());
     let any_restitution = constraints.iter().any(|c| c.restitution > 0.0);
-    for_each_batch(constraints, offsets, has_overflow, |c| warm_start(access, c));
+    for_each_batch(constraints, offsets, has_overflow, |c| {
+        warm_start(access, c)
+    });
     for _ in 0..settings.iterations {
-        for_each_batch(constraints, offsets, has_overflow, |c| solve_contact(access, c));
+        for_each_batch(constraints, offsets, has_overflow, |c| {
+            solve_contact(access, c)
+        });
     }
     if any_restitution {
-        for_each_batch(constraints, offsets, has_overflow, |c| apply_restitution(access, c, settings.restitution_threshold));
+        for_each_batch(constraints, offsets, has_overflow, |c| {
+            apply_restitution(access, c, settings.restitution_threshold)
+        });
     }
 }
 
@@ -84,11 +90,15 @@ fn for_each_batch(
     for batch in 0..batch_count {
         let range = offsets[batch] as usize..offsets[batch + 1] as usize;
         let slice = &mut constraints[range];
-        let sequential = (has_overflow && batch + 1 == batch_count) || slice.len() < 2 * MIN_CONSTRAINTS_PER_TASK;
+        let sequential = (has_overflow && batch + 1 == batch_count)
+            || slice.len() < 2 * MIN_CONSTRAINTS_PER_TASK;
         if sequential {
             slice.iter_mut().for_each(&f);
         } else {
-            slice.par_iter_mut().with_min_len(MIN_CONSTRAINTS_PER_TASK).for_each(&f);
+            slice
+                .par_iter_mut()
+                .with_min_len(MIN_CONSTRAINTS_PER_TASK)
+                .for_each(&f);
         }
     }
 }
@@ -140,7 +150,14 @@ struct InverseMasses {
 
 /// Applies `impulse` along a row: +impulse to A, −impulse to B.
 #[inline]
-fn apply(row: &Row, direction: Vec3, impulse: f32, masses: InverseMasses, a: &mut SolverBody, b: &mut SolverBody) {
+fn apply(
+    row: &Row,
+    direction: Vec3,
+    impulse: f32,
+    masses: InverseMasses,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
     a.linear_velocity += direction * (impulse * masses.a);
     a.angular_velocity += row.angular_a * impulse;
     b.linear_velocity -= direction * (impulse * masses.b);
@@ -149,9 +166,19 @@ fn apply(row: &Row, direction: Vec3, impulse: f32, masses: InverseMasses, a: &mu
 
 fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
-    let masses = InverseMasses { a: c.inverse_mass_a, b: c.inverse_mass_b };
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
     for point in &mut c.points[..c.point_count as usize] {
-        apply(&point.normal, c.normal, point.normal.impulse, masses, &mut a, &mut b);
+        apply(
+            &point.normal,
+            c.normal,
+            point.normal.impulse,
+            masses,
+            &mut a,
+            &mut b,
+        );
         for (row, direction) in point.tangent.iter().zip(c.tangents) {
             apply(row, direction, row.impulse, masses, &mut a, &mut b);
         }
@@ -164,15 +191,20 @@ fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
 fn solve_contact(access: BodyAccess, c: &mut ContactConstraint) {
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
     let n = c.normal;
-    let masses = InverseMasses { a: c.inverse_mass_a, b: c.inverse_mass_b };
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
     let count = c.point_count as usize;
     for point in &mut c.points[..count] {
         let row = &point.normal;
         // Split impulse on the pseudo-velocities: same Jacobian, its own accumulator.
         if point.push_target > 0.0 || point.push_impulse > 0.0 {
-            let push_velocity = n.dot(a.push_linear - b.push_linear) + row.arm_a.dot(a.push_angular)
+            let push_velocity = n.dot(a.push_linear - b.push_linear)
+                + row.arm_a.dot(a.push_angular)
                 - row.arm_b.dot(b.push_angular);
-            let total = (point.push_impulse - (push_velocity - point.push_target) * row.mass).max(0.0);
+            let total =
+                (point.push_impulse - (push_velocity - point.push_target) * row.mass).max(0.0);
             let delta = total - point.push_impulse;
             point.push_impulse = total;
             a.push_linear += n * (delta * masses.a);
@@ -198,7 +230,11 @@ fn solve_contact(access: BodyAccess, c: &mut ContactConstraint) {
         let want2 = row2.impulse - row_velocity(row2, t2, &a, &b) * row2.mass;
         let limit = friction * point.normal.impulse;
         let length_squared = want1 * want1 + want2 * want2;
-        let scale = if length_squared > limit * limit { limit / length_squared.sqrt() } else { 1.0 };
+        let scale = if length_squared > limit * limit {
+            limit / length_squared.sqrt()
+        } else {
+            1.0
+        };
         let (total1, total2) = (want1 * scale, want2 * scale);
         apply(row1, t1, total1 - row1.impulse, masses, &mut a, &mut b);
         apply(row2, t2, total2 - row2.impulse, masses, &mut a, &mut b);
@@ -215,7 +251,10 @@ fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, threshold: f
     }
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
     let n = c.normal;
-    let masses = InverseMasses { a: c.inverse_mass_a, b: c.inverse_mass_b };
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
     let restitution = c.restitution;
     for point in &mut c.points[..c.point_count as usize] {
         if point.approach_velocity > -threshold || point.max_normal_impulse == 0.0 {
@@ -223,7 +262,8 @@ fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, threshold: f
         }
         let row = &point.normal;
         let velocity = row_velocity(row, n, &a, &b);
-        let total = (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
+        let total =
+            (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
         let delta = total - row.impulse;
         point.normal.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);

@@ -1,0 +1,129 @@
+//! The `tumble` binary: its contract from DESIGN.md (exit codes, one-line errors, --json, --dump).
+use std::process::{Command, Output};
+
+fn tumble(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(args)
+        .output()
+        .expect("tumble runs")
+}
+
+fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
+
+/// Fails unless the command exited non-zero with one line on stderr mentioning `expected`.
+fn assert_user_error(args: &[&str], expected: &str) {
+    let output = tumble(args);
+    let message = stderr(&output);
+    assert!(!output.status.success(), "{args:?} succeeded");
+    assert!(
+        !message.contains("panicked"),
+        "{args:?} panicked: {message}"
+    );
+    assert_eq!(
+        message.trim_end().lines().count(),
+        1,
+        "{args:?}: not one line: {message}"
+    );
+    assert!(
+        message.contains(expected),
+        "{args:?}: {message:?} should mention {expected:?}"
+    );
+}
+
+#[test]
+fn scenes_lists_the_builtins() {
+    let output = tumble(&["scenes"]);
+    assert!(output.status.success());
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("falling-boxes") && text.contains("stacked-boxes"));
+}
+
+#[test]
+fn bad_input_is_a_one_line_error_with_non_zero_exit() {
+    let dir = std::env::temp_dir().join(format!("tumble-cli-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.json");
+    std::fs::write(
+        &bad,
+        r#"{ "bodies": [ { "shape": { "box": { "half_extents": [1, 0, 1] } } } ] }"#,
+    )
+    .unwrap();
+    assert_user_error(
+        &["run", bad.to_str().unwrap(), "--steps", "1"],
+        "bodies[0].shape.box.half_extents",
+    );
+    assert_user_error(&["run", "/no/such/scene.json"], "/no/such/scene.json");
+    assert_user_error(&["run", "no-such-scene"], "unknown scene");
+    assert_user_error(&["run", "falling-boxes", "--scale", "-1"], "scale");
+    assert_user_error(
+        &["run", "falling-boxes", "--device", "gpu"],
+        "GPU step is not implemented yet",
+    );
+    assert_user_error(
+        &["run", "falling-boxes", "--stages", "solver=gpu"],
+        "GPU step is not implemented yet",
+    );
+    assert_user_error(
+        &["run", "falling-boxes", "--stages", "warp=cpu"],
+        "unknown stage",
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn json_summary_and_dump_that_loads_back() {
+    let dir = std::env::temp_dir().join(format!("tumble-cli-dump-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let dump = dir.join("dump.json");
+    let output = tumble(&[
+        "run",
+        "stacked-boxes",
+        "--scale",
+        "0.02",
+        "--steps",
+        "20",
+        "--device",
+        "cpu",
+        "--json",
+        "--profile",
+        "--dump",
+        dump.to_str().unwrap(),
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("--- Profiling: step") && stdout.contains("-- solver"),
+        "profile report: {stdout}"
+    );
+    let last = stdout.lines().last().unwrap();
+    let summary: serde_json::Value = serde_json::from_str(last).unwrap();
+    for key in [
+        "scene",
+        "bodies",
+        "steps",
+        "device",
+        "adapter",
+        "ms_per_step",
+        "stage_ms",
+        "pairs",
+        "contacts",
+        "max_penetration",
+        "kinetic_energy",
+    ] {
+        assert!(summary.get(key).is_some(), "--json lacks {key}: {last}");
+    }
+    assert_eq!(summary["steps"], 20);
+    // The dump is a scene file: it runs.
+    let output = tumble(&[
+        "run",
+        dump.to_str().unwrap(),
+        "--steps",
+        "5",
+        "--device",
+        "cpu",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    std::fs::remove_dir_all(&dir).ok();
+}
