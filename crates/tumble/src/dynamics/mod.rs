@@ -1,3 +1,4 @@
 //! Body data: what the solver and integrator read and write each step.
 
 pub mod body;
+pub mod joint;

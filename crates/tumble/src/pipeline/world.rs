@@ -18,6 +18,7 @@
 use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
+use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
@@ -40,7 +41,9 @@ pub struct StepStats {
     pub contacts: usize,
     /// Deepest overlap of any contact (m, ≥ 0).
     pub max_penetration: f32,
-    /// Constraints per batch: the talk's batch histogram.
+    /// Joints solved this step (unbroken ones).
+    pub joints: usize,
+    /// Constraints (contact manifolds and joints) per batch: the talk's batch histogram.
     pub batch_histogram: Vec<u32>,
 }
 
@@ -70,6 +73,12 @@ pub struct World {
     pub(crate) colliders: Vec<Collider>,
     slots: Vec<Slot>,
     free_slots: Vec<u32>,
+    // Joints, by slot; `None` is a free slot.
+    pub(crate) joints: Vec<Option<Joint>>,
+    joint_generations: Vec<u32>,
+    free_joints: Vec<u32>,
+    /// Sorted pair keys of jointed bodies: their contacts are skipped.
+    pub(crate) jointed_pairs: Vec<u64>,
     // State carried from step to step.
     pub(crate) broadphase: Broadphase,
     pub(crate) pairs: PairCache<PairContact>,
@@ -92,6 +101,10 @@ impl World {
             colliders: Vec::new(),
             slots: Vec::new(),
             free_slots: Vec::new(),
+            joints: Vec::new(),
+            joint_generations: Vec::new(),
+            free_joints: Vec::new(),
+            jointed_pairs: Vec::new(),
             broadphase,
             pairs: PairCache::default(),
             scratch: StepScratch::default(),
@@ -181,9 +194,15 @@ impl World {
         })
     }
 
-    /// Removes a body; its contacts go with it at the next step.
+    /// Removes a body; its contacts go with it at the next step, its joints at once.
     pub fn remove_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
         let i = self.check(handle)?;
+        let attached: Vec<u32> = (0..self.joints.len() as u32)
+            .filter(|&j| self.joints[j as usize].is_some_and(|joint| joint.body_a == handle.index || joint.body_b == handle.index))
+            .collect();
+        for joint in attached {
+            self.free_joint(joint);
+        }
         self.broadphase.remove(handle.index);
         let slot = &mut self.slots[i];
         slot.state = SlotState::Free;
@@ -194,6 +213,71 @@ impl World {
         self.velocities[i] = BodyVelocity::default();
         self.free_slots.push(handle.index);
         Ok(())
+    }
+
+    /// Adds a joint between two bodies at their current poses.
+    pub fn add_joint(&mut self, desc: JointDesc) -> Result<JointHandle, JointError> {
+        desc.validate()?;
+        let (a, b) = (self.check(desc.body_a).map_err(|_| JointError::StaleBody)?, self.check(desc.body_b).map_err(|_| JointError::StaleBody)?);
+        if self.masses[a].inverse_mass == 0.0 && self.masses[b].inverse_mass == 0.0 {
+            return Err(JointError::BothStatic);
+        }
+        let pose = |i: usize| (self.poses[i].position, self.poses[i].rotation);
+        let joint = Joint::new(&desc, pose(a), pose(b));
+        let index = match self.free_joints.pop() {
+            Some(index) => {
+                self.joints[index as usize] = Some(joint);
+                index
+            }
+            None => {
+                self.joints.push(Some(joint));
+                self.joint_generations.push(0);
+                (self.joints.len() - 1) as u32
+            }
+        };
+        self.update_jointed_pairs();
+        Ok(JointHandle { index, generation: self.joint_generations[index as usize] })
+    }
+
+    pub fn remove_joint(&mut self, handle: JointHandle) -> Result<(), JointError> {
+        self.check_joint(handle)?;
+        self.free_joint(handle.index);
+        Ok(())
+    }
+
+    /// True once the joint's impulse passed its break threshold; a broken joint stays in the
+    /// world, inert, until removed.
+    pub fn is_joint_broken(&self, handle: JointHandle) -> Result<bool, JointError> {
+        Ok(self.joints[self.check_joint(handle)?].is_some_and(|joint| joint.broken))
+    }
+
+    /// Live joints, in slot order.
+    pub fn joints(&self) -> impl Iterator<Item = (JointHandle, &Joint)> + '_ {
+        self.joints.iter().enumerate().filter_map(|(index, joint)| {
+            let handle = JointHandle { index: index as u32, generation: self.joint_generations[index] };
+            joint.as_ref().map(|joint| (handle, joint))
+        })
+    }
+
+    fn free_joint(&mut self, index: u32) {
+        self.joints[index as usize] = None;
+        self.joint_generations[index as usize] = self.joint_generations[index as usize].wrapping_add(1);
+        self.free_joints.push(index);
+        self.update_jointed_pairs();
+    }
+
+    fn update_jointed_pairs(&mut self) {
+        self.jointed_pairs.clear();
+        self.jointed_pairs.extend(self.joints.iter().flatten().map(|j| crate::stages::pairs::pair_key(j.body_a, j.body_b)));
+        self.jointed_pairs.sort_unstable();
+        self.jointed_pairs.dedup();
+    }
+
+    fn check_joint(&self, handle: JointHandle) -> Result<usize, JointError> {
+        match self.joints.get(handle.index as usize) {
+            Some(Some(_)) if self.joint_generations[handle.index as usize] == handle.generation => Ok(handle.index as usize),
+            _ => Err(JointError::StaleHandle),
+        }
     }
 
     /// Advances the world by `config.dt`.

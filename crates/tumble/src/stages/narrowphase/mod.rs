@@ -33,13 +33,15 @@ pub struct PairContact {
 /// Pairs per rayon task.
 const MIN_PAIRS_PER_TASK: usize = 64;
 
-/// CPU executor: refresh the manifold of every pair.
+/// CPU executor: refresh the manifold of every pair. Pairs listed in `skipped` (sorted keys:
+/// bodies joined by a joint) get no contacts.
 pub fn update_contacts(
     keys: &[u64],
     contacts: &mut [PairContact],
     poses: &[BodyPose],
     colliders: &[Collider],
     margin: f32,
+    skipped: &[u64],
 ) {
     debug_assert_eq!(keys.len(), contacts.len());
     contacts
@@ -47,6 +49,10 @@ pub fn update_contacts(
         .zip(keys.par_iter())
         .with_min_len(MIN_PAIRS_PER_TASK)
         .for_each(|(contact, &key)| {
+            if !skipped.is_empty() && skipped.binary_search(&key).is_ok() {
+                *contact = PairContact::default();
+                return;
+            }
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
             let mut manifold = Manifold::default();

@@ -1,0 +1,197 @@
+//! Contact rows: per contact point one non-penetration row along the normal and two friction
+//! rows along the tangents.
+//!
+//! A row constrains the relative velocity of the two bodies along a direction `d` at the
+//! contact point, with `r_a`, `r_b` the arms from each centre of mass to the point:
+//!
+//! ```text
+//!   C_dot = J v = d·(v_a − v_b) + (r_a × d)·ω_a − (r_b × d)·ω_b
+//!   K     = J M⁻¹ Jᵀ = 1/m_a + 1/m_b + (r_a × d)·I_a⁻¹(r_a × d) + (r_b × d)·I_b⁻¹(r_b × d)
+//!   Δλ    = −(C_dot − target) / K                 (then clamped, see the solver)
+//!   v_a += d Δλ/m_a,  ω_a += I_a⁻¹(r_a × d) Δλ,  v_b −= d Δλ/m_b,  ω_b −= I_b⁻¹(r_b × d) Δλ
+//! ```
+//!
+//! Rows store `r × d` and `I⁻¹(r × d)` for both bodies (as Bullet's solver does), so an
+//! iteration is dot products and multiply-adds with no matrix work.
+//!
+//! Guarantees: constraints come in pair-key order (deterministic); static bodies are
+//! [`STATIC_BODY`] and are never written; each row's `mass` is finite (K > 0 because at least
+//! one body is dynamic).
+
+use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
+use crate::math::{Mat3, Vec3, tangent_basis};
+use crate::stages::narrowphase::PairContact;
+use crate::stages::constraints::STATIC_BODY;
+use crate::stages::pairs::pair_bodies;
+
+/// One scalar constraint direction at one contact point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Row {
+    /// r_a × d.
+    pub arm_a: Vec3,
+    /// r_b × d.
+    pub arm_b: Vec3,
+    /// I_a⁻¹ (r_a × d), world frame.
+    pub angular_a: Vec3,
+    /// I_b⁻¹ (r_b × d), world frame.
+    pub angular_b: Vec3,
+    /// Effective mass 1/K (kg).
+    pub mass: f32,
+    /// Accumulated impulse (N·s).
+    pub impulse: f32,
+}
+
+/// Rows and solver inputs of one contact point.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ConstraintPoint {
+    pub normal: Row,
+    pub tangent: [Row; 2],
+    /// Lowest normal velocity the contact allows (m/s): −separation/dt for a speculative
+    /// contact (separation > 0: the bodies may close the gap but not pass it), else 0.
+    pub velocity_target: f32,
+    /// Normal velocity the split impulse drives the pseudo-velocities to (m/s): removes a
+    /// fraction of the penetration beyond the slop.
+    pub push_target: f32,
+    /// Accumulated split impulse (N·s), restarted each step.
+    pub push_impulse: f32,
+    /// Normal velocity before the solve (m/s), for restitution.
+    pub approach_velocity: f32,
+    /// Largest normal impulse applied this step (N·s): restitution applies only to points
+    /// that actually pushed.
+    pub max_normal_impulse: f32,
+}
+
+/// The rows of one manifold: up to 4 points sharing a normal, bodies and material.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ContactConstraint {
+    pub body_a: u32,
+    pub body_b: u32,
+    /// Index of the pair in the pair cache, to store impulses back.
+    pub pair: u32,
+    pub point_count: u32,
+    /// Unit normal from B to A.
+    pub normal: Vec3,
+    pub friction: f32,
+    pub tangents: [Vec3; 2],
+    pub restitution: f32,
+    pub inverse_mass_a: f32,
+    pub inverse_mass_b: f32,
+    pub points: [ConstraintPoint; 4],
+}
+
+/// Per-step inputs the constraint rows need besides the manifolds.
+pub struct RowInputs<'a> {
+    pub poses: &'a [BodyPose],
+    pub velocities: &'a [BodyVelocity],
+    pub masses: &'a [BodyMass],
+    pub colliders: &'a [Collider],
+    /// World-frame inverse inertia of every body (zero for static ones).
+    pub inverse_inertia: &'a [Mat3],
+    /// Sub-step length (s).
+    pub dt: f32,
+    pub penetration_slop: f32,
+    pub push_factor: f32,
+    pub max_push_velocity: f32,
+}
+
+/// World-frame inverse inertia R I⁻¹ Rᵀ of every body.
+pub fn world_inverse_inertia(poses: &[BodyPose], masses: &[BodyMass], out: &mut Vec<Mat3>) {
+    use rayon::prelude::*;
+    out.resize(poses.len(), Mat3::ZERO);
+    out.par_iter_mut()
+        .zip(poses.par_iter().zip(masses.par_iter()))
+        .with_min_len(1024)
+        .for_each(|(inertia, (pose, mass))| {
+            let r = Mat3::from_quat(pose.rotation);
+            *inertia = r * Mat3::from_diagonal(mass.inverse_inertia) * r.transpose();
+        });
+}
+
+/// CPU executor: rows of every manifold with points, in pair order.
+pub fn build_constraints(
+    keys: &[u64],
+    contacts: &[PairContact],
+    inputs: &RowInputs,
+    out: &mut Vec<ContactConstraint>,
+) {
+    out.clear();
+    for (pair, (contact, &key)) in contacts.iter().zip(keys).enumerate() {
+        if contact.manifold.count == 0 {
+            continue;
+        }
+        out.push(build_constraint(pair as u32, key, contact, inputs));
+    }
+}
+
+fn build_constraint(
+    pair: u32,
+    key: u64,
+    contact: &PairContact,
+    inputs: &RowInputs,
+) -> ContactConstraint {
+    let (a, b) = pair_bodies(key);
+    let (ia, ib) = (a as usize, b as usize);
+    let mass_a = inputs.masses[ia].inverse_mass;
+    let mass_b = inputs.masses[ib].inverse_mass;
+    let collider_a = &inputs.colliders[ia];
+    let collider_b = &inputs.colliders[ib];
+    let normal = contact.manifold.normal;
+    let (t1, t2) = tangent_basis(normal);
+    let mut constraint = ContactConstraint {
+        body_a: if mass_a > 0.0 { a } else { STATIC_BODY },
+        body_b: if mass_b > 0.0 { b } else { STATIC_BODY },
+        pair,
+        point_count: contact.manifold.count,
+        normal,
+        friction: (collider_a.friction * collider_b.friction).sqrt(),
+        tangents: [t1, t2],
+        restitution: collider_a.restitution.max(collider_b.restitution),
+        inverse_mass_a: mass_a,
+        inverse_mass_b: mass_b,
+        points: [ConstraintPoint::default(); 4],
+    };
+    let (center_a, center_b) = (inputs.poses[ia].position, inputs.poses[ib].position);
+    let (inertia_a, inertia_b) = (inputs.inverse_inertia[ia], inputs.inverse_inertia[ib]);
+    let (va, vb) = (inputs.velocities[ia], inputs.velocities[ib]);
+    for (i, point) in contact.manifold.points().iter().enumerate() {
+        let r_a = point.position - center_a;
+        let r_b = point.position - center_b;
+        let row = |direction: Vec3, impulse: f32| {
+            let arm_a = r_a.cross(direction);
+            let arm_b = r_b.cross(direction);
+            let angular_a = inertia_a * arm_a;
+            let angular_b = inertia_b * arm_b;
+            let k = mass_a + mass_b + arm_a.dot(angular_a) + arm_b.dot(angular_b);
+            Row {
+                arm_a,
+                arm_b,
+                angular_a,
+                angular_b,
+                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
+                impulse,
+            }
+        };
+        let warm = contact.impulses[i];
+        let normal_row = row(normal, warm.normal);
+        let approach_velocity = normal.dot(va.linear - vb.linear)
+            + normal_row.arm_a.dot(va.angular)
+            - normal_row.arm_b.dot(vb.angular);
+        let separation = point.separation;
+        let penetration = (-separation - inputs.penetration_slop).max(0.0);
+        constraint.points[i] = ConstraintPoint {
+            normal: normal_row,
+            tangent: [row(t1, warm.tangent[0]), row(t2, warm.tangent[1])],
+            velocity_target: if separation > 0.0 {
+                -separation / inputs.dt
+            } else {
+                0.0
+            },
+            push_target: (inputs.push_factor * penetration / inputs.dt)
+                .min(inputs.max_push_velocity),
+            push_impulse: 0.0,
+            approach_velocity,
+            max_normal_impulse: 0.0,
+        };
+    }
+    constraint
+}

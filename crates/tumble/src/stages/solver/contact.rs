@@ -1,0 +1,144 @@
+//! Contact rows in the solver: warm start, normal and friction iterations, restitution.
+
+use super::{BodyAccess, SolverBody};
+use crate::math::Vec3;
+use crate::stages::constraints::{ContactConstraint, Row};
+
+/// Normal velocity of the contact: how fast A moves away from B along the row (m/s).
+#[inline]
+fn row_velocity(row: &Row, direction: Vec3, a: &SolverBody, b: &SolverBody) -> f32 {
+    direction.dot(a.linear_velocity - b.linear_velocity) + row.arm_a.dot(a.angular_velocity)
+        - row.arm_b.dot(b.angular_velocity)
+}
+
+/// Inverse masses of a constraint's two bodies (1/kg).
+#[derive(Clone, Copy)]
+struct InverseMasses {
+    a: f32,
+    b: f32,
+}
+
+/// Applies `impulse` along a row: +impulse to A, −impulse to B.
+#[inline]
+fn apply(
+    row: &Row,
+    direction: Vec3,
+    impulse: f32,
+    masses: InverseMasses,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
+    a.linear_velocity += direction * (impulse * masses.a);
+    a.angular_velocity += row.angular_a * impulse;
+    b.linear_velocity -= direction * (impulse * masses.b);
+    b.angular_velocity -= row.angular_b * impulse;
+}
+
+pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
+    let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
+    for point in &mut c.points[..c.point_count as usize] {
+        apply(
+            &point.normal,
+            c.normal,
+            point.normal.impulse,
+            masses,
+            &mut a,
+            &mut b,
+        );
+        for (row, direction) in point.tangent.iter().zip(c.tangents) {
+            apply(row, direction, row.impulse, masses, &mut a, &mut b);
+        }
+        point.max_normal_impulse = point.normal.impulse;
+    }
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
+
+pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint) {
+    let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    let n = c.normal;
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
+    let count = c.point_count as usize;
+    for point in &mut c.points[..count] {
+        let row = &point.normal;
+        // Split impulse on the pseudo-velocities: same Jacobian, its own accumulator.
+        if point.push_target > 0.0 || point.push_impulse > 0.0 {
+            let push_velocity = n.dot(a.push_linear - b.push_linear)
+                + row.arm_a.dot(a.push_angular)
+                - row.arm_b.dot(b.push_angular);
+            let total =
+                (point.push_impulse - (push_velocity - point.push_target) * row.mass).max(0.0);
+            let delta = total - point.push_impulse;
+            point.push_impulse = total;
+            a.push_linear += n * (delta * masses.a);
+            a.push_angular += row.angular_a * delta;
+            b.push_linear -= n * (delta * masses.b);
+            b.push_angular -= row.angular_b * delta;
+        }
+        // Non-penetration: normal velocity ≥ target, impulse ≥ 0.
+        let velocity = row_velocity(row, n, &a, &b);
+        let total = (row.impulse - (velocity - point.velocity_target) * row.mass).max(0.0);
+        let delta = total - row.impulse;
+        point.normal.impulse = total;
+        point.max_normal_impulse = point.max_normal_impulse.max(total);
+        apply(&point.normal, n, delta, masses, &mut a, &mut b);
+    }
+    // Friction: both tangent rows from the same velocities, then the impulse clamped to the
+    // friction circle |λ_t| ≤ μ λ_n (clamping each row alone would allow √2 μ λ_n diagonally).
+    let friction = c.friction;
+    let [t1, t2] = c.tangents;
+    for point in &mut c.points[..count] {
+        let [row1, row2] = &mut point.tangent;
+        let want1 = row1.impulse - row_velocity(row1, t1, &a, &b) * row1.mass;
+        let want2 = row2.impulse - row_velocity(row2, t2, &a, &b) * row2.mass;
+        let limit = friction * point.normal.impulse;
+        let length_squared = want1 * want1 + want2 * want2;
+        let scale = if length_squared > limit * limit {
+            limit / length_squared.sqrt()
+        } else {
+            1.0
+        };
+        let (total1, total2) = (want1 * scale, want2 * scale);
+        apply(row1, t1, total1 - row1.impulse, masses, &mut a, &mut b);
+        apply(row2, t2, total2 - row2.impulse, masses, &mut a, &mut b);
+        row1.impulse = total1;
+        row2.impulse = total2;
+    }
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
+
+pub(super) fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, threshold: f32) {
+    if c.restitution == 0.0 {
+        return;
+    }
+    let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    let n = c.normal;
+    let masses = InverseMasses {
+        a: c.inverse_mass_a,
+        b: c.inverse_mass_b,
+    };
+    let restitution = c.restitution;
+    for point in &mut c.points[..c.point_count as usize] {
+        if point.approach_velocity > -threshold || point.max_normal_impulse == 0.0 {
+            continue;
+        }
+        let row = &point.normal;
+        let velocity = row_velocity(row, n, &a, &b);
+        let total =
+            (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
+        let delta = total - row.impulse;
+        point.normal.impulse = total;
+        point.max_normal_impulse = point.max_normal_impulse.max(total);
+        apply(&point.normal, n, delta, masses, &mut a, &mut b);
+    }
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
