@@ -103,9 +103,8 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
     } else {
         -1.0
     };
-    let quadrilateral_area = |p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3| {
-        winding * (p2 - p0).cross(p3 - p1).dot(normal)
-    };
+    let quadrilateral_area =
+        |p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3| winding * (p2 - p0).cross(p3 - p1).dot(normal);
     let fourth = best_index(candidates, &[deepest, farthest, widest], |position| {
         quadrilateral_area(first, position, second, third)
             .max(quadrilateral_area(first, second, position, third))
@@ -120,11 +119,7 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
 
 /// Index of the candidate not in `taken` with the largest `score` of its position; the lower
 /// index on ties. `candidates` has more entries than `taken`, so there is always one.
-fn best_index(
-    candidates: &[ContactPoint],
-    taken: &[usize],
-    score: impl Fn(Vec3) -> f32,
-) -> usize {
+fn best_index(candidates: &[ContactPoint], taken: &[usize], score: impl Fn(Vec3) -> f32) -> usize {
     let mut best = usize::MAX;
     let mut best_score = f32::NEG_INFINITY;
     for (index, candidate) in candidates.iter().enumerate() {
