@@ -9,9 +9,9 @@
 //! separation is the gap between the two projections (m, > 0 apart); any gap `>= margin`
 //! proves the boxes too far apart and ends the test. Otherwise the axis with the largest
 //! separation (least penetration) is the contact normal, with a preference for faces: an edge
-//! axis must beat the best face by [`EDGE_RELATIVE_TOLERANCE`], and one box's face beats the
-//! other's only by [`FACE_RELATIVE_TOLERANCE`] (else the box with the larger face is the
-//! reference, B on a tie), so the choice does not flip from step to step on rounding.
+//! axis must beat the best face by 5 % and 0.5 mm, and one box's face beats the other's only
+//! by 2 % and 0.5 mm (else the box with the larger face is the reference, B on a tie), so the
+//! choice does not flip from step to step on rounding.
 //!
 //! - Face contact: the chosen face is the reference face; the incident face is the face of
 //!   the other box most anti-parallel to it. The incident face (4 vertices) is clipped against
@@ -40,15 +40,15 @@
 
 use super::segment::closest_parameters_between_segments;
 use super::{
-    ABSOLUTE_TOLERANCE, EDGE_RELATIVE_TOLERANCE, Face, PARALLEL_SINE_SQUARED, sign_or_positive,
+    EDGE_RELATIVE_TOLERANCE, Face, PARALLEL_SINE_SQUARED, clearly_greater, sign_or_positive,
 };
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::shape::Cuboid;
 
 /// One box's face is the reference only if its separation beats the other box's best face by
-/// this factor (plus [`ABSOLUTE_TOLERANCE`]); within it, the larger face wins.
-const FACE_RELATIVE_TOLERANCE: f32 = 0.98;
+/// this fraction (see `clearly_greater`); within it, the larger face wins.
+const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
 
 /// Most vertices of the clipped incident face: a quadrilateral cut by four half-planes.
 const MAX_CLIPPED_VERTICES: usize = 8;
@@ -98,26 +98,38 @@ pub(super) fn box_box(
         return;
     }
 
+    // Edge axes L = e_i × a_j, in closed form from R (Gottschalk et al., "OBBTree", 1996): with
+    // (i, n, l) and (j, p, q) cyclic, L = (0 at i, -R_lj at n, R_nj at l), and
+    // a_k · L = e_i · (a_j × a_k) leaves A's reach ha_p |R_iq| + ha_q |R_ip|. Unnormalized until
+    // the separation is divided by |L|.
     let mut best_edge: Option<EdgeAxis> = None;
     for axis_of_b in 0..3 {
+        let (next_b, last_b) = ((axis_of_b + 1) % 3, (axis_of_b + 2) % 3);
         for axis_of_a in 0..3 {
-            // |e_i × a_j|² = 1 - R_ij².
-            let axis = Vec3::AXES[axis_of_b].cross(rotation.col(axis_of_a));
-            let length_squared = axis.length_squared();
+            let (next_a, last_a) = ((axis_of_a + 1) % 3, (axis_of_a + 2) % 3);
+            let column = rotation.col(axis_of_a);
+            let absolute_column = absolute.col(axis_of_a);
+            // |L|² = 1 - R_ij², summed from the two other terms, which keeps its precision.
+            let length_squared = column[next_b] * column[next_b] + column[last_b] * column[last_b];
             if length_squared <= PARALLEL_SINE_SQUARED {
                 continue;
             }
-            let axis = axis / length_squared.sqrt();
-            let along = translation.dot(axis);
-            let reach_b = (half_b * axis.abs()).element_sum();
-            let reach_a = (half_a * (rotation_transposed * axis).abs()).element_sum();
-            let separation = along.abs() - reach_a - reach_b;
+            let along = translation[last_b] * column[next_b] - translation[next_b] * column[last_b];
+            let reach_b =
+                half_b[next_b] * absolute_column[last_b] + half_b[last_b] * absolute_column[next_b];
+            let reach_a = half_a[next_a] * absolute.col(last_a)[axis_of_b]
+                + half_a[last_a] * absolute.col(next_a)[axis_of_b];
+            let inverse_length = length_squared.sqrt().recip();
+            let separation = (along.abs() - reach_a - reach_b) * inverse_length;
             if separation >= margin {
                 return;
             }
             if best_edge.is_none_or(|best| separation > best.separation) {
+                let mut normal = Vec3::ZERO;
+                normal[next_b] = -column[last_b];
+                normal[last_b] = column[next_b];
                 best_edge = Some(EdgeAxis {
-                    normal: axis * sign_or_positive(along),
+                    normal: normal * (sign_or_positive(along) * inverse_length),
                     separation,
                     axis_of_b,
                     axis_of_a,
@@ -128,7 +140,7 @@ pub(super) fn box_box(
 
     let face_separation = separation_a.max(separation_b);
     if let Some(edge) = best_edge
-        && edge.separation > EDGE_RELATIVE_TOLERANCE * face_separation + ABSOLUTE_TOLERANCE
+        && clearly_greater(edge.separation, face_separation, EDGE_RELATIVE_TOLERANCE)
     {
         let world = RelativeFrame {
             rotation: rotation_b,
@@ -138,14 +150,13 @@ pub(super) fn box_box(
         return;
     }
 
-    let reference_is_a =
-        if separation_a > FACE_RELATIVE_TOLERANCE * separation_b + ABSOLUTE_TOLERANCE {
-            true
-        } else if separation_b > FACE_RELATIVE_TOLERANCE * separation_a + ABSOLUTE_TOLERANCE {
-            false
-        } else {
-            face_area(half_a, axis_a) > face_area(half_b, axis_b)
-        };
+    let reference_is_a = if clearly_greater(separation_a, separation_b, FACE_RELATIVE_TOLERANCE) {
+        true
+    } else if clearly_greater(separation_b, separation_a, FACE_RELATIVE_TOLERANCE) {
+        false
+    } else {
+        face_area(half_a, axis_a) > face_area(half_b, axis_b)
+    };
     // The clipping runs in the reference box's frame.
     let (reference, incident, reference_rotation, reference_position) = if reference_is_a {
         // B's centre in A's frame is -R^T t; its axes there are the columns of R^T.

@@ -52,10 +52,10 @@ const COINCIDENT_DISTANCE_SQUARED: f32 = 1.0e-12;
 /// Half height (m) under which a capsule is a sphere: its segment has no direction.
 const POINT_SEGMENT_HALF_HEIGHT: f32 = 1.0e-6;
 
-/// An edge axis of the separating-axis test is taken only when its separation beats the best
-/// face axis's by this factor (and [`ABSOLUTE_TOLERANCE`]): face contacts give whole manifolds,
-/// and flipping between a face and an edge from one step to the next makes stacks jitter.
-const EDGE_RELATIVE_TOLERANCE: f32 = 0.95;
+/// An edge axis of the separating-axis test is taken only when its separation clearly beats
+/// the best face axis's (see [`clearly_greater`]): face contacts give whole manifolds, and
+/// flipping between a face and an edge from one step to the next makes stacks jitter.
+const EDGE_RELATIVE_TOLERANCE: f32 = 0.05;
 
 /// Slack (m) added to the relative tolerances, so that when the separations are near zero the
 /// preferred axis still wins ties that differ only by rounding.
@@ -151,6 +151,15 @@ impl Face {
     fn index(self) -> u32 {
         2 * self.axis as u32 + u32::from(self.sign < 0.0)
     }
+}
+
+/// True when separation `candidate` (m) beats separation `preferred` (m) by more than the
+/// fraction `relative_tolerance` of its size plus [`ABSOLUTE_TOLERANCE`]. The slack grows
+/// with `|preferred|`, so it holds both for overlaps (< 0) and speculative gaps (> 0); ties
+/// and rounding go to `preferred`.
+#[inline]
+fn clearly_greater(candidate: f32, preferred: f32, relative_tolerance: f32) -> bool {
+    candidate > preferred + relative_tolerance * preferred.abs() + ABSOLUTE_TOLERANCE
 }
 
 /// `1` for `x >= 0` (zero included, so that a centred body still picks a side), else `-1`.
