@@ -51,3 +51,159 @@ impl Manifold {
         self
     }
 }
+
+/// Keeps at most [`MAX_MANIFOLD_POINTS`] of `candidates`, chosen to hold the body as a larger
+/// set would: the deepest point (it carries the largest impulse), then the point farthest from
+/// it, then the one making the largest triangle with those two, then the one making the
+/// largest quadrilateral with the triangle. Distances and areas are measured in the contact
+/// plane (perpendicular to the unit `normal`), so depth differences do not count as spread.
+///
+/// Deterministic: ties go to the lower index; the kept points are listed in the order chosen.
+/// The result's normal is `normal`. With four candidates or fewer, all are kept in order.
+pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
+    let mut manifold = Manifold {
+        normal,
+        ..Manifold::default()
+    };
+    if candidates.len() <= MAX_MANIFOLD_POINTS {
+        for candidate in candidates {
+            manifold.push(*candidate);
+        }
+        return manifold;
+    }
+
+    let mut deepest = 0;
+    for (index, candidate) in candidates.iter().enumerate() {
+        if candidate.separation < candidates[deepest].separation {
+            deepest = index;
+        }
+    }
+    let first = candidates[deepest].position;
+
+    // Squared distance from the first point in the contact plane (m²).
+    let farthest = best_index(candidates, &[deepest], |position| {
+        let offset = position - first;
+        let along_normal = offset.dot(normal);
+        offset.length_squared() - along_normal * along_normal
+    });
+    let second = candidates[farthest].position;
+
+    // Twice the triangle's area projected on the contact plane (m²), either winding.
+    let triangle_area = |position: Vec3| (second - first).cross(position - first).dot(normal);
+    let widest = best_index(candidates, &[deepest, farthest], |position| {
+        triangle_area(position).abs()
+    });
+    let third = candidates[widest].position;
+
+    // Twice the quadrilateral's signed area, with the fourth point put in each of the three
+    // gaps of the triangle; the triangle's winding makes a convex insertion positive. The
+    // best gap is the quadrilateral the point would make with the triangle.
+    let winding = if triangle_area(third) >= 0.0 {
+        1.0
+    } else {
+        -1.0
+    };
+    let quadrilateral_area =
+        |p0: Vec3, p1: Vec3, p2: Vec3, p3: Vec3| winding * (p2 - p0).cross(p3 - p1).dot(normal);
+    let fourth = best_index(candidates, &[deepest, farthest, widest], |position| {
+        quadrilateral_area(first, position, second, third)
+            .max(quadrilateral_area(first, second, position, third))
+            .max(quadrilateral_area(first, second, third, position))
+    });
+
+    for index in [deepest, farthest, widest, fourth] {
+        manifold.push(candidates[index]);
+    }
+    manifold
+}
+
+/// Index of the candidate not in `taken` with the largest `score` of its position; the lower
+/// index on ties. `candidates` has more entries than `taken`, so there is always one.
+fn best_index(candidates: &[ContactPoint], taken: &[usize], score: impl Fn(Vec3) -> f32) -> usize {
+    let mut best = usize::MAX;
+    let mut best_score = f32::NEG_INFINITY;
+    for (index, candidate) in candidates.iter().enumerate() {
+        if taken.contains(&index) {
+            continue;
+        }
+        let candidate_score = score(candidate.position);
+        if best == usize::MAX || candidate_score > best_score {
+            best = index;
+            best_score = candidate_score;
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::vec3;
+
+    fn point(x: f32, z: f32, separation: f32, id: u32) -> ContactPoint {
+        ContactPoint {
+            position: vec3(x, 0.0, z),
+            separation,
+            id,
+        }
+    }
+
+    #[test]
+    fn few_candidates_are_kept_as_they_are() {
+        let candidates = [point(0.0, 0.0, -0.1, 7), point(1.0, 0.0, 0.0, 3)];
+        let manifold = reduce(&candidates, Vec3::Y);
+        assert_eq!(manifold.points(), &candidates);
+        assert_eq!(manifold.normal, Vec3::Y);
+    }
+
+    #[test]
+    fn keeps_deepest_then_the_widest_spread() {
+        // A regular octagon of radius 1 in the xz plane, with its centre and a point near an
+        // edge's middle; vertex 3 is the deepest.
+        let mut candidates = Vec::new();
+        for index in 0..8 {
+            let angle = index as f32 * std::f32::consts::FRAC_PI_4;
+            let separation = if index == 3 { -0.02 } else { -0.01 };
+            candidates.push(point(angle.cos(), angle.sin(), separation, index));
+        }
+        candidates.push(point(0.0, 0.0, -0.015, 8));
+        candidates.push(point(0.9, 0.3, -0.015, 9));
+        let manifold = reduce(&candidates, Vec3::Y);
+        let mut ids: Vec<u32> = manifold.points().iter().map(|point| point.id).collect();
+        // Deepest 3, its opposite 7, then the two vertices a quarter turn off (1 and 5, equal
+        // up to rounding): the largest square.
+        assert_eq!(ids[..2], [3, 7]);
+        ids[2..].sort();
+        assert_eq!(ids[2..], [1, 5]);
+    }
+
+    #[test]
+    fn spread_ignores_depth_along_the_normal() {
+        // Far apart along the normal only: no spread at all in the contact plane.
+        let candidates = [
+            ContactPoint {
+                position: vec3(0.0, 5.0, 0.0),
+                separation: -0.1,
+                id: 0,
+            },
+            point(0.0, 0.0, 0.0, 1),
+            point(0.5, 0.0, 0.0, 2),
+            point(0.0, 0.5, 0.0, 3),
+            point(0.5, 0.5, 0.0, 4),
+            point(0.1, 0.1, 0.0, 5),
+        ];
+        let ids: Vec<u32> = reduce(&candidates, Vec3::Y)
+            .points()
+            .iter()
+            .map(|point| point.id)
+            .collect();
+        assert_eq!(ids, [0, 4, 2, 3]);
+    }
+
+    #[test]
+    fn identical_candidates_give_distinct_points() {
+        let candidates = [point(1.0, 1.0, 0.0, 0); 6];
+        let manifold = reduce(&candidates, Vec3::Y);
+        assert_eq!(manifold.count, 4);
+    }
+}

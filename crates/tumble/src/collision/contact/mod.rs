@@ -1,73 +1,242 @@
-//! TEMP stand-in
+//! Contact generation: the narrowphase's pair functions and the dispatcher [`collide`].
+//!
+//! # What a manifold holds
+//!
+//! - `normal` is unit length and points from body B to body A (DESIGN.md principle 7).
+//! - Each point's `separation` is the signed distance of the two surfaces along `normal` (m),
+//!   positive apart and negative overlapping. Points with `separation >= margin` are dropped; `margin` is the
+//!   speculative distance that keeps a resting contact alive while the bodies hover a hair apart.
+//! - Each point's `position` is the world point midway between the surfaces: the point on A's
+//!   surface minus `normal * separation / 2`.
+//! - At most four points; when a box face yields more they go through
+//!   [`reduce`](crate::collision::manifold::reduce).
+//!
+//! # Feature ids
+//!
+//! `ContactPoint::id` names the pair of features that touch, so it stays the same from step to
+//! step while they do, and the solver can carry last step's impulses over (warm starting). Ids
+//! are unique within a manifold.
+//!
+//! | pair | ids |
+//! |---|---|
+//! | sphere–anything; capsule–capsule and capsule–box at one point | `0` |
+//! | capsule–capsule (parallel), capsule–box (on a face) | `0` and `1`: the ends of the part of A's segment that lies along B, `0` at the end towards A's `-half_height` end |
+//! | capsule–plane | `0` for the `-half_height` end, `1` for the `+half_height` end |
+//! | box–plane | the box vertex index: bit 0, 1, 2 set when the vertex is on the + side of local x, y, z |
+//! | box–box, face | clip feature (bits 0–5) · reference face `<< 6` · incident face `<< 9` · reference is A `<< 12` |
+//! | box–box, edge | `1 << 13` · B's edge index · A's edge index `<< 4` |
+//!
+//! `box_box.rs` details the box–box fields. A point surviving alone keeps its id (capsule end
+//! `1`, box vertex `5`): ids name features, not positions in the manifold.
+//!
+//! # Frames
+//!
+//! Pairs with a box work in the box's frame, where it is axis aligned at the origin: clamps,
+//! slabs and face planes become per-component comparisons. Nothing allocates: candidates live in
+//! fixed arrays on the stack.
+
+mod box_box;
+mod capsule;
+mod plane;
+mod segment;
+mod sphere;
+
 use crate::collision::manifold::{ContactPoint, Manifold};
 use crate::math::{Transform, Vec3};
 use crate::shape::Shape;
+
+/// Squared distance (m²) under which two points count as one, so their difference gives no
+/// direction and a fallback normal is used instead.
+const COINCIDENT_DISTANCE_SQUARED: f32 = 1.0e-12;
+
+/// Half height (m) under which a capsule is a sphere: its segment has no direction.
+const POINT_SEGMENT_HALF_HEIGHT: f32 = 1.0e-6;
+
+/// An edge axis of the separating-axis test is taken only when its separation clearly beats
+/// the best face axis's (see [`clearly_greater`]): face contacts give whole manifolds, and
+/// flipping between a face and an edge from one step to the next makes stacks jitter.
+const EDGE_RELATIVE_TOLERANCE: f32 = 0.05;
+
+/// Slack (m) added to the relative tolerances, so that when the separations are near zero the
+/// preferred axis still wins ties that differ only by rounding.
+const ABSOLUTE_TOLERANCE: f32 = 5.0e-4;
+
+/// `sin²` of the angle under which an edge is parallel to another edge or to a face: their
+/// cross product is then mostly rounding and is no axis to test.
+const PARALLEL_SINE_SQUARED: f32 = 1.0e-6;
+
+/// Fills `out` with the contacts between shape `a` at `pose_a` and shape `b` at `pose_b` whose
+/// separation is below `margin` (m, ≥ 0). The normal points from `b` to `a`. `out` is reset
+/// first; it ends up empty when the shapes are farther apart than `margin`, and for two planes.
 pub fn collide(
     a: &Shape,
-    pa: &Transform,
+    pose_a: &Transform,
     b: &Shape,
-    pb: &Transform,
+    pose_b: &Transform,
     margin: f32,
     out: &mut Manifold,
 ) {
-    out.clear();
+    *out = Manifold::default();
+    // Each pair function exists once, for kind(a) <= kind(b); the other order is the same
+    // contact seen from the other body: same points, opposite normal.
+    if a.kind() <= b.kind() {
+        collide_ordered(a, pose_a, b, pose_b, margin, out);
+    } else {
+        collide_ordered(b, pose_b, a, pose_a, margin, out);
+        *out = out.flipped();
+    }
+}
+
+/// [`collide`] for `a.kind() <= b.kind()`.
+fn collide_ordered(
+    a: &Shape,
+    pose_a: &Transform,
+    b: &Shape,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
     match (a, b) {
-        (Shape::Plane(_), Shape::Plane(_)) => {}
-        (Shape::Plane(_), _) => {
-            collide(b, pb, a, pa, margin, out);
-            *out = out.flipped();
+        (Shape::Sphere(a), Shape::Sphere(b)) => {
+            sphere::sphere_sphere(a, pose_a, b, pose_b, margin, out)
         }
-        (_, Shape::Plane(p)) => {
-            let n = pb.rotation * p.normal;
-            let level = p.offset + n.dot(pb.position);
-            out.normal = n;
-            match a {
-                Shape::Sphere(s) => {
-                    let d = n.dot(pa.position) - level - s.radius;
-                    if d < margin {
-                        out.push(ContactPoint {
-                            position: pa.position - n * (s.radius + 0.5 * d),
-                            separation: d,
-                            id: 0,
-                        })
-                    }
-                }
-                Shape::Cuboid(c) => {
-                    for i in 0..8u32 {
-                        let v = pa.transform_point(
-                            Vec3::new(
-                                if i & 1 == 0 { -1.0 } else { 1.0 },
-                                if i & 2 == 0 { -1.0 } else { 1.0 },
-                                if i & 4 == 0 { -1.0 } else { 1.0 },
-                            ) * c.half_extents,
-                        );
-                        let d = n.dot(v) - level;
-                        if d < margin && out.count < 4 {
-                            out.push(ContactPoint {
-                                position: v - n * (0.5 * d),
-                                separation: d,
-                                id: i,
-                            })
-                        }
-                    }
-                }
-                _ => {}
-            }
+        (Shape::Sphere(a), Shape::Capsule(b)) => {
+            sphere::sphere_capsule(a, pose_a, b, pose_b, margin, out)
         }
-        (Shape::Sphere(sa), Shape::Sphere(sb)) => {
-            let d = pa.position - pb.position;
-            let len = d.length();
-            let n = if len > 0.0 { d / len } else { Vec3::Y };
-            let s = len - sa.radius - sb.radius;
-            if s < margin {
-                out.normal = n;
-                out.push(ContactPoint {
-                    position: pb.position + n * (sb.radius + 0.5 * s),
-                    separation: s,
-                    id: 0,
-                })
-            }
+        (Shape::Sphere(a), Shape::Cuboid(b)) => {
+            sphere::sphere_box(a, pose_a, b, pose_b, margin, out)
         }
+        (Shape::Sphere(a), Shape::Plane(b)) => {
+            plane::sphere_plane(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Capsule(a), Shape::Capsule(b)) => {
+            capsule::capsule_capsule(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Capsule(a), Shape::Cuboid(b)) => {
+            capsule::capsule_box(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Capsule(a), Shape::Plane(b)) => {
+            plane::capsule_plane(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Cuboid(a), Shape::Cuboid(b)) => box_box::box_box(a, pose_a, b, pose_b, margin, out),
+        (Shape::Cuboid(a), Shape::Plane(b)) => plane::box_plane(a, pose_a, b, pose_b, margin, out),
+        // Plane–plane: two static half-spaces never need a contact. Every other combination
+        // reaches this function ordered by kind, so it is one of the arms above.
         _ => {}
+    }
+}
+
+/// Appends the point whose surface point on A is `surface_a` (world, m); the surface of B lies
+/// `separation` (m) behind it along `normal`, so the midpoint is half that back.
+#[inline]
+fn push_contact(out: &mut Manifold, surface_a: Vec3, normal: Vec3, separation: f32, id: u32) {
+    out.push(ContactPoint {
+        position: surface_a - normal * (0.5 * separation),
+        separation,
+        id,
+    });
+}
+
+/// A face of an axis-aligned box (in its own frame): its outward normal is
+/// `sign * Vec3::AXES[axis]`, `sign` being 1 or -1.
+#[derive(Clone, Copy, Debug)]
+struct Face {
+    axis: usize,
+    sign: f32,
+}
+
+impl Face {
+    /// `2 * axis + (1 if the normal is along -axis)`: 0..=5, 3 bits of a feature id.
+    #[inline]
+    fn index(self) -> u32 {
+        2 * self.axis as u32 + u32::from(self.sign < 0.0)
+    }
+}
+
+/// True when separation `candidate` (m) beats separation `preferred` (m) by more than the
+/// fraction `relative_tolerance` of its size plus [`ABSOLUTE_TOLERANCE`]. The slack grows
+/// with `|preferred|`, so it holds both for overlaps (< 0) and speculative gaps (> 0); ties
+/// and rounding go to `preferred`.
+#[inline]
+fn clearly_greater(candidate: f32, preferred: f32, relative_tolerance: f32) -> bool {
+    candidate > preferred + relative_tolerance * preferred.abs() + ABSOLUTE_TOLERANCE
+}
+
+/// `1` for `x >= 0` (zero included, so that a centred body still picks a side), else `-1`.
+#[inline]
+fn sign_or_positive(x: f32) -> f32 {
+    if x >= 0.0 { 1.0 } else { -1.0 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Quat, vec3};
+
+    /// Every pair, both argument orders: the same points and ids, the normal flipped.
+    #[test]
+    fn swapped_arguments_flip_the_normal_only() {
+        let shapes = [
+            Shape::sphere(0.5),
+            Shape::capsule(0.3, 0.6),
+            Shape::cuboid(vec3(0.6, 0.4, 0.5)),
+            Shape::plane(Vec3::Y, 0.0),
+        ];
+        let pose_a = Transform::new(vec3(0.1, 0.55, -0.2), Quat::from_rotation_z(1.2));
+        let pose_b = Transform::new(vec3(0.0, 0.0, 0.1), Quat::from_rotation_x(0.1));
+        let mut produced = 0;
+        for a in &shapes {
+            for b in &shapes {
+                let mut forward = Manifold::default();
+                let mut backward = Manifold::default();
+                collide(a, &pose_a, b, &pose_b, 0.02, &mut forward);
+                collide(b, &pose_b, a, &pose_a, 0.02, &mut backward);
+                assert_eq!(forward.count, backward.count, "{a:?} {b:?}");
+                if forward.count == 0 {
+                    continue;
+                }
+                produced += 1;
+                assert!((forward.normal.length() - 1.0).abs() < 1e-5);
+                if a.kind() != b.kind() {
+                    // Different kinds are swapped by the dispatcher: exactly the same contact.
+                    assert_eq!(forward.normal, -backward.normal);
+                    assert_eq!(forward.points(), backward.points());
+                } else {
+                    // Same kind: the pair function itself runs the other way round.
+                    assert!((forward.normal + backward.normal).length() < 1e-4);
+                    let mut backward_points = backward.points().to_vec();
+                    for point in forward.points() {
+                        let nearest = backward_points
+                            .iter()
+                            .position(|other| {
+                                (other.position - point.position).length() < 1e-4
+                                    && (other.separation - point.separation).abs() < 1e-4
+                            })
+                            .unwrap_or_else(|| panic!("{a:?} {b:?}: {point:?} not matched"));
+                        backward_points.swap_remove(nearest);
+                    }
+                }
+            }
+        }
+        // All pairs but plane–plane touch in this pose.
+        assert_eq!(produced, 15);
+    }
+
+    #[test]
+    fn plane_plane_gives_nothing() {
+        let plane = Shape::plane(Vec3::Y, 0.0);
+        let mut out = Manifold {
+            count: 3,
+            ..Manifold::default()
+        };
+        collide(
+            &plane,
+            &Transform::IDENTITY,
+            &plane,
+            &Transform::IDENTITY,
+            0.02,
+            &mut out,
+        );
+        assert_eq!(out.count, 0);
     }
 }
