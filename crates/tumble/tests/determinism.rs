@@ -21,17 +21,13 @@ fn run_in_pool(threads: usize, scene: &Scene, steps: usize) -> String {
 fn falling_boxes_are_bitwise_identical_across_runs_and_thread_counts() {
     let scene = builtin("falling-boxes", 0.05).unwrap();
     let one = run_in_pool(1, &scene, 120);
-    assert_eq!(one, run_in_pool(1, &scene, 120), "two 1-thread runs differ");
-    assert_eq!(
-        one,
-        run_in_pool(2, &scene, 120),
-        "1-thread and 2-thread runs differ"
-    );
-    assert_eq!(
-        one,
-        run_in_pool(4, &scene, 120),
-        "1-thread and 4-thread runs differ"
-    );
+    for threads in [1, 2, 4] {
+        assert_same_dump(
+            &format!("1 thread vs {threads}"),
+            &one,
+            &run_in_pool(threads, &scene, 120),
+        );
+    }
 }
 
 fn run(world: &mut World, steps: usize) {
@@ -58,12 +54,33 @@ fn dump_at_step_50_then_load_and_run_50_equals_100_steps() {
         let mut resumed = loaded.build().unwrap();
         run(&mut resumed, 50);
 
-        assert_eq!(
-            Scene::from_world(&straight).to_json(),
-            Scene::from_world(&resumed).to_json(),
-            "{name}: resumed run differs"
-        );
+        assert_same_state(name, &straight, &resumed);
     }
+}
+
+/// Fails with the first line where the two worlds' dumps differ.
+fn assert_same_state(name: &str, expected: &World, actual: &World) {
+    assert_same_dump(
+        name,
+        &Scene::from_world(expected).to_json(),
+        &Scene::from_world(actual).to_json(),
+    );
+}
+
+fn assert_same_dump(name: &str, expected: &str, actual: &str) {
+    if let Some((line, (e, a))) = expected
+        .lines()
+        .zip(actual.lines())
+        .enumerate()
+        .find(|(_, (e, a))| e != a)
+    {
+        panic!("{name}: resumed run differs at dump line {line}: expected {e:?}, got {a:?}");
+    }
+    assert_eq!(
+        expected.len(),
+        actual.len(),
+        "{name}: dumps differ in length"
+    );
 }
 
 #[test]

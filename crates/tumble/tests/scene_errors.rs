@@ -146,6 +146,7 @@ fn the_design_example_scene_loads() {
 fn a_non_unit_rotation_is_normalized() {
     let json =
         scene_with_body(r#"{ "shape": { "sphere": { "radius": 1 } }, "rotation": [0, 0, 0, 2] }"#);
-    let scene = Scene::from_json(&json).unwrap();
-    assert_eq!(scene.bodies[1].rotation.w, 1.0);
+    let world = Scene::from_json(&json).unwrap().build().unwrap();
+    let body = world.bodies().nth(1).unwrap();
+    assert_eq!(world.pose(body).unwrap().rotation.w, 1.0);
 }

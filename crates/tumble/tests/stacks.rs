@@ -7,7 +7,10 @@ use tumble::math::Vec3;
 
 /// Largest distance any body moved from where it started (m).
 fn max_drift(world: &tumble::World, bodies: &[(BodyHandle, Vec3)]) -> f32 {
-    bodies.iter().map(|&(body, start)| (world.pose(body).unwrap().position - start).length()).fold(0.0, f32::max)
+    bodies
+        .iter()
+        .map(|&(body, start)| (world.pose(body).unwrap().position - start).length())
+        .fold(0.0, f32::max)
 }
 
 #[test]
@@ -22,7 +25,11 @@ fn tower_of_ten_boxes_stands() {
     run(&mut world, 10.0);
     let drift = max_drift(&world, &bodies);
     assert!(drift < 0.01, "tower drifted {drift} m");
-    assert!(world.kinetic_energy() < 1e-4, "tower still moving: {} J", world.kinetic_energy());
+    assert!(
+        world.kinetic_energy() < 1e-4,
+        "tower still moving: {} J",
+        world.kinetic_energy()
+    );
 }
 
 #[test]

@@ -182,6 +182,17 @@ impl BodyDesc {
         self
     }
 
+    /// The rotation as the body will get it: normalized when visibly off unit length, else
+    /// kept bit for bit (so a dumped state loads back exactly).
+    pub fn unit_rotation(&self) -> Quat {
+        let length_squared = self.rotation.length_squared();
+        if (length_squared - 1.0).abs() > 1e-5 {
+            self.rotation / length_squared.sqrt()
+        } else {
+            self.rotation
+        }
+    }
+
     pub fn is_static(&self) -> bool {
         self.mass == 0.0
     }

@@ -64,8 +64,19 @@ pub struct JointDesc {
 }
 
 impl JointDesc {
-    pub fn new(kind: JointKind, body_a: crate::BodyHandle, body_b: crate::BodyHandle, anchor: Vec3) -> Self {
-        Self { kind, body_a, body_b, anchor, break_impulse: None }
+    pub fn new(
+        kind: JointKind,
+        body_a: crate::BodyHandle,
+        body_b: crate::BodyHandle,
+        anchor: Vec3,
+    ) -> Self {
+        Self {
+            kind,
+            body_a,
+            body_b,
+            anchor,
+            break_impulse: None,
+        }
     }
 
     pub fn break_impulse(mut self, impulse: f32) -> Self {
@@ -107,7 +118,11 @@ impl JointDesc {
         };
         match self.kind {
             JointKind::Point | JointKind::Fixed => Ok(()),
-            JointKind::Hinge { axis, limits, motor } => {
+            JointKind::Hinge {
+                axis,
+                limits,
+                motor,
+            } => {
                 check_axis(axis)?;
                 if let Some(limits) = limits {
                     check_range("limits", limits)?;
@@ -117,15 +132,27 @@ impl JointDesc {
                         return Err(JointError::NotFinite("motor"));
                     }
                     if motor.max_torque < 0.0 {
-                        return Err(JointError::BadLimits { name: "motor max_torque", lower: motor.max_torque, upper: motor.max_torque });
+                        return Err(JointError::BadLimits {
+                            name: "motor max_torque",
+                            lower: motor.max_torque,
+                            upper: motor.max_torque,
+                        });
                     }
                 }
                 Ok(())
             }
-            JointKind::ConeTwist { axis, swing_limit, twist_limits } => {
+            JointKind::ConeTwist {
+                axis,
+                swing_limit,
+                twist_limits,
+            } => {
                 check_axis(axis)?;
                 if !(0.0..=std::f32::consts::PI).contains(&swing_limit) {
-                    return Err(JointError::BadLimits { name: "swing_limit", lower: 0.0, upper: swing_limit });
+                    return Err(JointError::BadLimits {
+                        name: "swing_limit",
+                        lower: 0.0,
+                        upper: swing_limit,
+                    });
                 }
                 check_range("twist_limits", twist_limits)
             }
@@ -143,7 +170,11 @@ pub enum JointError {
     #[error("joint axis must be non-zero")]
     ZeroAxis,
     #[error("joint {name} [{lower}, {upper}] must satisfy lower <= upper within [-pi, pi]")]
-    BadLimits { name: &'static str, lower: f32, upper: f32 },
+    BadLimits {
+        name: &'static str,
+        lower: f32,
+        upper: f32,
+    },
     #[error("break_impulse must be > 0, got {0}")]
     BadBreakImpulse(f32),
     #[error("a joint needs at least one dynamic body")]
@@ -184,7 +215,11 @@ pub const MAX_ANGULAR_ROWS: usize = 5;
 
 impl Joint {
     /// The joint of `desc` between bodies at poses `(position, rotation)` a and b.
-    pub fn new(desc: &JointDesc, (position_a, rotation_a): (Vec3, Quat), (position_b, rotation_b): (Vec3, Quat)) -> Self {
+    pub fn new(
+        desc: &JointDesc,
+        (position_a, rotation_a): (Vec3, Quat),
+        (position_b, rotation_b): (Vec3, Quat),
+    ) -> Self {
         let axis = match desc.kind {
             JointKind::Hinge { axis, .. } | JointKind::ConeTwist { axis, .. } => axis.normalize(),
             JointKind::Point | JointKind::Fixed => Vec3::X,

@@ -4,7 +4,8 @@ use crate::math::{Aabb, Mat3};
 use crate::pipeline::world::{StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
 use crate::stages::constraints::{
-    ContactConstraint, JointConstraint, RowInputs, build_constraints, build_joint_constraints, world_inverse_inertia,
+    ContactConstraint, JointConstraint, RowInputs, build_constraints, build_joint_constraints,
+    world_inverse_inertia,
 };
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
@@ -34,7 +35,14 @@ impl World {
         let profiler = &mut self.profiler;
 
         // 1. World AABBs, grown by the speculative contact margin.
-        profiler.scope("aabb", || aabb::compute_aabbs(&self.poses, &self.colliders, config.contact_margin, &mut scratch.aabbs));
+        profiler.scope("aabb", || {
+            aabb::compute_aabbs(
+                &self.poses,
+                &self.colliders,
+                config.contact_margin,
+                &mut scratch.aabbs,
+            )
+        });
 
         // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
         profiler.begin("broadphase");
@@ -48,7 +56,14 @@ impl World {
         // 4. Narrowphase: fresh manifolds, impulses carried over by feature id.
         profiler.scope("narrowphase", || {
             let (keys, contacts) = self.pairs.keys_and_values_mut();
-            narrowphase::update_contacts(keys, contacts, &self.poses, &self.colliders, config.contact_margin, &self.jointed_pairs)
+            narrowphase::update_contacts(
+                keys,
+                contacts,
+                &self.poses,
+                &self.colliders,
+                config.contact_margin,
+                &self.jointed_pairs,
+            )
         });
 
         // 5. Constraint rows: contacts, then joints.
@@ -65,7 +80,12 @@ impl World {
             push_factor: config.push_factor,
             max_push_velocity: config.max_push_velocity,
         };
-        build_constraints(self.pairs.keys(), self.pairs.values(), &inputs, &mut scratch.contacts);
+        build_constraints(
+            self.pairs.keys(),
+            self.pairs.values(),
+            &inputs,
+            &mut scratch.contacts,
+        );
         build_joint_constraints(
             &self.joints,
             &self.poses,
@@ -83,14 +103,33 @@ impl World {
             let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
             let bodies = bodies.chain(scratch.contacts.iter().map(|c| (c.body_a, c.body_b)));
             color_constraints(bodies, self.poses.len(), &mut scratch.coloring);
-            let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(scratch.joints.len());
-            group_by_batch(&scratch.joints, joint_colors, &scratch.coloring, &mut scratch.batched_joints, &mut scratch.joint_offsets);
-            group_by_batch(&scratch.contacts, contact_colors, &scratch.coloring, &mut scratch.batched_contacts, &mut scratch.contact_offsets);
+            let (joint_colors, contact_colors) =
+                scratch.coloring.colors.split_at(scratch.joints.len());
+            group_by_batch(
+                &scratch.joints,
+                joint_colors,
+                &scratch.coloring,
+                &mut scratch.batched_joints,
+                &mut scratch.joint_offsets,
+            );
+            group_by_batch(
+                &scratch.contacts,
+                contact_colors,
+                &scratch.coloring,
+                &mut scratch.batched_contacts,
+                &mut scratch.contact_offsets,
+            );
         });
 
         // 7. Solver: gravity into the velocities, then projected Gauss-Seidel over the batches.
         profiler.begin("solver");
-        integrate::integrate_velocities(&self.velocities, &self.masses, config.gravity, dt, &mut scratch.solver_bodies);
+        integrate::integrate_velocities(
+            &self.velocities,
+            &self.masses,
+            config.gravity,
+            dt,
+            &mut scratch.solver_bodies,
+        );
         let settings = SolverSettings {
             iterations: config.solver_iterations,
             restitution_threshold: config.restitution_threshold,
@@ -109,7 +148,12 @@ impl World {
 
         // 8. Integrate positions from the solved velocities (+ split-impulse pseudo-velocities).
         profiler.scope("integrate", || {
-            integrate::integrate_positions(&scratch.solver_bodies, dt, &mut self.poses, &mut self.velocities)
+            integrate::integrate_positions(
+                &scratch.solver_bodies,
+                dt,
+                &mut self.poses,
+                &mut self.velocities,
+            )
         });
 
         self.stats = collect_stats(&scratch.pair_keys, &self.pairs, scratch);
@@ -117,10 +161,17 @@ impl World {
 }
 
 /// Solved impulses back into the pair cache, for next step's warm start.
-fn store_contact_impulses(constraints: &[ContactConstraint], contacts: &mut [narrowphase::PairContact]) {
+fn store_contact_impulses(
+    constraints: &[ContactConstraint],
+    contacts: &mut [narrowphase::PairContact],
+) {
     for constraint in constraints {
         let contact = &mut contacts[constraint.pair as usize];
-        for (impulse, point) in contact.impulses.iter_mut().zip(&constraint.points[..constraint.point_count as usize]) {
+        for (impulse, point) in contact
+            .impulses
+            .iter_mut()
+            .zip(&constraint.points[..constraint.point_count as usize])
+        {
             impulse.normal = point.normal.impulse;
             impulse.tangent = [point.tangent[0].impulse, point.tangent[1].impulse];
         }
@@ -128,15 +179,25 @@ fn store_contact_impulses(constraints: &[ContactConstraint], contacts: &mut [nar
 }
 
 /// Solved impulses back into the joints; a joint whose impulse passed its threshold breaks.
-fn store_joint_impulses(constraints: &[JointConstraint], joints: &mut [Option<crate::dynamics::joint::Joint>]) {
+fn store_joint_impulses(
+    constraints: &[JointConstraint],
+    joints: &mut [Option<crate::dynamics::joint::Joint>],
+) {
     for constraint in constraints {
-        let Some(joint) = joints[constraint.joint as usize].as_mut() else { continue };
+        let Some(joint) = joints[constraint.joint as usize].as_mut() else {
+            continue;
+        };
         joint.point_impulse = constraint.point_impulse;
         for (stored, row) in joint.angular_impulse.iter_mut().zip(&constraint.angular) {
             *stored = row.impulse;
         }
         if let Some(threshold) = joint.break_impulse {
-            let total = constraint.point_impulse.length() + constraint.angular.iter().map(|row| row.impulse.abs()).sum::<f32>();
+            let total = constraint.point_impulse.length()
+                + constraint
+                    .angular
+                    .iter()
+                    .map(|row| row.impulse.abs())
+                    .sum::<f32>();
             joint.broken = total > threshold;
         }
     }
@@ -157,7 +218,11 @@ fn collect_stats(
         pairs_added: pairs.added().len(),
         pairs_removed: pairs.removed().len(),
         manifolds: scratch.contacts.len(),
-        contacts: scratch.contacts.iter().map(|c| c.point_count as usize).sum(),
+        contacts: scratch
+            .contacts
+            .iter()
+            .map(|c| c.point_count as usize)
+            .sum(),
         max_penetration,
         joints: scratch.joints.len(),
         batch_histogram: scratch.coloring.histogram.clone(),

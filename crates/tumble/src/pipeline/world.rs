@@ -135,7 +135,7 @@ impl World {
             }
         }
         let dynamic = !desc.is_static();
-        let pose = BodyPose::new(desc.position, desc.rotation.normalize());
+        let pose = BodyPose::new(desc.position, desc.unit_rotation());
         let velocity = if dynamic {
             BodyVelocity::new(desc.linear_velocity, desc.angular_velocity)
         } else {
@@ -198,7 +198,11 @@ impl World {
     pub fn remove_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
         let i = self.check(handle)?;
         let attached: Vec<u32> = (0..self.joints.len() as u32)
-            .filter(|&j| self.joints[j as usize].is_some_and(|joint| joint.body_a == handle.index || joint.body_b == handle.index))
+            .filter(|&j| {
+                self.joints[j as usize].is_some_and(|joint| {
+                    joint.body_a == handle.index || joint.body_b == handle.index
+                })
+            })
             .collect();
         for joint in attached {
             self.free_joint(joint);
@@ -218,7 +222,10 @@ impl World {
     /// Adds a joint between two bodies at their current poses.
     pub fn add_joint(&mut self, desc: JointDesc) -> Result<JointHandle, JointError> {
         desc.validate()?;
-        let (a, b) = (self.check(desc.body_a).map_err(|_| JointError::StaleBody)?, self.check(desc.body_b).map_err(|_| JointError::StaleBody)?);
+        let (a, b) = (
+            self.check(desc.body_a).map_err(|_| JointError::StaleBody)?,
+            self.check(desc.body_b).map_err(|_| JointError::StaleBody)?,
+        );
         if self.masses[a].inverse_mass == 0.0 && self.masses[b].inverse_mass == 0.0 {
             return Err(JointError::BothStatic);
         }
@@ -236,7 +243,10 @@ impl World {
             }
         };
         self.update_jointed_pairs();
-        Ok(JointHandle { index, generation: self.joint_generations[index as usize] })
+        Ok(JointHandle {
+            index,
+            generation: self.joint_generations[index as usize],
+        })
     }
 
     pub fn remove_joint(&mut self, handle: JointHandle) -> Result<(), JointError> {
@@ -254,28 +264,39 @@ impl World {
     /// Live joints, in slot order.
     pub fn joints(&self) -> impl Iterator<Item = (JointHandle, &Joint)> + '_ {
         self.joints.iter().enumerate().filter_map(|(index, joint)| {
-            let handle = JointHandle { index: index as u32, generation: self.joint_generations[index] };
+            let handle = JointHandle {
+                index: index as u32,
+                generation: self.joint_generations[index],
+            };
             joint.as_ref().map(|joint| (handle, joint))
         })
     }
 
     fn free_joint(&mut self, index: u32) {
         self.joints[index as usize] = None;
-        self.joint_generations[index as usize] = self.joint_generations[index as usize].wrapping_add(1);
+        self.joint_generations[index as usize] =
+            self.joint_generations[index as usize].wrapping_add(1);
         self.free_joints.push(index);
         self.update_jointed_pairs();
     }
 
     fn update_jointed_pairs(&mut self) {
         self.jointed_pairs.clear();
-        self.jointed_pairs.extend(self.joints.iter().flatten().map(|j| crate::stages::pairs::pair_key(j.body_a, j.body_b)));
+        self.jointed_pairs.extend(
+            self.joints
+                .iter()
+                .flatten()
+                .map(|j| crate::stages::pairs::pair_key(j.body_a, j.body_b)),
+        );
         self.jointed_pairs.sort_unstable();
         self.jointed_pairs.dedup();
     }
 
     fn check_joint(&self, handle: JointHandle) -> Result<usize, JointError> {
         match self.joints.get(handle.index as usize) {
-            Some(Some(_)) if self.joint_generations[handle.index as usize] == handle.generation => Ok(handle.index as usize),
+            Some(Some(_)) if self.joint_generations[handle.index as usize] == handle.generation => {
+                Ok(handle.index as usize)
+            }
             _ => Err(JointError::StaleHandle),
         }
     }
@@ -431,18 +452,19 @@ impl World {
         &mut self,
         a: BodyHandle,
         b: BodyHandle,
-        contact: PairContact,
+        mut contact: PairContact,
     ) -> Result<(), BodyError> {
         let (ia, ib) = (self.check(a)?, self.check(b)?);
         let key = crate::stages::pairs::pair_key(ia as u32, ib as u32);
-        let contact = if ia < ib {
-            contact
-        } else {
-            PairContact {
-                manifold: contact.manifold.flipped(),
-                ..contact
+        if ia > ib {
+            // The cache keeps the pair as (lower, higher): flip the normal and move the anchors
+            // into the other body's frame.
+            contact.manifold = contact.manifold.flipped();
+            let (from, to) = (self.poses[ia].transform(), self.poses[ib].transform());
+            for anchor in &mut contact.anchors {
+                *anchor = to.inverse_transform_point(from.transform_point(*anchor));
             }
-        };
+        }
         self.pairs.insert(key, contact);
         Ok(())
     }

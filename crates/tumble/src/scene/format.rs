@@ -115,6 +115,8 @@ pub struct ContactFile {
 pub struct ContactPointFile {
     /// Feature id of the point (see the narrowphase).
     pub id: u32,
+    /// The point in the frame of the first body of `bodies` (m).
+    pub anchor: [f32; 3],
     pub normal_impulse: f32,
     pub tangent_impulse: [f32; 2],
 }
@@ -250,11 +252,14 @@ impl Scene {
                     point.normal_impulse,
                     point.tangent_impulse[0],
                     point.tangent_impulse[1],
+                    point.anchor[0],
+                    point.anchor[1],
+                    point.anchor[2],
                 ];
                 if !numbers.iter().all(|v| v.is_finite()) {
                     return Err(invalid(
                         format!("contacts[{i}].points[{j}]"),
-                        "impulses must be finite".into(),
+                        "impulses and anchor must be finite".into(),
                     ));
                 }
                 pair.manifold
@@ -266,6 +271,7 @@ impl Scene {
                     normal: point.normal_impulse,
                     tangent: point.tangent_impulse,
                 };
+                pair.anchors[j] = Vec3::from_array(point.anchor);
             }
             contacts.push((a, b, pair));
         }
@@ -344,9 +350,10 @@ impl Scene {
                         .manifold
                         .points()
                         .iter()
-                        .zip(&contact.impulses)
-                        .map(|(point, impulse)| ContactPointFile {
+                        .zip(contact.impulses.iter().zip(&contact.anchors))
+                        .map(|(point, (impulse, anchor))| ContactPointFile {
                             id: point.id,
+                            anchor: anchor.to_array(),
                             normal_impulse: impulse.normal,
                             tangent_impulse: impulse.tangent,
                         })
@@ -381,14 +388,8 @@ fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
         } => Shape::capsule(*radius, *half_height),
         ShapeFile::Plane { normal, offset } => Shape::plane(Vec3::from_array(*normal), *offset),
     };
-    let mut rotation = Quat::from_array(body.rotation);
-    // Normalize only what is visibly off unit length: a dumped rotation is kept bit for bit.
-    if rotation.is_finite()
-        && rotation.length_squared() > 0.0
-        && (rotation.length_squared() - 1.0).abs() > 1e-5
-    {
-        rotation = rotation.normalize();
-    }
+    // `World::add_body` normalizes a rotation that is off unit length.
+    let rotation = Quat::from_array(body.rotation);
     let desc = BodyDesc {
         shape,
         position: Vec3::from_array(body.position),

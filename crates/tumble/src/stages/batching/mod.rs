@@ -40,22 +40,40 @@ impl Coloring {
     /// The batch a color is solved in.
     #[inline]
     pub fn batch_of(&self, color: u8) -> usize {
-        if color as usize == MAX_COLORS { self.batch_count - 1 } else { color as usize }
+        if color as usize == MAX_COLORS {
+            self.batch_count - 1
+        } else {
+            color as usize
+        }
     }
 }
 
 /// CPU executor: colors constraints given as (body A, body B) in solve order; bodies are
 /// indexed below `body_count` or are [`STATIC_BODY`].
-pub fn color_constraints(bodies: impl Iterator<Item = (u32, u32)>, body_count: usize, coloring: &mut Coloring) {
+pub fn color_constraints(
+    bodies: impl Iterator<Item = (u32, u32)>,
+    body_count: usize,
+    coloring: &mut Coloring,
+) {
     coloring.masks.clear();
     coloring.masks.resize(body_count, 0);
     coloring.colors.clear();
     let mut counts = [0u32; MAX_COLORS + 1];
     let overflow = MAX_COLORS as u8;
     for (a, b) in bodies {
-        let mask_of = |masks: &[u64], body: u32| if body == STATIC_BODY { 0 } else { masks[body as usize] };
+        let mask_of = |masks: &[u64], body: u32| {
+            if body == STATIC_BODY {
+                0
+            } else {
+                masks[body as usize]
+            }
+        };
         let used = mask_of(&coloring.masks, a) | mask_of(&coloring.masks, b);
-        let color = if used == u64::MAX { overflow } else { (!used).trailing_zeros() as u8 };
+        let color = if used == u64::MAX {
+            overflow
+        } else {
+            (!used).trailing_zeros() as u8
+        };
         if color != overflow {
             for body in [a, b] {
                 if body != STATIC_BODY {
@@ -66,7 +84,10 @@ pub fn color_constraints(bodies: impl Iterator<Item = (u32, u32)>, body_count: u
         coloring.colors.push(color);
         counts[color as usize] += 1;
     }
-    let used_colors = counts[..MAX_COLORS].iter().rposition(|&n| n > 0).map_or(0, |c| c + 1);
+    let used_colors = counts[..MAX_COLORS]
+        .iter()
+        .rposition(|&n| n > 0)
+        .map_or(0, |c| c + 1);
     coloring.has_overflow = counts[MAX_COLORS] > 0;
     coloring.batch_count = used_colors + coloring.has_overflow as usize;
     coloring.histogram.clear();
@@ -78,7 +99,13 @@ pub fn color_constraints(bodies: impl Iterator<Item = (u32, u32)>, body_count: u
 
 /// Lays `items` out batch after batch (a stable counting sort by batch): batch `i` becomes
 /// `out[offsets[i]..offsets[i + 1]]`, in input order inside the batch. `colors[i]` is item `i`'s.
-pub fn group_by_batch<T: Copy>(items: &[T], colors: &[u8], coloring: &Coloring, out: &mut Vec<T>, offsets: &mut Vec<u32>) {
+pub fn group_by_batch<T: Copy>(
+    items: &[T],
+    colors: &[u8],
+    coloring: &Coloring,
+    out: &mut Vec<T>,
+    offsets: &mut Vec<u32>,
+) {
     debug_assert_eq!(items.len(), colors.len());
     offsets.clear();
     offsets.resize(coloring.batch_count + 1, 0);
@@ -118,7 +145,10 @@ mod tests {
         let indices: Vec<usize> = (0..coloring.colors.len()).collect();
         let (mut out, mut offsets) = (Vec::new(), Vec::new());
         group_by_batch(&indices, &coloring.colors, coloring, &mut out, &mut offsets);
-        offsets.windows(2).map(|w| out[w[0] as usize..w[1] as usize].to_vec()).collect()
+        offsets
+            .windows(2)
+            .map(|w| out[w[0] as usize..w[1] as usize].to_vec())
+            .collect()
     }
 
     #[test]
@@ -134,19 +164,37 @@ mod tests {
     #[test]
     fn random_graphs_batches_share_no_dynamic_body() {
         let mut state = 0x9e37_79b9_7f4a_7c15;
-        for &(bodies, count) in &[(1usize, 0usize), (2, 1), (10, 200), (1000, 5000), (20_000, 100_000), (200_000, 1_000_000)] {
+        for &(bodies, count) in &[
+            (1usize, 0usize),
+            (2, 1),
+            (10, 200),
+            (1000, 5000),
+            (20_000, 100_000),
+            (200_000, 1_000_000),
+        ] {
             let edges: Vec<(u32, u32)> = (0..count)
                 .map(|_| {
                     let a = (next(&mut state) % bodies as u64) as u32;
                     // A quarter of the constraints are against a static body; none of a body with itself.
                     let b = (next(&mut state) % bodies as u64) as u32;
-                    if next(&mut state) % 4 == 0 || a == b { (a, STATIC_BODY) } else { (a, b) }
+                    if next(&mut state) % 4 == 0 || a == b {
+                        (a, STATIC_BODY)
+                    } else {
+                        (a, b)
+                    }
                 })
                 .collect();
             let mut coloring = Coloring::default();
             color_constraints(edges.iter().copied(), bodies, &mut coloring);
             let batches = batches_of(&coloring);
-            assert_eq!(batches.iter().map(Vec::len).collect::<Vec<_>>(), coloring.histogram.iter().map(|&n| n as usize).collect::<Vec<_>>());
+            assert_eq!(
+                batches.iter().map(Vec::len).collect::<Vec<_>>(),
+                coloring
+                    .histogram
+                    .iter()
+                    .map(|&n| n as usize)
+                    .collect::<Vec<_>>()
+            );
             let mut seen = vec![false; count];
             for (batch, members) in batches.iter().enumerate() {
                 let is_overflow = coloring.has_overflow && batch + 1 == batches.len();
@@ -155,10 +203,16 @@ mod tests {
                     assert!(!seen[c], "constraint in two batches");
                     seen[c] = true;
                     for body in [edges[c].0, edges[c].1] {
-                        assert!(is_overflow || body == STATIC_BODY || used.insert(body), "body {body} twice in batch {batch}");
+                        assert!(
+                            is_overflow || body == STATIC_BODY || used.insert(body),
+                            "body {body} twice in batch {batch}"
+                        );
                     }
                 }
-                assert!(members.windows(2).all(|w| w[0] < w[1]), "a batch keeps constraint order");
+                assert!(
+                    members.windows(2).all(|w| w[0] < w[1]),
+                    "a batch keeps constraint order"
+                );
             }
             assert!(seen.iter().all(|&s| s), "every constraint gets a batch");
         }

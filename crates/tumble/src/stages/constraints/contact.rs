@@ -20,8 +20,8 @@
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use crate::math::{Mat3, Vec3, tangent_basis};
-use crate::stages::narrowphase::PairContact;
 use crate::stages::constraints::STATIC_BODY;
+use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::pair_bodies;
 
 /// One scalar constraint direction at one contact point.

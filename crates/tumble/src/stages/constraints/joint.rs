@@ -83,8 +83,19 @@ pub fn build_joint_constraints(
 ) {
     out.clear();
     for (index, joint) in joints.iter().enumerate() {
-        let Some(joint) = joint.filter(|joint| !joint.broken) else { continue };
-        out.push(build(index as u32, &joint, poses, masses, inverse_inertia, dt, push_factor, max_push_velocity));
+        let Some(joint) = joint.filter(|joint| !joint.broken) else {
+            continue;
+        };
+        out.push(build(
+            index as u32,
+            &joint,
+            poses,
+            masses,
+            inverse_inertia,
+            dt,
+            push_factor,
+            max_push_velocity,
+        ));
     }
 }
 
@@ -108,14 +119,30 @@ fn build(
     let error = (pose_b.position + arm_b) - (pose_a.position + arm_a);
     let skew_a = skew(arm_a);
     let skew_b = skew(arm_b);
-    let k = Mat3::from_diagonal(Vec3::splat(mass_a + mass_b)) - skew_a * inertia_a * skew_a - skew_b * inertia_b * skew_b;
-    let point_mass = if k.determinant().abs() > f32::MIN_POSITIVE { k.inverse() } else { Mat3::ZERO };
-    let push = |error: f32| -> f32 { (-push_factor * error / dt).clamp(-max_push_velocity, max_push_velocity) };
+    let k = Mat3::from_diagonal(Vec3::splat(mass_a + mass_b))
+        - skew_a * inertia_a * skew_a
+        - skew_b * inertia_b * skew_b;
+    let point_mass = if k.determinant().abs() > f32::MIN_POSITIVE {
+        k.inverse()
+    } else {
+        Mat3::ZERO
+    };
+    let push = |error: f32| -> f32 {
+        (-push_factor * error / dt).clamp(-max_push_velocity, max_push_velocity)
+    };
     let point_push_target = Vec3::new(push(error.x), push(error.y), push(error.z));
 
     let mut constraint = JointConstraint {
-        body_a: if mass_a > 0.0 { joint.body_a } else { STATIC_BODY },
-        body_b: if mass_b > 0.0 { joint.body_b } else { STATIC_BODY },
+        body_a: if mass_a > 0.0 {
+            joint.body_a
+        } else {
+            STATIC_BODY
+        },
+        body_b: if mass_b > 0.0 {
+            joint.body_b
+        } else {
+            STATIC_BODY
+        },
         joint: index,
         inverse_mass_a: mass_a,
         inverse_mass_b: mass_b,
@@ -143,12 +170,19 @@ fn build(
         }
     };
     // An equality row driving `error` (along its direction) to zero.
-    let equality = |direction: Vec3, error: f32, impulse: f32| AngularRow { push_target: push(error), ..row(direction, impulse) };
+    let equality = |direction: Vec3, error: f32, impulse: f32| AngularRow {
+        push_target: push(error),
+        ..row(direction, impulse)
+    };
     // An inequality row keeping the distance `s` to a limit ≥ 0 (impulse ≥ 0).
     let limit = |direction: Vec3, s: f32, impulse: f32| AngularRow {
         lower: 0.0,
         velocity_target: if s > 0.0 { -s / dt } else { 0.0 },
-        push_target: if s < 0.0 { (-push_factor * s / dt).min(max_push_velocity) } else { 0.0 },
+        push_target: if s < 0.0 {
+            (-push_factor * s / dt).min(max_push_velocity)
+        } else {
+            0.0
+        },
         ..row(direction, impulse)
     };
     let warm = joint.angular_impulse;
@@ -159,7 +193,8 @@ fn build(
         JointKind::Point => {}
         JointKind::Fixed => {
             // Rotation taking where B should be (q_a · q_rel) to where it is: θ ≈ 2 · vec(q_err).
-            let mut rotation_error = pose_b.rotation * (pose_a.rotation * joint.relative_rotation).inverse();
+            let mut rotation_error =
+                pose_b.rotation * (pose_a.rotation * joint.relative_rotation).inverse();
             if rotation_error.w < 0.0 {
                 rotation_error = -rotation_error;
             }
@@ -187,7 +222,11 @@ fn build(
                 };
             }
         }
-        JointKind::ConeTwist { swing_limit, twist_limits: (lower, upper), .. } => {
+        JointKind::ConeTwist {
+            swing_limit,
+            twist_limits: (lower, upper),
+            ..
+        } => {
             let swing_axis = axis_a.cross(axis_b);
             let sin_swing = swing_axis.length();
             if sin_swing > 1e-6 {
@@ -205,13 +244,27 @@ fn build(
 
 /// Rotation of B relative to A about the axis (rad, in (−π, π]), zero at creation: B's
 /// reference direction is first swung back onto A's axis, then compared with A's.
-fn twist_angle(joint: &Joint, pose_a: &BodyPose, pose_b: &BodyPose, axis_a: Vec3, axis_b: Vec3) -> f32 {
+fn twist_angle(
+    joint: &Joint,
+    pose_a: &BodyPose,
+    pose_b: &BodyPose,
+    axis_a: Vec3,
+    axis_b: Vec3,
+) -> f32 {
     let reference_a = pose_a.rotation * joint.local_reference_a;
-    let reference_b = Quat::from_rotation_arc(axis_b, axis_a) * (pose_b.rotation * joint.local_reference_b);
-    reference_a.cross(reference_b).dot(axis_a).atan2(reference_a.dot(reference_b))
+    let reference_b =
+        Quat::from_rotation_arc(axis_b, axis_a) * (pose_b.rotation * joint.local_reference_b);
+    reference_a
+        .cross(reference_b)
+        .dot(axis_a)
+        .atan2(reference_a.dot(reference_b))
 }
 
 /// [v]×: the matrix of the cross product, [v]× u = v × u.
 fn skew(v: Vec3) -> Mat3 {
-    Mat3::from_cols(Vec3::new(0.0, v.z, -v.y), Vec3::new(-v.z, 0.0, v.x), Vec3::new(v.y, -v.x, 0.0))
+    Mat3::from_cols(
+        Vec3::new(0.0, v.z, -v.y),
+        Vec3::new(-v.z, 0.0, v.x),
+        Vec3::new(v.y, -v.x, 0.0),
+    )
 }

@@ -4,7 +4,9 @@
 pub mod contact;
 pub mod joint;
 
-pub use contact::{ContactConstraint, ConstraintPoint, Row, RowInputs, build_constraints, world_inverse_inertia};
+pub use contact::{
+    ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints, world_inverse_inertia,
+};
 pub use joint::{AngularRow, JointConstraint, build_joint_constraints};
 
 /// Body index of a constraint's static side: such a body has zero velocity and infinite mass.

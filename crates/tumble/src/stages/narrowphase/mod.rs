@@ -1,9 +1,13 @@
 //! Stage 4: contact manifolds for every candidate pair, persistent from step to step.
 //!
 //! Each step computes a fresh manifold per pair (one-shot, as Box2D does) and matches its points
-//! with last step's by feature id; a matched point inherits the impulses the solver accumulated
-//! on it, which warm-starts the solver (Bullet's persistent manifolds, the talk's reason for
-//! persistent pairs).
+//! with last step's; a matched point inherits the impulses the solver accumulated on it, which
+//! warm-starts the solver (Bullet's persistent manifolds, the talk's reason for persistent
+//! pairs). Points match by feature id first; points left over match the nearest old point in
+//! body A's frame within [`MATCH_DISTANCE`] (Bullet's contact breaking threshold). The second
+//! rule matters: two equal boxes stacked square have their corners exactly on the clipping
+//! planes, so rounding flips a point between "incident vertex" and "clipped edge" — and its id —
+//! from step to step, and a stack warm-started by ids alone never converges.
 //!
 //! Guarantees: `contacts[i]` belongs to `keys[i]` = (a, b) with a < b, body A = a, normal from
 //! b to a; the result depends only on the poses and last step's manifold, never on thread count.
@@ -11,6 +15,7 @@
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyPose, Collider};
+use crate::math::Vec3;
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
@@ -28,7 +33,12 @@ pub struct PairContact {
     pub manifold: Manifold,
     /// Impulses of `manifold.points`, index for index.
     pub impulses: [PointImpulse; MAX_MANIFOLD_POINTS],
+    /// The points in body A's frame (m), for matching by position.
+    pub anchors: [Vec3; MAX_MANIFOLD_POINTS],
 }
+
+/// Farthest a point may have moved on body A and still take over an old point's impulses (m).
+pub const MATCH_DISTANCE: f32 = 0.02;
 
 /// Pairs per rayon task.
 const MIN_PAIRS_PER_TASK: usize = 64;
@@ -64,19 +74,54 @@ pub fn update_contacts(
                 margin,
                 &mut manifold,
             );
-            *contact = carry_impulses(manifold, contact);
+            let pose_a = poses[a].transform();
+            let mut anchors = [Vec3::ZERO; MAX_MANIFOLD_POINTS];
+            for (anchor, point) in anchors.iter_mut().zip(manifold.points()) {
+                *anchor = pose_a.inverse_transform_point(point.position);
+            }
+            *contact = carry_impulses(manifold, anchors, contact);
         });
 }
 
-/// The new manifold with the impulses of last step's points that have the same feature id.
-pub fn carry_impulses(manifold: Manifold, old: &PairContact) -> PairContact {
+/// The new manifold (with its points in A's frame) with the impulses of last step's points:
+/// same feature id first, then the nearest unclaimed old point within [`MATCH_DISTANCE`].
+pub fn carry_impulses(
+    manifold: Manifold,
+    anchors: [Vec3; MAX_MANIFOLD_POINTS],
+    old: &PairContact,
+) -> PairContact {
     let mut impulses = [PointImpulse::default(); MAX_MANIFOLD_POINTS];
-    for (impulse, point) in impulses.iter_mut().zip(manifold.points()) {
-        if let Some(j) = old.manifold.points().iter().position(|o| o.id == point.id) {
-            *impulse = old.impulses[j];
+    let count = manifold.count as usize;
+    let old_count = old.manifold.count as usize;
+    let mut claimed = [false; MAX_MANIFOLD_POINTS];
+    let mut matched = [false; MAX_MANIFOLD_POINTS];
+    for i in 0..count {
+        let id = manifold.points[i].id;
+        if let Some(j) = (0..old_count).find(|&j| !claimed[j] && old.manifold.points[j].id == id) {
+            impulses[i] = old.impulses[j];
+            claimed[j] = true;
+            matched[i] = true;
         }
     }
-    PairContact { manifold, impulses }
+    for i in 0..count {
+        if matched[i] {
+            continue;
+        }
+        let nearest = (0..old_count)
+            .filter(|&j| !claimed[j])
+            .map(|j| (j, anchors[i].distance_squared(old.anchors[j])))
+            .filter(|&(_, distance_squared)| distance_squared < MATCH_DISTANCE * MATCH_DISTANCE)
+            .min_by(|x, y| x.1.total_cmp(&y.1));
+        if let Some((j, _)) = nearest {
+            impulses[i] = old.impulses[j];
+            claimed[j] = true;
+        }
+    }
+    PairContact {
+        manifold,
+        impulses,
+        anchors,
+    }
 }
 
 #[cfg(test)]
@@ -86,7 +131,7 @@ mod tests {
     use crate::math::Vec3;
 
     #[test]
-    fn impulses_follow_feature_ids() {
+    fn impulses_follow_feature_ids_then_nearest_anchors() {
         let point = |id| ContactPoint {
             position: Vec3::ZERO,
             separation: 0.0,
@@ -97,11 +142,21 @@ mod tests {
         old.manifold.push(point(3));
         old.impulses[0].normal = 1.0;
         old.impulses[1].normal = 2.0;
+        old.anchors[0] = Vec3::new(0.0, 0.0, 0.0);
+        old.anchors[1] = Vec3::new(1.0, 0.0, 0.0);
         let mut new = Manifold::default();
-        new.push(point(3));
-        new.push(point(9));
-        let carried = carry_impulses(new, &old);
-        assert_eq!(carried.impulses[0].normal, 2.0);
-        assert_eq!(carried.impulses[1].normal, 0.0);
+        new.push(point(9)); // a renamed point 1 cm from old id 7: takes its impulse
+        new.push(point(3)); // same id
+        new.push(point(11)); // new and far from every old point
+        let anchors = [
+            Vec3::new(0.01, 0.0, 0.0),
+            Vec3::new(5.0, 0.0, 0.0),
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::ZERO,
+        ];
+        let carried = carry_impulses(new, anchors, &old);
+        let normals: Vec<f32> = carried.impulses[..3].iter().map(|i| i.normal).collect();
+        assert_eq!(normals, [1.0, 2.0, 0.0]);
+        assert_eq!(carried.anchors, anchors);
     }
 }

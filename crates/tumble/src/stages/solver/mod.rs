@@ -70,13 +70,25 @@ pub struct Batched<'a> {
 pub fn solve(bodies: &mut [SolverBody], batched: &mut Batched, settings: SolverSettings) {
     let access = BodyAccess(bodies.as_mut_ptr(), bodies.len());
     let any_restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
-    for_each_batch(batched, |c| contact::warm_start(access, c), |j| joint::warm_start(access, j));
+    for_each_batch(
+        batched,
+        |c| contact::warm_start(access, c),
+        |j| joint::warm_start(access, j),
+    );
     for _ in 0..settings.iterations {
-        for_each_batch(batched, |c| contact::solve_contact(access, c), |j| joint::solve_joint(access, j));
+        for_each_batch(
+            batched,
+            |c| contact::solve_contact(access, c),
+            |j| joint::solve_joint(access, j),
+        );
     }
     if any_restitution {
         let threshold = settings.restitution_threshold;
-        for_each_batch(batched, |c| contact::apply_restitution(access, c, threshold), |_| {});
+        for_each_batch(
+            batched,
+            |c| contact::apply_restitution(access, c, threshold),
+            |_| {},
+        );
     }
 }
 
@@ -106,7 +118,10 @@ fn run_batch<T: Send>(items: &mut [T], overflow: bool, f: &(impl Fn(&mut T) + Sy
     if overflow || items.len() < 2 * MIN_CONSTRAINTS_PER_TASK {
         items.iter_mut().for_each(f);
     } else {
-        items.par_iter_mut().with_min_len(MIN_CONSTRAINTS_PER_TASK).for_each(f);
+        items
+            .par_iter_mut()
+            .with_min_len(MIN_CONSTRAINTS_PER_TASK)
+            .for_each(f);
     }
 }
 
@@ -140,4 +155,3 @@ impl BodyAccess {
         }
     }
 }
-
