@@ -2,7 +2,7 @@
 
 use crate::math::Vec3;
 
-/// How the world steps. The first five fields come from the scene file; the rest are the
+/// How the world steps. The first four fields come from the scene file; the rest are the
 /// solver's tunables, with defaults that suit metre-sized bodies at 60 Hz.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepConfig {
@@ -10,23 +10,30 @@ pub struct StepConfig {
     pub gravity: Vec3,
     /// Time advanced by one [`World::step`](crate::World::step) (s). Default 1/60.
     pub dt: f32,
-    /// Each step runs this many full sub-steps (collision included) of `dt / substeps`.
-    /// Default 1.
+    /// Solver sub-steps per step: collision runs once per step, then each sub-step integrates
+    /// velocities, solves, integrates positions and relaxes (Box2D v3's soft step). More
+    /// sub-steps make stacks and chains stiffer. Default 8.
     pub substeps: u32,
-    /// Velocity iterations of the solver per sub-step. Default 10.
+    /// Velocity iterations with position bias per sub-step (each sub-step also runs one relax
+    /// iteration without bias). Default 1.
     pub solver_iterations: u32,
     /// Speculative contact distance (m): pairs closer than this get contact points, so resting
     /// contacts persist and an approaching body is stopped at the surface instead of inside it.
     /// Default 0.02.
     pub contact_margin: f32,
-    /// Penetration left uncorrected (m), so resting contacts do not flicker. Default 0.005.
-    pub penetration_slop: f32,
-    /// Fraction of the penetration beyond the slop removed per sub-step by the split impulse
-    /// (0..1). Higher corrects faster but can make stacks jitter. Default 0.2.
-    pub push_factor: f32,
-    /// Cap on the correction speed of the split impulse (m/s), so deep overlaps separate
-    /// gently. Default 2.
+    /// Stiffness of contacts as a spring frequency (Hz), capped at a quarter of the sub-step
+    /// rate. A resting contact overlaps by load / (effective mass · ω²): 60 Hz keeps a tower of
+    /// 10 one-metre boxes within 7 mm of its height. Default 60.
+    pub contact_hertz: f32,
+    /// Damping ratio of the contact spring (1 = critical). Default 3: overlap is removed
+    /// without bounce (10, Box2D's value, oscillated in a pyramid at 60 Hz).
+    pub contact_damping_ratio: f32,
+    /// Fastest speed at which overlap is pushed apart (m/s). Default 3.
     pub max_push_velocity: f32,
+    /// Stiffness of joints (Hz) and its damping ratio. Defaults 60 and 2 (capped like contacts,
+    /// at half the sub-step rate).
+    pub joint_hertz: f32,
+    pub joint_damping_ratio: f32,
     /// Approach speed above which restitution applies (m/s). Default 1 (DESIGN.md).
     pub restitution_threshold: f32,
     /// Extra margin of the broadphase's fat AABBs (m): larger re-inserts less often but finds
@@ -39,12 +46,14 @@ impl Default for StepConfig {
         Self {
             gravity: Vec3::new(0.0, -9.81, 0.0),
             dt: 1.0 / 60.0,
-            substeps: 1,
-            solver_iterations: 10,
+            substeps: 8,
+            solver_iterations: 1,
             contact_margin: 0.02,
-            penetration_slop: 0.005,
-            push_factor: 0.2,
-            max_push_velocity: 2.0,
+            contact_hertz: 60.0,
+            contact_damping_ratio: 3.0,
+            max_push_velocity: 3.0,
+            joint_hertz: 60.0,
+            joint_damping_ratio: 2.0,
             restitution_threshold: 1.0,
             aabb_margin: 0.1,
         }
@@ -99,10 +108,50 @@ impl StepConfig {
             });
         }
         non_negative("contact_margin", self.contact_margin)?;
-        non_negative("penetration_slop", self.penetration_slop)?;
-        non_negative("push_factor", self.push_factor)?;
+        non_negative("contact_hertz", self.contact_hertz)?;
+        non_negative("contact_damping_ratio", self.contact_damping_ratio)?;
         non_negative("max_push_velocity", self.max_push_velocity)?;
+        non_negative("joint_hertz", self.joint_hertz)?;
+        non_negative("joint_damping_ratio", self.joint_damping_ratio)?;
         non_negative("restitution_threshold", self.restitution_threshold)?;
         non_negative("aabb_margin", self.aabb_margin)
+    }
+}
+
+/// A soft constraint as a spring-damper (Box2D v3's `b2Softness`): the velocity bias that
+/// removes a position error C is `bias_rate · C`, the impulse is scaled by `mass_scale`, and
+/// `impulse_scale` leaks a little of the accumulated impulse, which makes the constraint soft.
+///
+/// For frequency ω = 2π·hertz, damping ratio ζ and sub-step h:
+/// `a1 = 2ζ + hω`, `a2 = hω·a1`, `a3 = 1/(1 + a2)`, bias_rate = ω/a1, mass_scale = a2·a3,
+/// impulse_scale = a3.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Softness {
+    pub bias_rate: f32,
+    pub mass_scale: f32,
+    pub impulse_scale: f32,
+}
+
+impl Softness {
+    /// A rigid constraint: no bias, full mass.
+    pub const RIGID: Self = Self {
+        bias_rate: 0.0,
+        mass_scale: 1.0,
+        impulse_scale: 0.0,
+    };
+
+    pub fn new(hertz: f32, damping_ratio: f32, h: f32) -> Self {
+        if hertz == 0.0 {
+            return Self::RIGID;
+        }
+        let omega = 2.0 * std::f32::consts::PI * hertz;
+        let a1 = 2.0 * damping_ratio + h * omega;
+        let a2 = h * omega * a1;
+        let a3 = 1.0 / (1.0 + a2);
+        Self {
+            bias_rate: omega / a1,
+            mass_scale: a2 * a3,
+            impulse_scale: a3,
+        }
     }
 }

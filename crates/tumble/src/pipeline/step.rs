@@ -1,6 +1,7 @@
 //! The step, stage by stage, in the order of DESIGN.md. Read top to bottom.
 
 use crate::math::{Aabb, Mat3};
+use crate::pipeline::config::Softness;
 use crate::pipeline::world::{StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
 use crate::stages::constraints::{
@@ -29,17 +30,21 @@ pub(crate) struct StepScratch {
 }
 
 impl World {
-    pub(crate) fn substep(&mut self, dt: f32) {
+    /// One step of `config.dt`: collision once, then the solver's sub-steps.
+    pub(crate) fn step_stages(&mut self) {
         let config = self.config;
+        let dt = config.dt;
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
 
-        // 1. World AABBs, grown by the speculative contact margin.
+        // 1. World AABBs, grown by the speculative contact margin and swept over the step.
         profiler.scope("aabb", || {
             aabb::compute_aabbs(
                 &self.poses,
+                &self.velocities,
                 &self.colliders,
                 config.contact_margin,
+                dt,
                 &mut scratch.aabbs,
             )
         });
@@ -53,21 +58,32 @@ impl World {
         // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.
         profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
 
-        // 4. Narrowphase: fresh manifolds, impulses carried over by feature id.
+        // 4. Narrowphase: fresh manifolds, impulses carried over from matching points.
         profiler.scope("narrowphase", || {
             let (keys, contacts) = self.pairs.keys_and_values_mut();
-            narrowphase::update_contacts(
-                keys,
-                contacts,
-                &self.poses,
-                &self.colliders,
-                config.contact_margin,
-                &self.jointed_pairs,
-            )
+            let inputs = narrowphase::NarrowphaseInputs {
+                poses: &self.poses,
+                velocities: &self.velocities,
+                colliders: &self.colliders,
+                margin: config.contact_margin,
+                dt,
+                skipped: &self.jointed_pairs,
+            };
+            narrowphase::update_contacts(keys, contacts, &inputs)
         });
 
-        // 5. Constraint rows: contacts, then joints.
+        // 5. Constraint rows: contacts, then joints. Stiffness is capped by the sub-step rate
+        //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
         profiler.begin("constraints");
+        let h = dt / config.substeps as f32;
+        let contact_hertz = config.contact_hertz.min(0.25 / h);
+        let softness = Softness::new(contact_hertz, config.contact_damping_ratio, h);
+        let static_softness = Softness::new(2.0 * contact_hertz, config.contact_damping_ratio, h);
+        let joint_softness = Softness::new(
+            config.joint_hertz.min(0.5 / h),
+            config.joint_damping_ratio,
+            h,
+        );
         world_inverse_inertia(&self.poses, &self.masses, &mut scratch.inverse_inertia);
         let inputs = RowInputs {
             poses: &self.poses,
@@ -75,10 +91,8 @@ impl World {
             masses: &self.masses,
             colliders: &self.colliders,
             inverse_inertia: &scratch.inverse_inertia,
-            dt,
-            penetration_slop: config.penetration_slop,
-            push_factor: config.push_factor,
-            max_push_velocity: config.max_push_velocity,
+            softness,
+            static_softness,
         };
         build_constraints(
             self.pairs.keys(),
@@ -91,9 +105,7 @@ impl World {
             &self.poses,
             &self.masses,
             &scratch.inverse_inertia,
-            dt,
-            config.push_factor,
-            config.max_push_velocity,
+            joint_softness,
             &mut scratch.joints,
         );
         profiler.end();
@@ -105,33 +117,32 @@ impl World {
             color_constraints(bodies, self.poses.len(), &mut scratch.coloring);
             let (joint_colors, contact_colors) =
                 scratch.coloring.colors.split_at(scratch.joints.len());
+            let coloring = &scratch.coloring;
             group_by_batch(
                 &scratch.joints,
                 joint_colors,
-                &scratch.coloring,
+                coloring,
                 &mut scratch.batched_joints,
                 &mut scratch.joint_offsets,
             );
             group_by_batch(
                 &scratch.contacts,
                 contact_colors,
-                &scratch.coloring,
+                coloring,
                 &mut scratch.batched_contacts,
                 &mut scratch.contact_offsets,
             );
         });
 
-        // 7. Solver: gravity into the velocities, then projected Gauss-Seidel over the batches.
+        // 7. Solver: the soft step's sub-steps over the batches.
         profiler.begin("solver");
-        integrate::integrate_velocities(
-            &self.velocities,
-            &self.masses,
-            config.gravity,
-            dt,
-            &mut scratch.solver_bodies,
-        );
+        integrate::prepare_bodies(&self.velocities, &self.masses, &mut scratch.solver_bodies);
         let settings = SolverSettings {
+            dt,
+            substeps: config.substeps,
             iterations: config.solver_iterations,
+            gravity: config.gravity,
+            max_push_velocity: config.max_push_velocity,
             restitution_threshold: config.restitution_threshold,
         };
         let mut batched = Batched {
@@ -146,11 +157,10 @@ impl World {
         store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         profiler.end();
 
-        // 8. Integrate positions from the solved velocities (+ split-impulse pseudo-velocities).
+        // 8. Integrate: the step's motion into the poses.
         profiler.scope("integrate", || {
-            integrate::integrate_positions(
+            integrate::finalize_bodies(
                 &scratch.solver_bodies,
-                dt,
                 &mut self.poses,
                 &mut self.velocities,
             )
@@ -188,15 +198,13 @@ fn store_joint_impulses(
             continue;
         };
         joint.point_impulse = constraint.point_impulse;
-        for (stored, row) in joint.angular_impulse.iter_mut().zip(&constraint.angular) {
-            *stored = row.impulse;
-        }
+        joint.angular_impulse = constraint.angular_impulse;
         if let Some(threshold) = joint.break_impulse {
             let total = constraint.point_impulse.length()
                 + constraint
-                    .angular
+                    .angular_impulse
                     .iter()
-                    .map(|row| row.impulse.abs())
+                    .map(|i| i.abs())
                     .sum::<f32>();
             joint.broken = total > threshold;
         }

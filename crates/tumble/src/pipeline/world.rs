@@ -304,10 +304,7 @@ impl World {
     /// Advances the world by `config.dt`.
     pub fn step(&mut self) {
         self.profiler.begin_frame();
-        let dt = self.config.dt / self.config.substeps as f32;
-        for _ in 0..self.config.substeps {
-            self.substep(dt);
-        }
+        self.step_stages();
         self.profiler.end_frame();
         self.steps += 1;
     }

@@ -95,12 +95,17 @@ fn stacked_boxes(scale: f32) -> Scene {
                 }
             }
         }
-        // Brick wall along x, every other row shifted by half a box.
+        // Brick wall along x, every other row shifted by half a box and one box shorter, so
+        // that every brick rests on two below.
         let width = ((24.0 * size).round() as usize).max(1);
         let height = ((16.0 * size).round() as usize).max(1);
         for row in 0..height {
-            let shift = if row % 2 == 1 { 0.5 } else { 0.0 };
-            for i in 0..width {
+            let (shift, bricks) = if row % 2 == 1 {
+                (0.5, width.saturating_sub(1).max(1))
+            } else {
+                (0.0, width)
+            };
+            for i in 0..bricks {
                 let p = Vec3::new(
                     -(width as f32) * 0.5 + i as f32 + shift,
                     HALF + row as f32,
@@ -109,14 +114,14 @@ fn stacked_boxes(scale: f32) -> Scene {
                 scene.bodies.push(cube(origin + p));
             }
         }
-        // Tower: 2 x 2 boxes per layer.
-        let layers = ((28.0 * size).round() as usize).max(1);
+        // Tower: 3 x 3 boxes per layer.
+        let layers = ((13.0 * size).round() as usize).max(1);
         for layer in 0..layers {
-            for k in 0..4 {
+            for k in 0..9 {
                 let p = Vec3::new(
-                    12.0 + (k % 2) as f32 - 0.5,
+                    12.0 + (k % 3) as f32 - 1.0,
                     HALF + layer as f32,
-                    (k / 2) as f32 - 0.5,
+                    (k / 3) as f32 - 1.0,
                 );
                 scene.bodies.push(cube(origin + p));
             }

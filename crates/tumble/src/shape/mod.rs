@@ -140,6 +140,17 @@ impl Shape {
         }
     }
 
+    /// Distance from the body origin to the farthest point of the shape (m); 0 for a plane,
+    /// which never moves.
+    pub fn bounding_radius(&self) -> f32 {
+        match self {
+            Shape::Sphere(s) => s.radius,
+            Shape::Cuboid(c) => c.half_extents.length(),
+            Shape::Capsule(c) => c.half_height + c.radius,
+            Shape::Plane(_) => 0.0,
+        }
+    }
+
     /// Mass properties for a body of `mass` (kg) with uniform density. `mass == 0` → static.
     pub fn mass_properties(&self, mass: f32) -> MassProperties {
         if mass <= 0.0 {

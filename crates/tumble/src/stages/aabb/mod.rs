@@ -1,10 +1,12 @@
-//! Stage 1: world AABBs of all colliders, grown by the speculative contact margin so that the
-//! broadphase finds every pair the narrowphase could make a contact for.
+//! Stage 1: world AABBs of all colliders, grown by the speculative contact margin and swept
+//! along the body's motion over the step, so that the broadphase finds every pair the
+//! narrowphase could make a contact for this step.
 //!
-//! Guarantees: `aabbs[i]` encloses body `i`'s shape at its current pose, expanded by `margin`;
-//! slots of removed bodies are left as they are (the broadphase no longer holds them).
+//! Guarantees: `aabbs[i]` encloses body `i`'s shape at its current pose and at its pose moved
+//! by `linear_velocity · dt`, expanded by `margin`; slots of removed bodies are left as they are
+//! (the broadphase no longer holds them).
 
-use crate::dynamics::body::{BodyPose, Collider};
+use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
 use crate::math::Aabb;
 use rayon::prelude::*;
 
@@ -14,16 +16,24 @@ const MIN_BODIES_PER_TASK: usize = 512;
 /// CPU executor: one AABB per body slot.
 pub fn compute_aabbs(
     poses: &[BodyPose],
+    velocities: &[BodyVelocity],
     colliders: &[Collider],
     margin: f32,
+    dt: f32,
     aabbs: &mut Vec<Aabb>,
 ) {
     aabbs.resize(poses.len(), Aabb::default());
     aabbs
         .par_iter_mut()
-        .zip(poses.par_iter().zip(colliders.par_iter()))
+        .zip(
+            poses
+                .par_iter()
+                .zip(velocities.par_iter().zip(colliders.par_iter())),
+        )
         .with_min_len(MIN_BODIES_PER_TASK)
-        .for_each(|(aabb, (pose, collider))| {
-            *aabb = collider.shape.aabb(&pose.transform()).expanded(margin)
+        .for_each(|(aabb, (pose, (velocity, collider)))| {
+            let now = collider.shape.aabb(&pose.transform()).expanded(margin);
+            let motion = velocity.linear * dt;
+            *aabb = now.union(&Aabb::new(now.min + motion, now.max + motion));
         });
 }

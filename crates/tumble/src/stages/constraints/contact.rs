@@ -12,7 +12,14 @@
 //! ```
 //!
 //! Rows store `r × d` and `I⁻¹(r × d)` for both bodies (as Bullet's solver does), so an
-//! iteration is dot products and multiply-adds with no matrix work.
+//! iteration is dot products and multiply-adds with no matrix work. The Jacobians are fixed at
+//! the start of the step (Box2D v3 does the same across its sub-steps); only the separation is
+//! tracked through the sub-steps, from the bodies' delta positions and rotations:
+//!
+//! ```text
+//!   s = n·((Δp_a + ΔR_a r_a) − (Δp_b + ΔR_b r_b)) + adjusted_separation,
+//!   adjusted_separation = s₀ − n·(r_a − r_b)
+//! ```
 //!
 //! Guarantees: constraints come in pair-key order (deterministic); static bodies are
 //! [`STATIC_BODY`] and are never written; each row's `mass` is finite (K > 0 because at least
@@ -20,6 +27,7 @@
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use crate::math::{Mat3, Vec3, tangent_basis};
+use crate::pipeline::config::Softness;
 use crate::stages::constraints::STATIC_BODY;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::pair_bodies;
@@ -46,14 +54,11 @@ pub struct Row {
 pub struct ConstraintPoint {
     pub normal: Row,
     pub tangent: [Row; 2],
-    /// Lowest normal velocity the contact allows (m/s): −separation/dt for a speculative
-    /// contact (separation > 0: the bodies may close the gap but not pass it), else 0.
-    pub velocity_target: f32,
-    /// Normal velocity the split impulse drives the pseudo-velocities to (m/s): removes a
-    /// fraction of the penetration beyond the slop.
-    pub push_target: f32,
-    /// Accumulated split impulse (N·s), restarted each step.
-    pub push_impulse: f32,
+    /// Arms from the centres of mass to the point at the start of the step (m).
+    pub anchor_a: Vec3,
+    pub anchor_b: Vec3,
+    /// s₀ − n·(r_a − r_b): with the body deltas, gives the current separation (m).
+    pub adjusted_separation: f32,
     /// Normal velocity before the solve (m/s), for restitution.
     pub approach_velocity: f32,
     /// Largest normal impulse applied this step (N·s): restitution applies only to points
@@ -76,6 +81,8 @@ pub struct ContactConstraint {
     pub restitution: f32,
     pub inverse_mass_a: f32,
     pub inverse_mass_b: f32,
+    /// Spring-damper of the position correction: stiffer against static bodies.
+    pub softness: Softness,
     pub points: [ConstraintPoint; 4],
 }
 
@@ -87,11 +94,9 @@ pub struct RowInputs<'a> {
     pub colliders: &'a [Collider],
     /// World-frame inverse inertia of every body (zero for static ones).
     pub inverse_inertia: &'a [Mat3],
-    /// Sub-step length (s).
-    pub dt: f32,
-    pub penetration_slop: f32,
-    pub push_factor: f32,
-    pub max_push_velocity: f32,
+    /// Softness of contacts between dynamic bodies and against static ones.
+    pub softness: Softness,
+    pub static_softness: Softness,
 }
 
 /// World-frame inverse inertia R I⁻¹ Rᵀ of every body.
@@ -137,6 +142,7 @@ fn build_constraint(
     let collider_b = &inputs.colliders[ib];
     let normal = contact.manifold.normal;
     let (t1, t2) = tangent_basis(normal);
+    let against_static = mass_a == 0.0 || mass_b == 0.0;
     let mut constraint = ContactConstraint {
         body_a: if mass_a > 0.0 { a } else { STATIC_BODY },
         body_b: if mass_b > 0.0 { b } else { STATIC_BODY },
@@ -148,6 +154,11 @@ fn build_constraint(
         restitution: collider_a.restitution.max(collider_b.restitution),
         inverse_mass_a: mass_a,
         inverse_mass_b: mass_b,
+        softness: if against_static {
+            inputs.static_softness
+        } else {
+            inputs.softness
+        },
         points: [ConstraintPoint::default(); 4],
     };
     let (center_a, center_b) = (inputs.poses[ia].position, inputs.poses[ib].position);
@@ -176,19 +187,12 @@ fn build_constraint(
         let approach_velocity = normal.dot(va.linear - vb.linear)
             + normal_row.arm_a.dot(va.angular)
             - normal_row.arm_b.dot(vb.angular);
-        let separation = point.separation;
-        let penetration = (-separation - inputs.penetration_slop).max(0.0);
         constraint.points[i] = ConstraintPoint {
             normal: normal_row,
             tangent: [row(t1, warm.tangent[0]), row(t2, warm.tangent[1])],
-            velocity_target: if separation > 0.0 {
-                -separation / inputs.dt
-            } else {
-                0.0
-            },
-            push_target: (inputs.push_factor * penetration / inputs.dt)
-                .min(inputs.max_push_velocity),
-            push_impulse: 0.0,
+            anchor_a: r_a,
+            anchor_b: r_b,
+            adjusted_separation: point.separation - normal.dot(r_a - r_b),
             approach_velocity,
             max_normal_impulse: 0.0,
         };

@@ -1,5 +1,5 @@
 //! Stage 5: constraint rows — contact rows from the manifolds ([`contact`]) and joint rows from
-//! the joints ([`joint`]). Both are solved together by the same batched PGS.
+//! the joints ([`joint`]). Both are solved together by the same batched solver.
 
 pub mod contact;
 pub mod joint;
@@ -7,7 +7,7 @@ pub mod joint;
 pub use contact::{
     ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints, world_inverse_inertia,
 };
-pub use joint::{AngularRow, JointConstraint, build_joint_constraints};
+pub use joint::{AngularRow, JointConstraint, RowKind, build_joint_constraints};
 
 /// Body index of a constraint's static side: such a body has zero velocity and infinite mass.
 pub const STATIC_BODY: u32 = u32::MAX;

@@ -1,6 +1,7 @@
-//! Stages 7a and 8: semi-implicit (symplectic) Euler. Velocities first — gravity, before the
-//! solver sees them — then, after the solver, positions from the solved velocities plus the
-//! split-impulse pseudo-velocities, which are then dropped.
+//! Stage 8: integration. The solver integrates velocities and positions in its sub-steps
+//! (semi-implicit Euler: velocities first, then positions from the new velocities) into
+//! per-body deltas; this stage sets the bodies up for it and applies the deltas to the poses
+//! at the end of the step.
 //!
 //! Guarantees: static bodies (inverse mass 0) never move; rotations stay unit quaternions.
 
@@ -15,15 +16,13 @@ pub const MAX_ROTATION_PER_STEP: f32 = 0.25 * std::f32::consts::PI;
 
 const MIN_BODIES_PER_TASK: usize = 512;
 
-/// Velocity half: gravity into the solver's bodies (dynamic bodies only).
-pub fn integrate_velocities(
+/// The solver's bodies at the start of the step: current velocities, no motion yet.
+pub fn prepare_bodies(
     velocities: &[BodyVelocity],
     masses: &[BodyMass],
-    gravity: Vec3,
-    dt: f32,
     bodies: &mut Vec<SolverBody>,
 ) {
-    bodies.resize(velocities.len(), SolverBody::default());
+    bodies.resize(velocities.len(), SolverBody::STATIC);
     bodies
         .par_iter_mut()
         .zip(velocities.par_iter().zip(masses.par_iter()))
@@ -31,26 +30,21 @@ pub fn integrate_velocities(
         .for_each(|(body, (velocity, mass))| {
             let dynamic = mass.inverse_mass > 0.0;
             *body = SolverBody {
-                linear_velocity: if dynamic {
-                    velocity.linear + gravity * dt
-                } else {
-                    Vec3::ZERO
-                },
+                linear_velocity: if dynamic { velocity.linear } else { Vec3::ZERO },
                 inverse_mass: mass.inverse_mass,
                 angular_velocity: if dynamic {
                     velocity.angular
                 } else {
                     Vec3::ZERO
                 },
-                ..SolverBody::default()
+                ..SolverBody::STATIC
             };
         });
 }
 
-/// Position half: poses from the solved velocities; the solved velocities become the bodies'.
-pub fn integrate_positions(
+/// The step's motion into the poses; the solved velocities become the bodies'.
+pub fn finalize_bodies(
     bodies: &[SolverBody],
-    dt: f32,
     poses: &mut [BodyPose],
     velocities: &mut [BodyVelocity],
 ) {
@@ -63,15 +57,14 @@ pub fn integrate_positions(
             if body.inverse_mass == 0.0 {
                 return;
             }
-            let angular = clamp_rotation(body.angular_velocity, dt);
-            *velocity = BodyVelocity::new(body.linear_velocity, angular);
-            pose.position += (body.linear_velocity + body.push_linear) * dt;
-            let spin = clamp_rotation(angular + body.push_angular, dt);
-            pose.rotation = integrate_rotation(pose.rotation, spin, dt);
+            *velocity = BodyVelocity::new(body.linear_velocity, body.angular_velocity);
+            pose.position += body.delta_position;
+            pose.rotation = (body.delta_rotation * pose.rotation).normalize();
         });
 }
 
-fn clamp_rotation(angular_velocity: Vec3, dt: f32) -> Vec3 {
+/// `angular_velocity` scaled down so that it turns at most [`MAX_ROTATION_PER_STEP`] in `dt`.
+pub fn clamp_rotation(angular_velocity: Vec3, dt: f32) -> Vec3 {
     let angle = angular_velocity.length() * dt;
     if angle > MAX_ROTATION_PER_STEP {
         angular_velocity * (MAX_ROTATION_PER_STEP / angle)
@@ -110,17 +103,12 @@ mod tests {
     #[test]
     fn static_bodies_stay_put() {
         let mut poses = [BodyPose::new(Vec3::ONE, Quat::IDENTITY)];
-        let mut velocities = [BodyVelocity::default()];
+        let mut velocities = [BodyVelocity::new(Vec3::X, Vec3::Y)];
         let masses = [BodyMass::default()];
         let mut bodies = Vec::new();
-        integrate_velocities(
-            &velocities,
-            &masses,
-            Vec3::new(0.0, -9.81, 0.0),
-            0.1,
-            &mut bodies,
-        );
-        integrate_positions(&bodies, 0.1, &mut poses, &mut velocities);
+        prepare_bodies(&velocities, &masses, &mut bodies);
+        bodies[0].delta_position = Vec3::ONE;
+        finalize_bodies(&bodies, &mut poses, &mut velocities);
         assert_eq!(poses[0].position, Vec3::ONE);
     }
 }

@@ -14,7 +14,7 @@
 
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
-use crate::dynamics::body::{BodyPose, Collider};
+use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
 use crate::math::Vec3;
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
@@ -43,16 +43,29 @@ pub const MATCH_DISTANCE: f32 = 0.02;
 /// Pairs per rayon task.
 const MIN_PAIRS_PER_TASK: usize = 64;
 
-/// CPU executor: refresh the manifold of every pair. Pairs listed in `skipped` (sorted keys:
-/// bodies joined by a joint) get no contacts.
-pub fn update_contacts(
-    keys: &[u64],
-    contacts: &mut [PairContact],
-    poses: &[BodyPose],
-    colliders: &[Collider],
-    margin: f32,
-    skipped: &[u64],
-) {
+/// Per-step inputs of the narrowphase.
+pub struct NarrowphaseInputs<'a> {
+    pub poses: &'a [BodyPose],
+    pub velocities: &'a [BodyVelocity],
+    pub colliders: &'a [Collider],
+    /// Speculative distance at rest (m).
+    pub margin: f32,
+    /// Step length (s): pairs that close fast get a margin as large as they can close in it.
+    pub dt: f32,
+    /// Sorted keys of pairs that get no contacts (bodies joined by a joint).
+    pub skipped: &'a [u64],
+}
+
+/// CPU executor: refresh the manifold of every pair.
+pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &NarrowphaseInputs) {
+    let NarrowphaseInputs {
+        poses,
+        velocities,
+        colliders,
+        margin,
+        dt,
+        skipped,
+    } = *inputs;
     debug_assert_eq!(keys.len(), contacts.len());
     contacts
         .par_iter_mut()
@@ -71,7 +84,13 @@ pub fn update_contacts(
                 &poses[a].transform(),
                 &colliders[b].shape,
                 &poses[b].transform(),
-                margin,
+                margin
+                    + dt * closing_speed_bound(
+                        &velocities[a],
+                        &velocities[b],
+                        &colliders[a],
+                        &colliders[b],
+                    ),
                 &mut manifold,
             );
             let pose_a = poses[a].transform();
@@ -81,6 +100,21 @@ pub fn update_contacts(
             }
             *contact = carry_impulses(manifold, anchors, contact);
         });
+}
+
+/// An upper bound on how fast any two points of the bodies approach (m/s): relative speed of
+/// the centres plus each spin times the shape's radius. Contacts up to this speed times dt
+/// apart are kept as speculative contacts, so that a fast body is stopped at the surface
+/// instead of deep inside it.
+fn closing_speed_bound(
+    velocity_a: &BodyVelocity,
+    velocity_b: &BodyVelocity,
+    a: &Collider,
+    b: &Collider,
+) -> f32 {
+    (velocity_a.linear - velocity_b.linear).length()
+        + velocity_a.angular.length() * a.shape.bounding_radius()
+        + velocity_b.angular.length() * b.shape.bounding_radius()
 }
 
 /// The new manifold (with its points in A's frame) with the impulses of last step's points:

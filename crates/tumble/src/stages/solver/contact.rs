@@ -1,6 +1,6 @@
-//! Contact rows in the solver: warm start, normal and friction iterations, restitution.
+//! Contact rows in the solver: warm start, normal and friction sweeps, restitution.
 
-use super::{BodyAccess, SolverBody};
+use super::{BodyAccess, SolverBody, Sweep, bias_terms};
 use crate::math::Vec3;
 use crate::stages::constraints::{ContactConstraint, Row};
 
@@ -52,13 +52,12 @@ pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
         for (row, direction) in point.tangent.iter().zip(c.tangents) {
             apply(row, direction, row.impulse, masses, &mut a, &mut b);
         }
-        point.max_normal_impulse = point.normal.impulse;
     }
     access.store(c.body_a, &a);
     access.store(c.body_b, &b);
 }
 
-pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint) {
+pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep: Sweep) {
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
     let n = c.normal;
     let masses = InverseMasses {
@@ -66,25 +65,18 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint) {
         b: c.inverse_mass_b,
     };
     let count = c.point_count as usize;
+    let displacement =
+        |body: &SolverBody, anchor: Vec3| body.delta_position + body.delta_rotation * anchor;
     for point in &mut c.points[..count] {
+        // Current separation from the bodies' motion during the step (the Jacobian stays fixed).
+        let moved = displacement(&a, point.anchor_a) - displacement(&b, point.anchor_b);
+        let separation = n.dot(moved) + point.adjusted_separation;
+        let (bias, mass_scale, impulse_scale) = bias_terms(separation, c.softness, sweep);
+        // Non-penetration: normal velocity ≥ −bias, accumulated impulse ≥ 0.
         let row = &point.normal;
-        // Split impulse on the pseudo-velocities: same Jacobian, its own accumulator.
-        if point.push_target > 0.0 || point.push_impulse > 0.0 {
-            let push_velocity = n.dot(a.push_linear - b.push_linear)
-                + row.arm_a.dot(a.push_angular)
-                - row.arm_b.dot(b.push_angular);
-            let total =
-                (point.push_impulse - (push_velocity - point.push_target) * row.mass).max(0.0);
-            let delta = total - point.push_impulse;
-            point.push_impulse = total;
-            a.push_linear += n * (delta * masses.a);
-            a.push_angular += row.angular_a * delta;
-            b.push_linear -= n * (delta * masses.b);
-            b.push_angular -= row.angular_b * delta;
-        }
-        // Non-penetration: normal velocity ≥ target, impulse ≥ 0.
         let velocity = row_velocity(row, n, &a, &b);
-        let total = (row.impulse - (velocity - point.velocity_target) * row.mass).max(0.0);
+        let impulse = -row.mass * mass_scale * (velocity + bias) - impulse_scale * row.impulse;
+        let total = (row.impulse + impulse).max(0.0);
         let delta = total - row.impulse;
         point.normal.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);

@@ -1,93 +1,133 @@
-//! Joint rows in the solver: the point part as one 3×3 block, then the angular rows, each on
-//! the real velocities and, for position errors, on the split-impulse pseudo-velocities.
+//! Joint rows in the solver: the point part as one 3×3 block, then the angular rows, each
+//! rebuilt from the current rotations (step-start rotation composed with the delta rotation).
 
-use super::{BodyAccess, SolverBody};
-use crate::math::Vec3;
-use crate::stages::constraints::{AngularRow, JointConstraint};
+use super::{BodyAccess, SolverBody, Sweep, bias_terms};
+use crate::math::{Mat3, Vec3};
+use crate::stages::constraints::joint::skew;
+use crate::stages::constraints::{JointConstraint, RowKind};
 
-/// Velocity of B's anchor relative to A's (m/s), from linear and angular velocities.
-#[inline]
-fn point_velocity(
+/// The arms and angular rows of a joint at the bodies' current rotations.
+fn current(
     j: &JointConstraint,
-    linear_a: Vec3,
-    angular_a: Vec3,
-    linear_b: Vec3,
-    angular_b: Vec3,
-) -> Vec3 {
-    linear_b + angular_b.cross(j.arm_b) - linear_a - angular_a.cross(j.arm_a)
+    a: &SolverBody,
+    b: &SolverBody,
+    h: f32,
+) -> (Vec3, Vec3, [crate::stages::constraints::AngularRow; 5]) {
+    let q_a = a.delta_rotation * j.rotation_a;
+    let q_b = b.delta_rotation * j.rotation_b;
+    let (arm_a, arm_b) = j.arms(q_a, q_b);
+    (arm_a, arm_b, j.angular_rows(q_a, q_b, h))
 }
 
-/// Applies the point impulse `impulse` (+ to B, − to A) to the real velocities.
+/// Applies the point impulse `impulse` (+ to B, − to A).
 #[inline]
-fn apply_point(j: &JointConstraint, impulse: Vec3, a: &mut SolverBody, b: &mut SolverBody) {
+fn apply_point(
+    j: &JointConstraint,
+    arm_a: Vec3,
+    arm_b: Vec3,
+    impulse: Vec3,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
     a.linear_velocity -= impulse * j.inverse_mass_a;
-    a.angular_velocity -= j.inverse_inertia_a * j.arm_a.cross(impulse);
+    a.angular_velocity -= j.inverse_inertia_a * arm_a.cross(impulse);
     b.linear_velocity += impulse * j.inverse_mass_b;
-    b.angular_velocity += j.inverse_inertia_b * j.arm_b.cross(impulse);
+    b.angular_velocity += j.inverse_inertia_b * arm_b.cross(impulse);
 }
 
+/// Applies an angular impulse along `direction` (+ to B, − to A).
 #[inline]
-fn apply_angular(row: &AngularRow, impulse: f32, a: &mut SolverBody, b: &mut SolverBody) {
-    a.angular_velocity -= row.inertia_a * impulse;
-    b.angular_velocity += row.inertia_b * impulse;
+fn apply_angular(
+    j: &JointConstraint,
+    direction: Vec3,
+    impulse: f32,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
+    a.angular_velocity -= j.inverse_inertia_a * direction * impulse;
+    b.angular_velocity += j.inverse_inertia_b * direction * impulse;
 }
 
-pub(super) fn warm_start(access: BodyAccess, j: &mut JointConstraint) {
+pub(super) fn warm_start(access: BodyAccess, j: &mut JointConstraint, h: f32) {
     let (mut a, mut b) = (access.load(j.body_a), access.load(j.body_b));
-    apply_point(j, j.point_impulse, &mut a, &mut b);
-    for row in j.angular.iter().filter(|row| row.mass > 0.0) {
-        apply_angular(row, row.impulse, &mut a, &mut b);
+    let (arm_a, arm_b, rows) = current(j, &a, &b, h);
+    apply_point(j, arm_a, arm_b, j.point_impulse, &mut a, &mut b);
+    for (row, &impulse) in rows.iter().zip(&j.angular_impulse) {
+        if row.kind != RowKind::Unused {
+            apply_angular(j, row.direction, impulse, &mut a, &mut b);
+        }
     }
     access.store(j.body_a, &a);
     access.store(j.body_b, &b);
 }
 
-pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint) {
+pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint, sweep: Sweep) {
     let (mut a, mut b) = (access.load(j.body_a), access.load(j.body_b));
+    let (arm_a, arm_b, rows) = current(j, &a, &b, sweep.h);
 
-    // Point part, pseudo-velocities: drive the anchor gap to zero (equality, not accumulated).
-    if j.point_push_target != Vec3::ZERO {
-        let velocity = point_velocity(
-            j,
-            a.push_linear,
-            a.push_angular,
-            b.push_linear,
-            b.push_angular,
-        );
-        let impulse = j.point_mass * (j.point_push_target - velocity);
-        a.push_linear -= impulse * j.inverse_mass_a;
-        a.push_angular -= j.inverse_inertia_a * j.arm_a.cross(impulse);
-        b.push_linear += impulse * j.inverse_mass_b;
-        b.push_angular += j.inverse_inertia_b * j.arm_b.cross(impulse);
+    // Point part: the anchors move together; the gap between them is removed softly.
+    let gap = (b.delta_position - a.delta_position) + (arm_b - arm_a) + j.center_offset;
+    let (skew_a, skew_b) = (skew(arm_a), skew(arm_b));
+    let k = Mat3::from_diagonal(Vec3::splat(j.inverse_mass_a + j.inverse_mass_b))
+        - skew_a * j.inverse_inertia_a * skew_a
+        - skew_b * j.inverse_inertia_b * skew_b;
+    let velocity = b.linear_velocity + b.angular_velocity.cross(arm_b)
+        - a.linear_velocity
+        - a.angular_velocity.cross(arm_a);
+    let (bias, mass_scale, impulse_scale) = if sweep.use_bias {
+        (
+            gap * j.softness.bias_rate,
+            j.softness.mass_scale,
+            j.softness.impulse_scale,
+        )
+    } else {
+        (Vec3::ZERO, 1.0, 0.0)
+    };
+    if k.determinant().abs() > f32::MIN_POSITIVE {
+        let impulse =
+            -(k.inverse() * (velocity + bias)) * mass_scale - j.point_impulse * impulse_scale;
+        j.point_impulse += impulse;
+        apply_point(j, arm_a, arm_b, impulse, &mut a, &mut b);
     }
-    // Point part, real velocities: the anchors move together.
-    let velocity = point_velocity(
-        j,
-        a.linear_velocity,
-        a.angular_velocity,
-        b.linear_velocity,
-        b.angular_velocity,
-    );
-    let impulse = j.point_mass * -velocity;
-    j.point_impulse += impulse;
-    apply_point(j, impulse, &mut a, &mut b);
 
-    for row in j.angular.iter_mut().filter(|row| row.mass > 0.0) {
-        if row.push_target != 0.0 || row.push_impulse != 0.0 {
-            let velocity = row.direction.dot(b.push_angular - a.push_angular);
-            let total = (row.push_impulse + (row.push_target - velocity) * row.mass)
-                .clamp(row.lower, row.upper);
-            let delta = total - row.push_impulse;
-            row.push_impulse = total;
-            a.push_angular -= row.inertia_a * delta;
-            b.push_angular += row.inertia_b * delta;
+    for (slot, row) in rows.iter().enumerate() {
+        let accumulated = &mut j.angular_impulse[slot];
+        let d = row.direction;
+        let k = d.dot(j.inverse_inertia_a * d) + d.dot(j.inverse_inertia_b * d);
+        if row.kind == RowKind::Unused || k <= 0.0 {
+            continue;
         }
-        let velocity = row.direction.dot(b.angular_velocity - a.angular_velocity);
-        let total =
-            (row.impulse + (row.velocity_target - velocity) * row.mass).clamp(row.lower, row.upper);
-        let delta = total - row.impulse;
-        row.impulse = total;
-        apply_angular(row, delta, &mut a, &mut b);
+        let mass = 1.0 / k;
+        let velocity = d.dot(b.angular_velocity - a.angular_velocity);
+        let total = match row.kind {
+            RowKind::Unused => continue,
+            RowKind::Equality => {
+                let (bias, mass_scale, impulse_scale) = if sweep.use_bias {
+                    (
+                        j.softness.bias_rate * row.error,
+                        j.softness.mass_scale,
+                        j.softness.impulse_scale,
+                    )
+                } else {
+                    (0.0, 1.0, 0.0)
+                };
+                *accumulated - mass * mass_scale * (velocity + bias) - impulse_scale * *accumulated
+            }
+            RowKind::Limit => {
+                let (bias, mass_scale, impulse_scale) = bias_terms(row.error, j.softness, sweep);
+                (*accumulated
+                    - mass * mass_scale * (velocity + bias)
+                    - impulse_scale * *accumulated)
+                    .max(0.0)
+            }
+            RowKind::Motor {
+                target_speed,
+                max_impulse,
+            } => (*accumulated - mass * (velocity - target_speed)).clamp(-max_impulse, max_impulse),
+        };
+        let delta = total - *accumulated;
+        *accumulated = total;
+        apply_angular(j, d, delta, &mut a, &mut b);
     }
     access.store(j.body_a, &a);
     access.store(j.body_b, &b);
