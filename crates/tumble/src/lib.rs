@@ -7,6 +7,7 @@
 //! Gauss-Seidel → integration.
 
 pub mod collision;
+pub mod gpu;
 pub mod math;
 pub mod profile;
 pub mod shape;
