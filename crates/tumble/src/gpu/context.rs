@@ -122,6 +122,26 @@ impl GpuContext {
         self.device.features().contains(wgpu::Features::SUBGROUP)
     }
 
+    /// Records one compute pass with `encode`, submits it and returns without waiting.
+    pub fn submit_pass<R>(
+        &self,
+        label: &str,
+        encode: impl FnOnce(&mut wgpu::ComputePass<'_>) -> R,
+    ) -> R {
+        let mut encoder = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        let result = {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: None,
+            });
+            encode(&mut pass)
+        };
+        self.queue.submit([encoder.finish()]);
+        result
+    }
+
     /// Blocks until all submitted work is done, or reports a hang after [`WAIT_TIMEOUT`].
     pub fn wait(&self) -> Result<(), GpuError> {
         self.device

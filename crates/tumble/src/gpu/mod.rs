@@ -6,6 +6,7 @@
 pub mod buffer;
 pub mod context;
 pub mod kernel;
+pub mod prims;
 
 pub use buffer::GpuVec;
 pub use context::{GpuContext, GpuError};
