@@ -1,16 +1,15 @@
 //! The shared context finds an adapter (lavapipe or llvmpipe on a machine without a GPU) and
 //! `GpuVec` round-trips data, growing as needed.
 
-use tumble::gpu::{GpuContext, GpuVec};
+mod gpu_common;
 
-fn context() -> GpuContext {
-    GpuContext::shared().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"))
-}
+use gpu_common::context;
+use tumble::gpu::{GpuContext, GpuVec};
 
 #[test]
 fn shared_context_is_created_once_and_describes_its_adapter() {
     let first = context();
-    let second = context();
+    let second = GpuContext::shared().expect("the shared context exists now");
     assert_eq!(first.info.name, second.info.name);
     assert!(!first.describe().is_empty());
 }

@@ -2,6 +2,8 @@
 
 #![allow(dead_code)] // each test file uses a different subset
 
+use std::sync::{Mutex, MutexGuard};
+
 use tumble::gpu::GpuContext;
 
 /// Sizes every parity test runs: empty, one, around one workgroup, past one level of blocks.
@@ -9,8 +11,32 @@ pub const SIZES: [usize; 6] = [0, 1, 255, 256, 257, 65_537];
 /// The large size, run once per primitive to keep the suite short on CPU drivers.
 pub const LARGE: usize = 1_000_003;
 
-pub fn context() -> GpuContext {
-    GpuContext::shared().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"))
+/// The shared context, held by one test at a time: wgpu's GL backend locks its context
+/// around every call and gives up (panics) after a second, which a long dispatch on llvmpipe
+/// in a parallel test thread exceeds.
+pub struct Gpu {
+    context: GpuContext,
+    _turn: MutexGuard<'static, ()>,
+}
+
+impl std::ops::Deref for Gpu {
+    type Target = GpuContext;
+
+    fn deref(&self) -> &GpuContext {
+        &self.context
+    }
+}
+
+pub fn context() -> Gpu {
+    static TURN: Mutex<()> = Mutex::new(());
+    // A test that panicked while holding the turn leaves nothing half-done behind.
+    let turn = TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+    let context =
+        GpuContext::shared().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+    Gpu {
+        context,
+        _turn: turn,
+    }
 }
 
 /// xorshift64*: deterministic inputs without a dependency.
