@@ -6,6 +6,7 @@
 //! parameter blocks and scratch) and re-encodes them into the caller's compute pass; nothing
 //! is read back, so a stage can chain primitives in one submission.
 
+pub mod bitonic_sort;
 pub mod fill;
 pub mod radix_sort;
 pub mod scan;
