@@ -7,6 +7,8 @@
 //! is read back, so a stage can chain primitives in one submission.
 
 pub mod bitonic_sort;
+pub mod compact;
 pub mod fill;
 pub mod radix_sort;
+pub mod reduce;
 pub mod scan;
