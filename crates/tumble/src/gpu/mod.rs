@@ -7,6 +7,7 @@ pub mod buffer;
 pub mod context;
 pub mod kernel;
 pub mod prims;
+pub mod profiler;
 
 pub use buffer::GpuVec;
 pub use context::{GpuContext, GpuError};
