@@ -9,6 +9,7 @@
 pub mod collision;
 pub mod gpu;
 pub mod math;
+pub mod particles;
 pub mod profile;
 pub mod shape;
 pub mod stages;
