@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 
 use tumble::gpu::kernel::Source;
 use tumble::gpu::prims::{bitonic_sort, compact, fill, radix_sort, reduce, scan};
+use tumble::particles::{self, Particle, ParticleParams};
 
 /// (field name, offset) of each member, and the size, of every struct in `source`.
 fn wgsl_structs(source: &Source) -> BTreeMap<String, (Vec<(String, u32)>, u32)> {
@@ -44,7 +45,10 @@ macro_rules! rust_layout {
     };
 }
 
-fn check(source: Source, rust: Vec<(String, (Vec<(String, u32)>, u32))>) {
+/// A struct's name, and its fields with their offsets and its size.
+type Layout = (String, (Vec<(String, u32)>, u32));
+
+fn check(source: Source, rust: Vec<Layout>) {
     let mut wgsl = wgsl_structs(&source);
     for (name, layout) in rust {
         let found = wgsl
@@ -124,5 +128,33 @@ fn primitive_parameter_blocks_match_rust() {
                 })],
             );
         }
+    }
+}
+
+#[test]
+fn particle_structs_match_rust() {
+    for source in particles::kernel_sources() {
+        check(
+            source,
+            vec![
+                rust_layout!(Particle { position, velocity }),
+                rust_layout!(ParticleParams {
+                    origin,
+                    cell_size,
+                    grid,
+                    count,
+                    gravity,
+                    dt,
+                    radius,
+                    inverse_mass,
+                    spring,
+                    damping,
+                    shear,
+                    wall_spring,
+                    wall_damping,
+                    cell_count,
+                }),
+            ],
+        );
     }
 }

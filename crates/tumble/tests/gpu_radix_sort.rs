@@ -18,10 +18,8 @@ fn sort_on_gpu<K: RadixKey>(keys: &[K], values: &[u32], key_bits: u32) -> (Vec<K
             sort.encode(
                 &context,
                 pass,
-                &keys_in,
-                &values_in,
-                &mut keys_out,
-                &mut values_out,
+                (&keys_in, &values_in),
+                (&mut keys_out, &mut values_out),
                 key_bits,
             )
         })

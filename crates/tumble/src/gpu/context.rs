@@ -54,7 +54,7 @@ pub const WAIT_TIMEOUT: Duration = Duration::from_secs(120);
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
-    pub info: wgpu::AdapterInfo,
+    pub info: Arc<wgpu::AdapterInfo>,
     pub(crate) pipelines: Arc<Mutex<PipelineCache>>,
 }
 
@@ -92,7 +92,7 @@ impl GpuContext {
         Ok(Self {
             device,
             queue,
-            info,
+            info: Arc::new(info),
             pipelines: Arc::default(),
         })
     }

@@ -32,7 +32,8 @@ pub fn wgsl(kernel: &str) -> Source {
     let text = match kernel {
         "hash" => HASH_WGSL,
         "cell_bounds" => CELL_BOUNDS_WGSL,
-        _ => COLLIDE_WGSL,
+        "collide" => COLLIDE_WGSL,
+        _ => unreachable!("no particle kernel {kernel}"),
     };
     Source::new()
         .constant_u32("EMPTY_CELL", EMPTY_CELL)
@@ -226,10 +227,8 @@ impl GpuParticles {
                 CellSort::Radix => self.radix.encode(
                     context,
                     &mut sort_pass,
-                    &self.keys,
-                    &self.ids,
-                    &mut self.sorted_keys,
-                    &mut self.sorted_ids,
+                    (&self.keys, &self.ids),
+                    (&mut self.sorted_keys, &mut self.sorted_ids),
                     self.key_bits,
                 )?,
                 CellSort::Bitonic => {

@@ -230,6 +230,12 @@ impl ParticleConfig {
     }
 }
 
+/// The composed WGSL of the particle kernels (hash, cell bounds, collide), for tools and for
+/// the layout test.
+pub fn kernel_sources() -> [crate::gpu::kernel::Source; 3] {
+    ["hash", "cell_bounds", "collide"].map(gpu::wgsl)
+}
+
 /// Most particles a system takes: ids are u32 and sorted ids fit a u32 buffer index.
 pub const MAX_PARTICLES: usize = (u32::MAX / 2) as usize;
 
@@ -294,7 +300,7 @@ pub struct ParticleSystem {
 
 #[derive(Debug)]
 enum Executor {
-    Cpu(cpu::CpuParticles),
+    Cpu(Box<cpu::CpuParticles>),
     Gpu(Box<gpu::GpuParticles>),
 }
 
@@ -324,7 +330,9 @@ impl ParticleSystem {
             });
         }
         let executor = match device {
-            ParticleDevice::Cpu => Executor::Cpu(cpu::CpuParticles::new(&config, particles)),
+            ParticleDevice::Cpu => {
+                Executor::Cpu(Box::new(cpu::CpuParticles::new(&config, particles)))
+            }
             ParticleDevice::Gpu(context) => {
                 if config.search == NeighbourSearch::Symmetric14 {
                     return Err(ParticleError::SymmetricSearchOnGpu);

@@ -53,8 +53,11 @@ pub fn bitonic_sort_cpu(keys: &mut [u32], values: &mut [u32]) {
 /// The bitonic sort of one pair of buffers, built once and encoded every step.
 #[derive(Debug, Default)]
 pub struct BitonicSort {
-    cached: Option<(([wgpu::Buffer; 2], usize), Vec<Dispatch>)>,
+    cached: Option<(BitonicKey, Vec<Dispatch>)>,
 }
+
+/// What the cached dispatches were built for: [keys, values] and the count.
+type BitonicKey = ([wgpu::Buffer; 2], usize);
 
 impl BitonicSort {
     pub fn new() -> Self {

@@ -96,18 +96,17 @@ impl RadixSort {
         Self::default()
     }
 
-    /// Encodes a sort of `keys_in`/`values_in` (by key, stable) into `keys_out`/`values_out`,
-    /// resized to the input length. Only the low `key_bits` bits of the keys are looked at.
+    /// Encodes a sort of `input` = (keys, values) by key, stable, into `output`, resized to
+    /// the input length. Only the low `key_bits` bits of the keys are looked at.
     pub fn encode<K: RadixKey>(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        keys_in: &GpuVec<K>,
-        values_in: &GpuVec<u32>,
-        keys_out: &mut GpuVec<K>,
-        values_out: &mut GpuVec<u32>,
+        input: (&GpuVec<K>, &GpuVec<u32>),
+        output: (&mut GpuVec<K>, &mut GpuVec<u32>),
         key_bits: u32,
     ) -> Result<(), GpuError> {
+        let ((keys_in, values_in), (keys_out, values_out)) = (input, output);
         let count = keys_in.len();
         debug_assert_eq!(values_in.len(), count, "one value per key");
         let key_bits = key_bits.min(32 * K::WORDS);
@@ -162,7 +161,7 @@ fn sort_dispatches<K: RadixKey>(
         .map(|step| {
             if step == 0 {
                 (&buffers[0], &buffers[1])
-            } else if (passes - step) % 2 == 0 {
+            } else if (passes - step).is_multiple_of(2) {
                 (&buffers[2], &buffers[3])
             } else {
                 (scratch_keys.buffer(), scratch_values.buffer())

@@ -154,8 +154,11 @@ pub fn reduce_cpu<T: ReduceScalar>(input: &[T], op: ReduceOp) -> T {
 /// A reduction of one input buffer into a one-element output, built once.
 #[derive(Debug, Default)]
 pub struct Reduce {
-    cached: Option<((wgpu::Buffer, wgpu::Buffer, usize, ReduceOp), Vec<Dispatch>)>,
+    cached: Option<(ReduceKey, Vec<Dispatch>)>,
 }
+
+/// What the cached dispatches were built for: input, output, count, operation.
+type ReduceKey = (wgpu::Buffer, wgpu::Buffer, usize, ReduceOp);
 
 impl Reduce {
     pub fn new() -> Self {
