@@ -62,3 +62,17 @@ fn fill_matches_cpu() {
         assert_eq!(vector.download(&context).expect("download"), expected);
     }
 }
+
+/// 65 536 × 256 + 1 words need 65 537 workgroups: more than one dispatch dimension holds,
+/// so the grid is split over x and y and every word must still be written exactly once.
+#[test]
+fn fill_splits_dispatches_past_65535_workgroups() {
+    let context = context();
+    let count = 65_536 * 256 + 1;
+    let mut vector = GpuVec::from_slice(&context, "fill", &vec![0u32; count]).expect("upload");
+    let dispatch = fill_vec_dispatch(&context, &vector, 7u32).expect("fill");
+    context.submit_pass("fill", |pass| encode_all(pass, &[dispatch]));
+    let filled = vector.download(&context).expect("download");
+    assert_eq!(filled.len(), count);
+    assert!(filled.iter().all(|&word| word == 7));
+}
