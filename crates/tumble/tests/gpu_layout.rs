@@ -153,6 +153,10 @@ fn particle_structs_match_rust() {
                     wall_spring,
                     wall_damping,
                     cell_count,
+                    force_scale,
+                    force_quantum,
+                    padding0,
+                    padding1,
                 }),
             ],
         );

@@ -21,6 +21,10 @@ struct ParticleParams {
     wall_spring: f32,
     wall_damping: f32,
     cell_count: u32,
+    force_scale: f32,
+    force_quantum: f32,
+    padding0: u32,
+    padding1: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ParticleParams;
@@ -65,6 +69,15 @@ fn pair_force(
     let tangential = relative - normal * normal_speed;
     return normal * (params.damping * normal_speed - params.spring * (contact - distance))
         + tangential * params.shear;
+}
+
+// Largest pair force in fixed point (quanta), so that sums of up to 32 cannot overflow.
+const MAX_PAIR_QUANTA: f32 = 67108864.0;
+
+// A pair force in fixed point: integer sums do not depend on the order of the additions.
+fn quantize(force: vec3<f32>) -> vec3<i32> {
+    let quanta = round(force * params.force_scale);
+    return vec3<i32>(clamp(quanta, vec3<f32>(-MAX_PAIR_QUANTA), vec3<f32>(MAX_PAIR_QUANTA)));
 }
 
 // The six walls (the ground is the lower y wall), spring–dampers (N).

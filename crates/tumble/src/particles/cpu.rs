@@ -113,6 +113,19 @@ fn pair_force(
     )
 }
 
+/// Largest pair force in fixed point (quanta): 32 of them cannot overflow an i32 sum.
+const MAX_PAIR_QUANTA: f32 = 67_108_864.0;
+
+/// A pair force in fixed point (rounded half to even, as WGSL's `round`): integer sums do
+/// not depend on the order of the additions.
+fn quantize(params: &ParticleParams, force: Vector) -> [i32; 3] {
+    force.map(|component| {
+        (component * params.force_scale)
+            .round_ties_even()
+            .clamp(-MAX_PAIR_QUANTA, MAX_PAIR_QUANTA) as i32
+    })
+}
+
 /// Spring–damper force of the six walls (the ground is the lower y wall) (N).
 fn wall_force(params: &ParticleParams, position: Vector, velocity: Vector) -> Vector {
     let mut force = [0.0; 3];
@@ -242,8 +255,8 @@ pub(super) struct CpuParticles {
     sorted: Vec<Particle>,
     /// The new state, in sorted order, before it is scattered back.
     updated: Vec<Particle>,
-    /// Force per sorted particle (14-cell search).
-    forces: Vec<Vector>,
+    /// Fixed-point force per sorted particle (14-cell search).
+    forces: Vec<[i32; 3]>,
 }
 
 impl CpuParticles {
@@ -324,13 +337,13 @@ impl CpuParticles {
             });
     }
 
-    /// 14-cell search: each pair once, sequentially (the order fixes the float sums), then
-    /// integration in parallel.
+    /// 14-cell search: each pair once, its force added to both particles in fixed point (as
+    /// the GPU's atomics do), then integration in parallel.
     fn collide_symmetric(&mut self) {
         let (params, sorted) = (&self.params, &self.sorted);
         let forces = &mut self.forces;
         forces.clear();
-        forces.resize(sorted.len(), [0.0; 3]);
+        forces.resize(sorted.len(), [0; 3]);
         self.grid.for_each_symmetric_pair(params, |index, other| {
             let (me, them) = (sorted[index], sorted[other]);
             let pair = pair_force(
@@ -340,8 +353,11 @@ impl CpuParticles {
                 xyz(them.position),
                 xyz(them.velocity),
             );
-            forces[index] = add(forces[index], pair);
-            forces[other] = sub(forces[other], pair);
+            let quanta = quantize(params, pair);
+            for axis in 0..3 {
+                forces[index][axis] = forces[index][axis].wrapping_add(quanta[axis]);
+                forces[other][axis] = forces[other][axis].wrapping_sub(quanta[axis]);
+            }
         });
         let forces = &self.forces;
         self.updated
@@ -350,7 +366,11 @@ impl CpuParticles {
             .for_each(|(index, updated)| {
                 let (position, velocity) =
                     (xyz(sorted[index].position), xyz(sorted[index].velocity));
-                let force = add(forces[index], wall_force(params, position, velocity));
+                let summed = scale(
+                    forces[index].map(|quanta| quanta as f32),
+                    params.force_quantum,
+                );
+                let force = add(summed, wall_force(params, position, velocity));
                 *updated = integrate(params, position, velocity, force);
             });
     }

@@ -1,5 +1,7 @@
 //! GPU executor of the particle step: one submission per step, four measured passes
-//! (hash, sort, cell start, collide), about 19 dispatches at 1M particles with radix sort.
+//! (hash, sort, cell start, collide): 19 dispatches at 1M particles with radix sort (hash;
+//! 3 passes of histogram, 3-dispatch scan and scatter; fill and cell bounds; collide) and the
+//! 27-cell search, 2 more with the 14-cell one.
 //! Buffers, pipelines and bind groups are built in [`GpuParticles::new`]; a step only encodes.
 
 use std::time::Instant;
@@ -13,13 +15,14 @@ use crate::gpu::prims::bitonic_sort::BitonicSort;
 use crate::gpu::prims::fill::fill_dispatch;
 use crate::gpu::prims::radix_sort::RadixSort;
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
-use crate::particles::{CellSort, EMPTY_CELL, Particle, ParticleConfig};
+use crate::particles::{CellSort, EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig};
 use crate::profile::Profiler;
 
 const COMMON_WGSL: &str = include_str!("common.wgsl");
 const HASH_WGSL: &str = include_str!("hash.wgsl");
 const CELL_BOUNDS_WGSL: &str = include_str!("cell_bounds.wgsl");
 const COLLIDE_WGSL: &str = include_str!("collide.wgsl");
+const COLLIDE_SYMMETRIC_WGSL: &str = include_str!("collide_symmetric.wgsl");
 
 const HASH: SpanPath = &["hash"];
 const SORT: SpanPath = &["sort"];
@@ -33,6 +36,7 @@ pub fn wgsl(kernel: &str) -> Source {
         "hash" => HASH_WGSL,
         "cell_bounds" => CELL_BOUNDS_WGSL,
         "collide" => COLLIDE_WGSL,
+        "collide_symmetric" => COLLIDE_SYMMETRIC_WGSL,
         _ => unreachable!("no particle kernel {kernel}"),
     };
     Source::new()
@@ -152,21 +156,48 @@ impl GpuParticles {
                 groups,
             ),
         ];
-        let collide_kernel = kernel("collide", &[Uniform, Read, Read, Read, Read, Write]);
-        let collide = vec![collide_kernel.dispatch(
-            collide_kernel.bind(
-                &context,
-                &[
+        let collide = match config.search {
+            NeighbourSearch::Full27 => {
+                let collide_kernel = kernel("collide", &[Uniform, Read, Read, Read, Read, Write]);
+                let bindings = [
                     params,
                     sorted_particles.whole(),
                     sorted_ids_buffer.as_entire_buffer_binding(),
                     cell_start_buffer.whole(),
                     cell_end_buffer.whole(),
                     particles.whole(),
-                ],
-            ),
-            groups,
-        )];
+                ];
+                vec![collide_kernel.dispatch(collide_kernel.bind(&context, &bindings), groups)]
+            }
+            NeighbourSearch::Symmetric14 => {
+                let forces = GpuVec::<[i32; 3]>::with_capacity(&context, "pair forces", count)?;
+                let layout = [Uniform, Read, Read, Read, Read, Write, Write];
+                let source = wgsl("collide_symmetric");
+                let pairs_kernel =
+                    Kernel::new(&context, "collide pairs", &source, "collide_pairs", &layout);
+                let integrate_kernel = Kernel::new(
+                    &context,
+                    "integrate forces",
+                    &source,
+                    "integrate_forces",
+                    &layout,
+                );
+                let bindings = [
+                    params,
+                    sorted_particles.whole(),
+                    sorted_ids_buffer.as_entire_buffer_binding(),
+                    cell_start_buffer.whole(),
+                    cell_end_buffer.whole(),
+                    particles.whole(),
+                    forces.whole(),
+                ];
+                vec![
+                    fill_dispatch(&context, forces.buffer(), 3 * count, 0)?,
+                    pairs_kernel.dispatch(pairs_kernel.bind(&context, &bindings), groups),
+                    integrate_kernel.dispatch(integrate_kernel.bind(&context, &bindings), groups),
+                ]
+            }
+        };
         // Cell ids are below cell_count: only that many bits need sorting.
         let key_bits = u32::BITS - (config.cell_count().saturating_sub(1) as u32).leading_zeros();
         let profiler = GpuProfiler::new(&context, 4);

@@ -10,8 +10,10 @@
 //! 4. **collide**: each particle searches the 27 neighbour cells and sums spring–damper (DEM)
 //!    forces as it goes — no neighbour list is stored — then integrates (semi-implicit Euler).
 //!    Jacobi: every interaction reads the state before the step, so the order in which
-//!    particles are processed does not matter. The CPU executor also offers the symmetric
-//!    14-cell search (each pair visited once, its force applied to both particles).
+//!    particles are processed does not matter. The symmetric 14-cell search is the
+//!    alternative: each pair is visited once and its force goes to both particles, summed in
+//!    fixed point so that the total does not depend on the order of the additions (on the
+//!    GPU they are atomic adds in whatever order threads run).
 //!
 //! The box is the grid: walls at its faces, the ground at its bottom, all spring–dampers.
 //! Both executors run the same algorithm on the same `#[repr(C)]` data ([`Particle`],
@@ -44,7 +46,8 @@ pub enum NeighbourSearch {
     Full27,
     /// Each pair is visited once: a particle searches its own cell (later particles only)
     /// and the 13 neighbour cells with a smaller index, and the force goes to both
-    /// particles. Half the distance tests; CPU executor only.
+    /// particles. Half the distance tests, but forces are summed in fixed point (see
+    /// [`ParticleConfig::force_quantum`]) and the GPU needs atomics and one more dispatch.
     Symmetric14,
 }
 
@@ -209,6 +212,16 @@ impl ParticleConfig {
             .collect()
     }
 
+    /// Resolution (N) of the fixed-point force sums of the symmetric search: a power of two
+    /// about 2⁻²⁰ of the force of a full overlap. Each pair force is clamped to 2²⁶ quanta
+    /// (64 full-overlap forces), so even 32 contacts cannot overflow the i32 sums.
+    pub fn force_quantum(&self) -> f32 {
+        let full_overlap = self.spring * self.cell_size()
+            + self.mass * self.gravity.iter().map(|g| g.abs()).sum::<f32>();
+        let exponent = full_overlap.max(1e-6).log2().ceil() as i32 - 20;
+        2f32.powi(exponent)
+    }
+
     /// The parameter block both executors read.
     pub fn params(&self) -> ParticleParams {
         ParticleParams {
@@ -226,14 +239,18 @@ impl ParticleConfig {
             wall_spring: self.wall_spring,
             wall_damping: self.wall_damping,
             cell_count: self.cell_count() as u32,
+            force_scale: 1.0 / self.force_quantum(),
+            force_quantum: self.force_quantum(),
+            padding0: 0,
+            padding1: 0,
         }
     }
 }
 
 /// The composed WGSL of the particle kernels (hash, cell bounds, collide), for tools and for
 /// the layout test.
-pub fn kernel_sources() -> [crate::gpu::kernel::Source; 3] {
-    ["hash", "cell_bounds", "collide"].map(gpu::wgsl)
+pub fn kernel_sources() -> [crate::gpu::kernel::Source; 4] {
+    ["hash", "cell_bounds", "collide", "collide_symmetric"].map(gpu::wgsl)
 }
 
 /// Most particles a system takes: ids are u32 and sorted ids fit a u32 buffer index.
@@ -261,8 +278,13 @@ pub struct ParticleParams {
     pub wall_spring: f32,
     pub wall_damping: f32,
     pub cell_count: u32,
+    /// Fixed-point quanta per newton (symmetric search), and its inverse.
+    pub force_scale: f32,
+    pub force_quantum: f32,
+    pub padding0: u32,
+    pub padding1: u32,
 }
-const _: () = assert!(size_of::<ParticleParams>() == 80);
+const _: () = assert!(size_of::<ParticleParams>() == 96);
 
 #[derive(Clone, Debug, thiserror::Error)]
 pub enum ParticleError {
@@ -284,8 +306,6 @@ pub enum ParticleError {
     TooManyParticles { count: usize, max: usize },
     #[error("{given} initial particles were given for a system of {expected}")]
     ParticleCount { given: usize, expected: usize },
-    #[error("the 14-cell symmetric search runs on the CPU only; use the 27-cell search on the GPU")]
-    SymmetricSearchOnGpu,
     #[error(transparent)]
     Gpu(#[from] GpuError),
 }
@@ -333,14 +353,9 @@ impl ParticleSystem {
             ParticleDevice::Cpu => {
                 Executor::Cpu(Box::new(cpu::CpuParticles::new(&config, particles)))
             }
-            ParticleDevice::Gpu(context) => {
-                if config.search == NeighbourSearch::Symmetric14 {
-                    return Err(ParticleError::SymmetricSearchOnGpu);
-                }
-                Executor::Gpu(Box::new(gpu::GpuParticles::new(
-                    &config, context, particles,
-                )?))
-            }
+            ParticleDevice::Gpu(context) => Executor::Gpu(Box::new(gpu::GpuParticles::new(
+                &config, context, particles,
+            )?)),
         };
         Ok(Self {
             config,
