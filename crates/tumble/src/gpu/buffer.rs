@@ -168,19 +168,23 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             return Ok(());
         }
         let bytes = Self::bytes(self.len);
-        let staging_ok = self.staging.as_ref().is_some_and(|s| s.size() >= bytes);
-        if !staging_ok {
-            let size = Self::bytes(self.capacity);
-            self.staging = Some(context.device.create_buffer(&wgpu::BufferDescriptor {
+        if self
+            .staging
+            .as_ref()
+            .is_some_and(|staging| staging.size() < bytes)
+        {
+            // Too small since the vector grew: replaced below, at the new capacity.
+            self.staging = None;
+        }
+        let size = Self::bytes(self.capacity);
+        let staging = self.staging.get_or_insert_with(|| {
+            context.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(self.label),
                 size,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
-            }));
-        }
-        let Some(staging) = self.staging.as_ref() else {
-            unreachable!("staging buffer created above")
-        };
+            })
+        });
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
