@@ -8,7 +8,9 @@
 
 pub mod collision;
 pub mod dynamics;
+pub mod gpu;
 pub mod math;
+pub mod particles;
 pub mod pipeline;
 pub mod profile;
 pub mod scene;

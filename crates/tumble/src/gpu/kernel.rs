@@ -1,0 +1,309 @@
+//! Kernels: WGSL composed from named snippets, compiled once per (source, entry point).
+//!
+//! A kernel's source is built by [`Source`]: constants from Rust first (workgroup sizes and
+//! the like, so each is written once), then snippets in order (`shared.wgsl`, struct
+//! definitions, the kernel file). That is the whole "include" mechanism: concatenation of named
+//! pieces, so a struct shared by several kernels is defined in one `.wgsl` file.
+//!
+//! Bind group layouts are explicit ([`Binding`] lists) rather than derived from the shader, so
+//! a binding a kernel does not use still has a slot, and several entry points of one file share
+//! one layout. Every kernel of a file binds a uniform block of parameters at binding 0.
+//!
+//! A stage's GPU work is a list of [`Dispatch`]es built once (pipelines, bind groups and
+//! parameter blocks included) and re-encoded every step, so a step allocates nothing.
+
+use std::collections::HashMap;
+use std::hash::{DefaultHasher, Hash, Hasher};
+
+use wgpu::util::DeviceExt;
+
+use crate::gpu::context::GpuContext;
+
+/// Threads per workgroup of every baseline kernel. 256 is the most WebGPU guarantees
+/// (`max_compute_invocations_per_workgroup`), and radix sort needs one thread per digit value.
+pub const WORKGROUP_SIZE: u32 = 256;
+
+/// Most workgroups in one dimension of a dispatch (WebGPU's guaranteed limit).
+pub const MAX_GROUPS_PER_DIMENSION: u32 = 65535;
+
+/// The snippets every kernel starts with.
+pub const SHARED_WGSL: &str = include_str!("shared.wgsl");
+
+/// WGSL source under construction: constants, then snippets.
+#[derive(Clone, Debug, Default)]
+#[must_use]
+pub struct Source {
+    text: String,
+}
+
+impl Source {
+    /// Starts with the constants every kernel uses and `shared.wgsl`.
+    pub fn new() -> Self {
+        Self::default()
+            .constant_u32("WORKGROUP_SIZE", WORKGROUP_SIZE)
+            .snippet("shared.wgsl", SHARED_WGSL)
+    }
+
+    /// Adds `const NAME: u32 = value;`.
+    pub fn constant_u32(mut self, name: &str, value: u32) -> Self {
+        self.text += &format!("const {name}: u32 = {value}u;\n");
+        self
+    }
+
+    /// Adds a named snippet; the name is written as a comment so compiler messages can be
+    /// traced back to the file.
+    pub fn snippet(mut self, name: &str, text: &str) -> Self {
+        self.text += &format!("// ---- {name} ----\n{text}\n");
+        self
+    }
+
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+}
+
+/// What one binding of a kernel's bind group is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Binding {
+    Uniform,
+    StorageRead,
+    StorageReadWrite,
+}
+
+/// A compiled entry point and the layout of its bind group 0.
+#[derive(Clone, Debug)]
+pub struct Kernel {
+    pub pipeline: wgpu::ComputePipeline,
+    pub layout: wgpu::BindGroupLayout,
+}
+
+/// Compiled kernels of a context, keyed by a hash of (source, entry point, bindings).
+#[derive(Debug, Default)]
+pub struct PipelineCache {
+    kernels: HashMap<u64, Kernel>,
+}
+
+impl Kernel {
+    /// Compiles `entry` of `source`, or returns the cached kernel.
+    pub fn new(
+        context: &GpuContext,
+        label: &str,
+        source: &Source,
+        entry: &str,
+        bindings: &[Binding],
+    ) -> Self {
+        let mut hasher = DefaultHasher::new();
+        (source.text(), entry, bindings).hash(&mut hasher);
+        let key = hasher.finish();
+        // A poisoned lock only means another thread panicked while inserting; the map is
+        // still a valid cache.
+        let mut cache = context
+            .pipelines
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        cache
+            .kernels
+            .entry(key)
+            .or_insert_with(|| Self::compile(context, label, source, entry, bindings))
+            .clone()
+    }
+
+    fn compile(
+        context: &GpuContext,
+        label: &str,
+        source: &Source,
+        entry: &str,
+        bindings: &[Binding],
+    ) -> Self {
+        let device = &context.device;
+        let entries: Vec<wgpu::BindGroupLayoutEntry> = bindings
+            .iter()
+            .enumerate()
+            .map(|(index, binding)| wgpu::BindGroupLayoutEntry {
+                binding: index as u32,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: match binding {
+                    Binding::Uniform => wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    Binding::StorageRead | Binding::StorageReadWrite => wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage {
+                            read_only: *binding == Binding::StorageRead,
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                },
+                count: None,
+            })
+            .collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &entries,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(label),
+            source: wgpu::ShaderSource::Wgsl(source.text().into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Self { pipeline, layout }
+    }
+
+    /// A bind group for this kernel: one buffer binding per entry of its layout, in order.
+    pub fn bind(
+        &self,
+        context: &GpuContext,
+        buffers: &[wgpu::BufferBinding<'_>],
+    ) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(index, buffer)| wgpu::BindGroupEntry {
+                binding: index as u32,
+                resource: wgpu::BindingResource::Buffer(buffer.clone()),
+            })
+            .collect();
+        context
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout: &self.layout,
+                entries: &entries,
+            })
+    }
+
+    /// A dispatch of `workgroups` workgroups (split over x and y when there are more than one
+    /// dimension allows) with `bind_group`.
+    pub fn dispatch(&self, bind_group: wgpu::BindGroup, workgroups: u32) -> Dispatch {
+        let (x, y) = dispatch_grid(workgroups);
+        Dispatch {
+            pipeline: self.pipeline.clone(),
+            bind_group,
+            groups: [x, y, 1],
+        }
+    }
+}
+
+/// One recorded dispatch: built once, encoded every step.
+#[derive(Clone, Debug)]
+pub struct Dispatch {
+    pipeline: wgpu::ComputePipeline,
+    bind_group: wgpu::BindGroup,
+    groups: [u32; 3],
+}
+
+impl Dispatch {
+    pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
+        if self.groups.contains(&0) {
+            return;
+        }
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.dispatch_workgroups(self.groups[0], self.groups[1], self.groups[2]);
+    }
+}
+
+/// Encodes `dispatches` in order. wgpu places a barrier between dispatches of one pass that
+/// touch the same buffer, so each sees the previous one's writes.
+pub fn encode_all(pass: &mut wgpu::ComputePass<'_>, dispatches: &[Dispatch]) {
+    for dispatch in dispatches {
+        dispatch.encode(pass);
+    }
+}
+
+/// Splits `workgroups` over (x, y) so that neither passes [`MAX_GROUPS_PER_DIMENSION`].
+/// x·y may exceed `workgroups`: kernels compute the flat index with `flat_workgroup` and return
+/// when it is past the end.
+pub fn dispatch_grid(workgroups: u32) -> (u32, u32) {
+    if workgroups <= MAX_GROUPS_PER_DIMENSION {
+        return (workgroups, 1);
+    }
+    let rows = workgroups.div_ceil(MAX_GROUPS_PER_DIMENSION);
+    (workgroups.div_ceil(rows), rows)
+}
+
+/// Workgroups needed for `items` items at `per_workgroup` items each.
+pub fn workgroups_for(items: usize, per_workgroup: u32) -> u32 {
+    // Item counts are bounded by buffer sizes (≤ 4 Gi elements), so the quotient fits in u32.
+    items.div_ceil(per_workgroup as usize) as u32
+}
+
+/// Parameter blocks for a list of dispatches: one uniform buffer, one aligned slot per block,
+/// written once when the buffer is created (so encoding the same dispatches twice in one
+/// submission sees the same parameters).
+#[derive(Debug)]
+pub struct UniformSlots {
+    buffer: wgpu::Buffer,
+    stride: u64,
+    size: u64,
+}
+
+impl UniformSlots {
+    /// `blocks` are `#[repr(C)]` structs whose size is a multiple of 16 bytes (WGSL's uniform
+    /// layout rule).
+    pub fn new<T: bytemuck::Pod>(context: &GpuContext, label: &str, blocks: &[T]) -> Self {
+        let size = size_of::<T>() as u64;
+        debug_assert!(
+            size.is_multiple_of(16),
+            "uniform blocks are multiples of 16 bytes"
+        );
+        let alignment = u64::from(context.device.limits().min_uniform_buffer_offset_alignment);
+        let stride = size.div_ceil(alignment) * alignment;
+        let mut bytes = vec![0u8; (stride * blocks.len().max(1) as u64) as usize];
+        for (slot, block) in blocks.iter().enumerate() {
+            let start = slot * stride as usize;
+            bytes[start..start + size as usize].copy_from_slice(bytemuck::bytes_of(block));
+        }
+        let buffer = context
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &bytes,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        Self {
+            buffer,
+            stride,
+            size,
+        }
+    }
+
+    /// The binding of block `slot`.
+    pub fn binding(&self, slot: usize) -> wgpu::BufferBinding<'_> {
+        wgpu::BufferBinding {
+            buffer: &self.buffer,
+            offset: slot as u64 * self.stride,
+            size: wgpu::BufferSize::new(self.size),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grid_covers_every_workgroup_within_the_limit() {
+        for workgroups in [0, 1, 65535, 65536, 200_000, 4_000_000, u32::MAX / 2] {
+            let (x, y) = dispatch_grid(workgroups);
+            assert!(x <= MAX_GROUPS_PER_DIMENSION && y <= MAX_GROUPS_PER_DIMENSION);
+            assert!(u64::from(x) * u64::from(y) >= u64::from(workgroups));
+            // Less than one row is wasted.
+            assert!(u64::from(x) * u64::from(y) < u64::from(workgroups) + u64::from(x.max(1)));
+        }
+    }
+}

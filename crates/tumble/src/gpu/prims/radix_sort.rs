@@ -1,0 +1,230 @@
+//! Stable key-value LSD radix sort on the GPU (8-bit digits), for u32 keys and for u64 keys
+//! (the broadphase's pair keys, two u32 words, low word first), with its CPU twin.
+//!
+//! Each pass is histogram → scan of the per-tile histograms → scatter (see
+//! `radix_sort.wgsl`); a 32-bit key takes 4 passes, fewer when the caller says how many key
+//! bits are used (cell ids of a 64³ grid need 18 bits: 3 passes). The sort reads the input
+//! buffers and writes the output buffers, ping-ponging through its own scratch so the last
+//! pass always lands in the output; the input is left as it was.
+//!
+//! Stability: equal keys keep their input order (the rank inside a tile is the position among
+//! equal digits, tiles are laid out in order by the scan), so sorting (key, index) pairs gives
+//! the same result on every device and every run.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+};
+use crate::gpu::prims::scan::{ScanKind, scan_dispatches};
+
+/// Values per digit; one thread per digit value in the histogram.
+const RADIX: u32 = 256;
+const _: () = assert!(WORKGROUP_SIZE == RADIX, "a thread per digit value");
+/// Rounds of WORKGROUP_SIZE elements per tile: more rounds, fewer tiles to scan.
+const ROUNDS: u32 = 8;
+/// Elements per tile (one workgroup).
+pub const RADIX_TILE: u32 = ROUNDS * WORKGROUP_SIZE;
+
+const WGSL: &str = include_str!("radix_sort.wgsl");
+const BINDINGS: [Binding; 6] = [
+    Binding::Uniform,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
+];
+
+/// A key the radix sort handles: a whole number of u32 words, least significant first.
+pub trait RadixKey: Pod + Ord {
+    const WORDS: u32;
+}
+
+impl RadixKey for u32 {
+    const WORDS: u32 = 1;
+}
+
+/// On little-endian hosts (all wgpu targets) a u64 is its low word, then its high word.
+impl RadixKey for u64 {
+    const WORDS: u32 = 2;
+}
+
+/// Mirrors `RadixParams` in `radix_sort.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct RadixParams {
+    pub count: u32,
+    pub shift: u32,
+    pub word: u32,
+    pub tile_count: u32,
+}
+const _: () = assert!(size_of::<RadixParams>() == 16);
+
+pub fn wgsl(key_words: u32) -> Source {
+    Source::new()
+        .constant_u32("KEY_WORDS", key_words)
+        .constant_u32("ROUNDS", ROUNDS)
+        .snippet("radix_sort.wgsl", WGSL)
+}
+
+/// CPU twin: a stable sort by key (same order as the GPU, since both are stable).
+pub fn radix_sort_cpu<K: RadixKey>(keys: &[K], values: &[u32]) -> (Vec<K>, Vec<u32>) {
+    let mut pairs: Vec<(K, u32)> = keys.iter().copied().zip(values.iter().copied()).collect();
+    pairs.sort_by_key(|&(key, _)| key);
+    pairs.into_iter().unzip()
+}
+
+/// Number of 8-bit passes for keys whose set bits all lie below `key_bits`.
+pub fn passes_for(key_bits: u32) -> u32 {
+    key_bits.div_ceil(8)
+}
+
+/// The radix sort of one set of buffers, built once and encoded every step.
+#[derive(Debug, Default)]
+pub struct RadixSort {
+    cached: Option<(SortKey, Vec<Dispatch>)>,
+}
+
+/// What the cached dispatches were built for: buffers, count, key bits.
+type SortKey = ([wgpu::Buffer; 4], usize, u32);
+
+impl RadixSort {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Encodes a sort of `input` = (keys, values) by key, stable, into `output`, resized to
+    /// the input length. Only the low `key_bits` bits of the keys are looked at.
+    pub fn encode<K: RadixKey>(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        input: (&GpuVec<K>, &GpuVec<u32>),
+        output: (&mut GpuVec<K>, &mut GpuVec<u32>),
+        key_bits: u32,
+    ) -> Result<(), GpuError> {
+        let ((keys_in, values_in), (keys_out, values_out)) = (input, output);
+        let count = keys_in.len();
+        debug_assert_eq!(values_in.len(), count, "one value per key");
+        let key_bits = key_bits.min(32 * K::WORDS);
+        keys_out.resize(context, count)?;
+        values_out.resize(context, count)?;
+        let key = (
+            [
+                keys_in.buffer().clone(),
+                values_in.buffer().clone(),
+                keys_out.buffer().clone(),
+                values_out.buffer().clone(),
+            ],
+            count,
+            key_bits,
+        );
+        let dispatches = match &mut self.cached {
+            Some((cached_key, dispatches)) if *cached_key == key => dispatches,
+            cached => {
+                let dispatches = sort_dispatches::<K>(context, &key.0, count, key_bits)?;
+                &mut cached.insert((key, dispatches)).1
+            }
+        };
+        encode_all(pass, dispatches);
+        Ok(())
+    }
+}
+
+/// Builds the passes. `buffers` = [keys in, values in, keys out, values out].
+fn sort_dispatches<K: RadixKey>(
+    context: &GpuContext,
+    buffers: &[wgpu::Buffer; 4],
+    count: usize,
+    key_bits: u32,
+) -> Result<Vec<Dispatch>, GpuError> {
+    let passes = passes_for(key_bits) as usize;
+    if count == 0 || passes == 0 {
+        // Nothing to order: the output is the input.
+        return copy_dispatches::<K>(context, buffers, count);
+    }
+    let source = wgsl(K::WORDS);
+    let histogram = Kernel::new(context, "radix histogram", &source, "histogram", &BINDINGS);
+    let scatter = Kernel::new(context, "radix scatter", &source, "scatter", &BINDINGS);
+    let tiles = workgroups_for(count, RADIX_TILE);
+    let counts_len = RADIX as usize * tiles as usize;
+    let counts = GpuVec::<u32>::with_capacity(context, "radix histogram", counts_len)?;
+    let offsets = GpuVec::<u32>::with_capacity(context, "radix offsets", counts_len)?;
+    let scratch_keys = GpuVec::<K>::with_capacity(context, "radix scratch keys", count)?;
+    let scratch_values = GpuVec::<u32>::with_capacity(context, "radix scratch values", count)?;
+    // The chain of (keys, values) buffers: input, then alternating output and scratch so
+    // that the last pass writes the output.
+    let chain: Vec<(&wgpu::Buffer, &wgpu::Buffer)> = (0..=passes)
+        .map(|step| {
+            if step == 0 {
+                (&buffers[0], &buffers[1])
+            } else if (passes - step).is_multiple_of(2) {
+                (&buffers[2], &buffers[3])
+            } else {
+                (scratch_keys.buffer(), scratch_values.buffer())
+            }
+        })
+        .collect();
+    let blocks: Vec<RadixParams> = (0..passes as u32)
+        .map(|pass| RadixParams {
+            count: count as u32,
+            shift: (8 * pass) % 32,
+            word: 8 * pass / 32,
+            tile_count: tiles,
+        })
+        .collect();
+    let slots = UniformSlots::new(context, "radix params", &blocks);
+    let scan = scan_dispatches(
+        context,
+        counts.buffer(),
+        offsets.buffer(),
+        counts_len,
+        ScanKind::Exclusive,
+    )?;
+    let mut dispatches = Vec::new();
+    for pass in 0..passes {
+        let (keys_in, values_in) = chain[pass];
+        let (keys_out, values_out) = chain[pass + 1];
+        let bind = |kernel: &Kernel, table: &wgpu::Buffer| {
+            kernel.bind(
+                context,
+                &[
+                    slots.binding(pass),
+                    keys_in.as_entire_buffer_binding(),
+                    values_in.as_entire_buffer_binding(),
+                    keys_out.as_entire_buffer_binding(),
+                    values_out.as_entire_buffer_binding(),
+                    table.as_entire_buffer_binding(),
+                ],
+            )
+        };
+        dispatches.push(histogram.dispatch(bind(&histogram, counts.buffer()), tiles));
+        dispatches.extend(scan.iter().cloned());
+        dispatches.push(scatter.dispatch(bind(&scatter, offsets.buffer()), tiles));
+    }
+    Ok(dispatches)
+}
+
+/// With no key bits to sort by, the sort is a copy; done with the fill kernel's copy entry
+/// so that it stays inside the compute pass.
+fn copy_dispatches<K: RadixKey>(
+    context: &GpuContext,
+    buffers: &[wgpu::Buffer; 4],
+    count: usize,
+) -> Result<Vec<Dispatch>, GpuError> {
+    if count == 0 {
+        return Ok(Vec::new());
+    }
+    Ok(vec![
+        crate::gpu::prims::fill::copy_dispatch(
+            context,
+            &buffers[0],
+            &buffers[2],
+            count * K::WORDS as usize,
+        ),
+        crate::gpu::prims::fill::copy_dispatch(context, &buffers[1], &buffers[3], count),
+    ])
+}

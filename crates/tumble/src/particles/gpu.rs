@@ -1,0 +1,311 @@
+//! GPU executor of the particle step: one submission per step, four measured passes
+//! (hash, sort, cell start, collide): 19 dispatches at 1M particles with radix sort (hash;
+//! 3 passes of histogram, 3-dispatch scan and scatter; fill and cell bounds; collide) and the
+//! 27-cell search, 2 more with the 14-cell one.
+//! Buffers, pipelines and bind groups are built in [`GpuParticles::new`]; a step only encodes.
+
+use std::time::Instant;
+
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+};
+use crate::gpu::prims::bitonic_sort::BitonicSort;
+use crate::gpu::prims::fill::fill_dispatch;
+use crate::gpu::prims::radix_sort::RadixSort;
+use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
+use crate::particles::{CellSort, EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig};
+use crate::profile::Profiler;
+
+const COMMON_WGSL: &str = include_str!("common.wgsl");
+const HASH_WGSL: &str = include_str!("hash.wgsl");
+const CELL_BOUNDS_WGSL: &str = include_str!("cell_bounds.wgsl");
+const COLLIDE_WGSL: &str = include_str!("collide.wgsl");
+const COLLIDE_SYMMETRIC_WGSL: &str = include_str!("collide_symmetric.wgsl");
+
+const HASH: SpanPath = &["hash"];
+const SORT: SpanPath = &["sort"];
+const CELL_START: SpanPath = &["cell start"];
+const COLLIDE: SpanPath = &["collide"];
+const DOWNLOAD: SpanPath = &["copy particles to host"];
+
+/// The particle kernels' sources: shared part, then the kernel (for the layout test too).
+pub fn wgsl(kernel: &str) -> Source {
+    let text = match kernel {
+        "hash" => HASH_WGSL,
+        "cell_bounds" => CELL_BOUNDS_WGSL,
+        "collide" => COLLIDE_WGSL,
+        "collide_symmetric" => COLLIDE_SYMMETRIC_WGSL,
+        _ => unreachable!("no particle kernel {kernel}"),
+    };
+    Source::new()
+        .constant_u32("EMPTY_CELL", EMPTY_CELL)
+        .snippet("particles/common.wgsl", COMMON_WGSL)
+        .snippet(kernel, text)
+}
+
+/// Whether the largest buffers fit the adapter's bindings, without allocating anything.
+pub(super) fn check_capacity(
+    config: &ParticleConfig,
+    context: &GpuContext,
+) -> Result<(), GpuError> {
+    let limits = context.device.limits();
+    let limit = limits
+        .max_buffer_size
+        .min(limits.max_storage_buffer_binding_size);
+    let needs = [
+        (
+            "particles",
+            config.count as u64 * size_of::<Particle>() as u64,
+        ),
+        ("cell start", config.cell_count() * 4),
+    ];
+    for (what, needed) in needs {
+        if needed > limit {
+            return Err(GpuError::BufferTooLarge {
+                what,
+                needed,
+                limit,
+            });
+        }
+    }
+    Ok(())
+}
+
+#[derive(Debug)]
+pub(super) struct GpuParticles {
+    context: GpuContext,
+    count: usize,
+    particles: GpuVec<Particle>,
+    keys: GpuVec<u32>,
+    ids: GpuVec<u32>,
+    sorted_keys: GpuVec<u32>,
+    sorted_ids: GpuVec<u32>,
+    sort: CellSort,
+    key_bits: u32,
+    radix: RadixSort,
+    bitonic: BitonicSort,
+    hash: Vec<Dispatch>,
+    cell_start: Vec<Dispatch>,
+    collide: Vec<Dispatch>,
+    profiler: GpuProfiler,
+    timing: bool,
+}
+
+impl GpuParticles {
+    pub fn new(
+        config: &ParticleConfig,
+        context: GpuContext,
+        initial: &[Particle],
+    ) -> Result<Self, GpuError> {
+        let count = config.count;
+        let cells = config.cell_count() as usize;
+        let particles = GpuVec::from_slice(&context, "particles", initial)?;
+        let sorted_particles =
+            GpuVec::<Particle>::with_capacity(&context, "sorted particles", count)?;
+        let mut keys = GpuVec::<u32>::with_capacity(&context, "cell keys", count)?;
+        let mut ids = GpuVec::<u32>::with_capacity(&context, "particle ids", count)?;
+        keys.resize(&context, count)?;
+        ids.resize(&context, count)?;
+        let mut sorted_keys = GpuVec::<u32>::with_capacity(&context, "sorted cell keys", count)?;
+        let mut sorted_ids = GpuVec::<u32>::with_capacity(&context, "sorted particle ids", count)?;
+        sorted_keys.resize(&context, count)?;
+        sorted_ids.resize(&context, count)?;
+        let cell_start_buffer = GpuVec::<u32>::with_capacity(&context, "cell start", cells)?;
+        let cell_end_buffer = GpuVec::<u32>::with_capacity(&context, "cell end", cells)?;
+        let slots = UniformSlots::new(&context, "particle params", &[config.params()]);
+        let params = slots.binding(0);
+        // Bitonic sorts in place: the later stages then read the hash output itself.
+        let (sorted_keys_buffer, sorted_ids_buffer) = match config.sort {
+            CellSort::Radix => (sorted_keys.buffer(), sorted_ids.buffer()),
+            CellSort::Bitonic => (keys.buffer(), ids.buffer()),
+        };
+        let groups = workgroups_for(count, WORKGROUP_SIZE);
+        let kernel = |name: &str, bindings: &[Binding]| {
+            Kernel::new(&context, name, &wgsl(name), name, bindings)
+        };
+        use Binding::{StorageRead as Read, StorageReadWrite as Write, Uniform};
+        let hash_kernel = kernel("hash", &[Uniform, Read, Write, Write]);
+        let hash = vec![hash_kernel.dispatch(
+            hash_kernel.bind(
+                &context,
+                &[params.clone(), particles.whole(), keys.whole(), ids.whole()],
+            ),
+            groups,
+        )];
+        let bounds_kernel = kernel(
+            "cell_bounds",
+            &[Uniform, Read, Read, Read, Write, Write, Write],
+        );
+        let cell_start = vec![
+            fill_dispatch(&context, cell_start_buffer.buffer(), cells, EMPTY_CELL)?,
+            bounds_kernel.dispatch(
+                bounds_kernel.bind(
+                    &context,
+                    &[
+                        params.clone(),
+                        sorted_keys_buffer.as_entire_buffer_binding(),
+                        sorted_ids_buffer.as_entire_buffer_binding(),
+                        particles.whole(),
+                        sorted_particles.whole(),
+                        cell_start_buffer.whole(),
+                        cell_end_buffer.whole(),
+                    ],
+                ),
+                groups,
+            ),
+        ];
+        let collide = match config.search {
+            NeighbourSearch::Full27 => {
+                let collide_kernel = kernel("collide", &[Uniform, Read, Read, Read, Read, Write]);
+                let bindings = [
+                    params,
+                    sorted_particles.whole(),
+                    sorted_ids_buffer.as_entire_buffer_binding(),
+                    cell_start_buffer.whole(),
+                    cell_end_buffer.whole(),
+                    particles.whole(),
+                ];
+                vec![collide_kernel.dispatch(collide_kernel.bind(&context, &bindings), groups)]
+            }
+            NeighbourSearch::Symmetric14 => {
+                let forces = GpuVec::<[i32; 3]>::with_capacity(&context, "pair forces", count)?;
+                let layout = [Uniform, Read, Read, Read, Read, Write, Write];
+                let source = wgsl("collide_symmetric");
+                let pairs_kernel =
+                    Kernel::new(&context, "collide pairs", &source, "collide_pairs", &layout);
+                let integrate_kernel = Kernel::new(
+                    &context,
+                    "integrate forces",
+                    &source,
+                    "integrate_forces",
+                    &layout,
+                );
+                let bindings = [
+                    params,
+                    sorted_particles.whole(),
+                    sorted_ids_buffer.as_entire_buffer_binding(),
+                    cell_start_buffer.whole(),
+                    cell_end_buffer.whole(),
+                    particles.whole(),
+                    forces.whole(),
+                ];
+                vec![
+                    fill_dispatch(&context, forces.buffer(), 3 * count, 0)?,
+                    pairs_kernel.dispatch(pairs_kernel.bind(&context, &bindings), groups),
+                    integrate_kernel.dispatch(integrate_kernel.bind(&context, &bindings), groups),
+                ]
+            }
+        };
+        // Cell ids are below cell_count: only that many bits need sorting.
+        let key_bits = u32::BITS - (config.cell_count().saturating_sub(1) as u32).leading_zeros();
+        let profiler = GpuProfiler::new(&context, 4);
+        Ok(Self {
+            context,
+            count,
+            particles,
+            keys,
+            ids,
+            sorted_keys,
+            sorted_ids,
+            sort: config.sort,
+            key_bits,
+            radix: RadixSort::new(),
+            bitonic: BitonicSort::new(),
+            hash,
+            cell_start,
+            collide,
+            profiler,
+            timing: false,
+        })
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.context
+    }
+
+    pub fn set_timing(&mut self, enabled: bool) {
+        self.timing = enabled && self.profiler.is_active();
+    }
+
+    pub fn step(&mut self, profiler: &mut Profiler) -> Result<(), GpuError> {
+        profiler.begin("encode and submit");
+        let result = self.encode_and_submit();
+        profiler.end();
+        result?;
+        if self.timing {
+            self.profiler.collect(&self.context, profiler)?;
+        }
+        Ok(())
+    }
+
+    fn encode_and_submit(&mut self) -> Result<(), GpuError> {
+        let context = &self.context;
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("particles step"),
+            });
+        let timing = self.timing;
+        encode_all(
+            &mut begin_pass(&mut encoder, &mut self.profiler, timing, HASH),
+            &self.hash,
+        );
+        {
+            let mut sort_pass = begin_pass(&mut encoder, &mut self.profiler, timing, SORT);
+            match self.sort {
+                CellSort::Radix => self.radix.encode(
+                    context,
+                    &mut sort_pass,
+                    (&self.keys, &self.ids),
+                    (&mut self.sorted_keys, &mut self.sorted_ids),
+                    self.key_bits,
+                )?,
+                CellSort::Bitonic => {
+                    self.bitonic
+                        .encode(context, &mut sort_pass, &mut self.keys, &mut self.ids)?
+                }
+            }
+        }
+        encode_all(
+            &mut begin_pass(&mut encoder, &mut self.profiler, timing, CELL_START),
+            &self.cell_start,
+        );
+        encode_all(
+            &mut begin_pass(&mut encoder, &mut self.profiler, timing, COLLIDE),
+            &self.collide,
+        );
+        if timing {
+            self.profiler.resolve(&mut encoder);
+        }
+        context.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Downloads the particles (waits for the GPU), timed as a copy.
+    pub fn download(&mut self, profiler: &mut Profiler) -> Result<Vec<Particle>, GpuError> {
+        let start = Instant::now();
+        let particles = self.particles.download(&self.context)?;
+        record_copy(profiler, DOWNLOAD, start.elapsed().as_secs_f64() * 1e3);
+        debug_assert_eq!(particles.len(), self.count);
+        Ok(particles)
+    }
+}
+
+/// A compute pass for one stage, measured when `timing`.
+fn begin_pass<'encoder>(
+    encoder: &'encoder mut wgpu::CommandEncoder,
+    profiler: &mut GpuProfiler,
+    timing: bool,
+    path: SpanPath,
+) -> wgpu::ComputePass<'encoder> {
+    encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(path[0]),
+        timestamp_writes: if timing {
+            profiler.pass_timestamps(path)
+        } else {
+            None
+        },
+    })
+}

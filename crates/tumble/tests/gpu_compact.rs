@@ -1,0 +1,78 @@
+//! Stream compaction and fill parity against their CPU twins.
+
+mod gpu_common;
+
+use gpu_common::{LARGE, Random, SIZES, context};
+use tumble::gpu::GpuVec;
+use tumble::gpu::kernel::encode_all;
+use tumble::gpu::prims::compact::{Compact, compact_cpu};
+use tumble::gpu::prims::fill::{fill_cpu, fill_vec_dispatch};
+
+fn check_compaction(count: usize, seed: u64) {
+    let context = context();
+    let mut random = Random::new(seed);
+    let values = random.u32s(count);
+    let flags = random.u32s_below(count, 2);
+    let values_gpu = GpuVec::from_slice(&context, "values", &values).expect("upload");
+    let flags_gpu = GpuVec::from_slice(&context, "flags", &flags).expect("upload");
+    // A stale total proves the empty case writes 0.
+    let mut total = GpuVec::from_slice(&context, "total", &[12345u32]).expect("upload");
+    let mut compacted = GpuVec::with_capacity(&context, "compacted", 0).expect("alloc");
+    let mut compact = Compact::new();
+    context
+        .submit_pass("compact", |pass| {
+            compact.encode(
+                &context,
+                pass,
+                &values_gpu,
+                &flags_gpu,
+                &mut compacted,
+                &mut total,
+            )
+        })
+        .expect("encode");
+    let expected = compact_cpu(&values, &flags);
+    let kept = total.download(&context).expect("download")[0] as usize;
+    assert_eq!(kept, expected.len(), "count of {count}");
+    let output = compacted.download(&context).expect("download");
+    assert_eq!(&output[..kept], &expected[..], "compaction of {count}");
+}
+
+#[test]
+fn compaction_matches_cpu() {
+    for (seed, count) in SIZES.into_iter().enumerate() {
+        check_compaction(count, 700 + seed as u64);
+    }
+}
+
+#[test]
+fn large_compaction_matches_cpu() {
+    check_compaction(LARGE, 710);
+}
+
+#[test]
+fn fill_matches_cpu() {
+    let context = context();
+    for count in SIZES.into_iter().chain([LARGE]) {
+        let mut expected = vec![0.0f32; count];
+        let mut vector = GpuVec::from_slice(&context, "fill", &expected).expect("upload");
+        let dispatch = fill_vec_dispatch(&context, &vector, -1.5f32).expect("fill");
+        context.submit_pass("fill", |pass| encode_all(pass, &[dispatch]));
+        fill_cpu(&mut expected, -1.5);
+        assert_eq!(vector.download(&context).expect("download"), expected);
+    }
+}
+
+/// 65 536 × 256 + 1 words need 65 537 workgroups: more than one dispatch dimension holds,
+/// so the grid is split over x and y and every word must still be written exactly once.
+#[test]
+fn fill_splits_dispatches_past_65535_workgroups() {
+    let context = context();
+    let count = 65_536 * 256 + 1;
+    let mut vector = GpuVec::from_slice(&context, "fill", &vec![0u32; count]).expect("upload");
+    let dispatch = fill_vec_dispatch(&context, &vector, 7u32).expect("fill");
+    context.submit_pass("fill", |pass| encode_all(pass, &[dispatch]));
+    let filled = vector.download(&context).expect("download");
+    assert_eq!(filled.len(), count);
+    assert!(filled.iter().all(|&word| word == 7));
+}

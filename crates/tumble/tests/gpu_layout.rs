@@ -1,0 +1,164 @@
+//! Every WGSL struct shared with Rust has the `#[repr(C)]` twin's size and field offsets.
+//! naga (the compiler wgpu uses) parses each kernel's composed source, which also proves
+//! every kernel compiles, and reports the WGSL layout; a struct found in WGSL but not listed
+//! here fails the test, so a new shared struct cannot be forgotten.
+
+use std::collections::BTreeMap;
+
+use tumble::gpu::kernel::Source;
+use tumble::gpu::prims::{bitonic_sort, compact, fill, radix_sort, reduce, scan};
+use tumble::particles::{self, Particle, ParticleParams};
+
+/// (field name, offset) of each member, and the size, of every struct in `source`.
+fn wgsl_structs(source: &Source) -> BTreeMap<String, (Vec<(String, u32)>, u32)> {
+    let module = naga::front::wgsl::parse_str(source.text())
+        .unwrap_or_else(|error| panic!("{}", error.emit_to_string(source.text())));
+    module
+        .types
+        .iter()
+        .filter_map(|(_, ty)| match &ty.inner {
+            naga::TypeInner::Struct { members, span } => Some((
+                ty.name.clone().unwrap_or_default(),
+                (
+                    members
+                        .iter()
+                        .map(|member| (member.name.clone().unwrap_or_default(), member.offset))
+                        .collect(),
+                    *span,
+                ),
+            )),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The Rust layout of a struct: its fields, their offsets, its size.
+macro_rules! rust_layout {
+    ($type:ty { $($field:ident),* $(,)? }) => {
+        (
+            stringify!($type).rsplit("::").next().unwrap_or_default().to_owned(),
+            (
+                vec![$((stringify!($field).to_owned(), std::mem::offset_of!($type, $field) as u32)),*],
+                size_of::<$type>() as u32,
+            ),
+        )
+    };
+}
+
+/// A struct's name, and its fields with their offsets and its size.
+type Layout = (String, (Vec<(String, u32)>, u32));
+
+fn check(source: Source, rust: Vec<Layout>) {
+    let mut wgsl = wgsl_structs(&source);
+    for (name, layout) in rust {
+        let found = wgsl
+            .remove(&name)
+            .unwrap_or_else(|| panic!("struct {name} is not in the WGSL"));
+        assert_eq!(found, layout, "layout of {name} (WGSL, then Rust)");
+    }
+    assert!(
+        wgsl.is_empty(),
+        "WGSL structs without a Rust twin: {:?}",
+        wgsl.keys()
+    );
+}
+
+#[test]
+fn primitive_parameter_blocks_match_rust() {
+    check(
+        scan::wgsl(),
+        vec![rust_layout!(scan::ScanParams {
+            count,
+            inclusive,
+            has_parent,
+            padding
+        })],
+    );
+    for key_words in [1, 2] {
+        check(
+            radix_sort::wgsl(key_words),
+            vec![rust_layout!(radix_sort::RadixParams {
+                count,
+                shift,
+                word,
+                tile_count
+            })],
+        );
+    }
+    check(
+        bitonic_sort::wgsl(),
+        vec![rust_layout!(bitonic_sort::BitonicParams {
+            count,
+            flip_block,
+            distance,
+            padding
+        })],
+    );
+    check(
+        fill::wgsl(),
+        vec![rust_layout!(fill::FillParams {
+            count,
+            value,
+            padding0,
+            padding1
+        })],
+    );
+    check(
+        compact::wgsl(),
+        vec![rust_layout!(compact::CompactParams {
+            count,
+            padding0,
+            padding1,
+            padding2
+        })],
+    );
+    for op in [
+        reduce::ReduceOp::Min,
+        reduce::ReduceOp::Max,
+        reduce::ReduceOp::Sum,
+    ] {
+        for source in [reduce::wgsl::<u32>(op), reduce::wgsl::<f32>(op)] {
+            check(
+                source,
+                vec![rust_layout!(reduce::ReduceParams {
+                    count,
+                    padding0,
+                    padding1,
+                    padding2
+                })],
+            );
+        }
+    }
+}
+
+#[test]
+fn particle_structs_match_rust() {
+    for source in particles::kernel_sources() {
+        check(
+            source,
+            vec![
+                rust_layout!(Particle { position, velocity }),
+                rust_layout!(ParticleParams {
+                    origin,
+                    cell_size,
+                    grid,
+                    count,
+                    gravity,
+                    dt,
+                    radius,
+                    inverse_mass,
+                    spring,
+                    damping,
+                    shear,
+                    wall_spring,
+                    wall_damping,
+                    cell_count,
+                    force_scale,
+                    force_quantum,
+                    padding0,
+                    padding1,
+                }),
+            ],
+        );
+    }
+}

@@ -1,0 +1,67 @@
+//! GPU timestamps land in the hierarchical report as GPU lines when the adapter has them.
+
+mod gpu_common;
+
+use gpu_common::{Random, context};
+use tumble::gpu::GpuVec;
+use tumble::gpu::prims::scan::{Scan, ScanKind};
+use tumble::gpu::profiler::{GpuProfiler, record_copy};
+use tumble::profile::{Profiler, SpanKind};
+
+#[test]
+fn timestamps_and_copies_are_recorded_as_their_own_lines() {
+    let context = context();
+    let input = Random::new(1).u32s(100_000);
+    let source = GpuVec::from_slice(&context, "scan input", &input).expect("upload");
+    let mut destination = GpuVec::with_capacity(&context, "scan output", 0).expect("alloc");
+    let mut scan = Scan::new();
+    let mut gpu_profiler = GpuProfiler::new(&context, 4);
+    let mut profiler = Profiler::new("frame");
+    profiler.begin_frame();
+    let mut encoder = context.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("scan"),
+            timestamp_writes: gpu_profiler.pass_timestamps(&["scan"]),
+        });
+        scan.encode(
+            &context,
+            &mut pass,
+            &source,
+            &mut destination,
+            ScanKind::Exclusive,
+        )
+        .expect("encode");
+    }
+    gpu_profiler.resolve(&mut encoder);
+    context.queue.submit([encoder.finish()]);
+    gpu_profiler
+        .collect(&context, &mut profiler)
+        .expect("collect");
+    let start = std::time::Instant::now();
+    let _ = destination.download(&context).expect("download");
+    record_copy(
+        &mut profiler,
+        &["download"],
+        start.elapsed().as_secs_f64() * 1e3,
+    );
+    profiler.end_frame();
+    let report = profiler.report();
+    let lines: Vec<_> = report
+        .root
+        .children
+        .iter()
+        .map(|line| (line.name, line.kind))
+        .collect();
+    if gpu_profiler.is_active() {
+        assert_eq!(
+            lines,
+            [("scan", SpanKind::Gpu), ("download", SpanKind::Copy)]
+        );
+        assert!(report.root.children[0].ms_per_frame >= 0.0);
+        assert!(report.to_string().contains("[gpu]"));
+    } else {
+        // No timestamp queries on this adapter (llvmpipe on GL): only the copy is measured.
+        assert_eq!(lines, [("download", SpanKind::Copy)]);
+    }
+}

@@ -1,0 +1,47 @@
+//! Prefix scan parity: GPU against the CPU twin, exactly, on random u32 (sums wrap).
+
+mod gpu_common;
+
+use gpu_common::{LARGE, Random, SIZES, context};
+use tumble::gpu::GpuVec;
+use tumble::gpu::prims::scan::{Scan, ScanKind, scan_cpu};
+
+fn check(count: usize, kind: ScanKind, seed: u64) {
+    let context = context();
+    let input = Random::new(seed).u32s(count);
+    let source = GpuVec::from_slice(&context, "scan input", &input).expect("upload");
+    let mut destination = GpuVec::with_capacity(&context, "scan output", 0).expect("alloc");
+    let mut scan = Scan::new();
+    context
+        .submit_pass("scan", |pass| {
+            scan.encode(&context, pass, &source, &mut destination, kind)
+        })
+        .expect("encode");
+    let output = destination.download(&context).expect("download");
+    assert_eq!(output, scan_cpu(&input, kind), "{kind:?} scan of {count}");
+}
+
+#[test]
+fn exclusive_scan_matches_cpu() {
+    for (seed, count) in SIZES.into_iter().enumerate() {
+        check(count, ScanKind::Exclusive, seed as u64);
+    }
+}
+
+#[test]
+fn inclusive_scan_matches_cpu() {
+    for (seed, count) in SIZES.into_iter().enumerate() {
+        check(count, ScanKind::Inclusive, 100 + seed as u64);
+    }
+}
+
+#[test]
+fn large_scan_matches_cpu() {
+    check(LARGE, ScanKind::Exclusive, 7);
+}
+
+#[test]
+fn three_level_scan_matches_cpu() {
+    // 1024² + 1 elements: the block sums themselves need a second reduction.
+    check(1024 * 1024 + 1, ScanKind::Inclusive, 8);
+}
