@@ -146,20 +146,21 @@ impl DrawList {
         list
     }
 
-    /// A small ball at each contact point and a segment along its normal (from B to A).
-    fn add_contacts(&mut self, world: &World, marker_radius: f32) {
-        let normal_length = 4.0 * marker_radius;
+    /// A small cube at each contact point (12 triangles: thousands of contacts stay cheap on a
+    /// CPU rasterizer) and a segment along its normal (from B to A).
+    fn add_contacts(&mut self, world: &World, marker_size: f32) {
+        let normal_length = 4.0 * marker_size;
         for (_, _, contact) in world.contacts() {
             let normal = contact.manifold.normal;
             let (u, v) = tangent_basis(normal);
             for point in contact.manifold.points() {
                 let marker = Mat4::from_scale_rotation_translation(
-                    Vec3::splat(marker_radius),
+                    Vec3::splat(marker_size),
                     glam::Quat::IDENTITY,
                     point.position,
                 );
                 self.instances
-                    .entry(MeshKey::Sphere)
+                    .entry(MeshKey::Cube)
                     .or_default()
                     .push(Instance::new(marker, CONTACT_POINT_COLOUR));
                 // Maps the segment's +Y onto the normal; u and v only keep the matrix regular.
@@ -273,6 +274,8 @@ mod tests {
             .sum();
         assert!(points > 0, "the box rests on the ground");
         assert_eq!(with.instances[&MeshKey::Segment].len(), points);
+        // One cube is the box itself, the others mark the points.
+        assert_eq!(with.instances[&MeshKey::Cube].len(), 1 + points);
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod headless;
 pub mod input;
 pub mod mesh;
 mod renderer;
+mod window;
 
 use std::path::PathBuf;
 
@@ -80,10 +81,7 @@ pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), View
     if options.png.is_some() || options.frames.is_some() {
         return render_headless(scene, options);
     }
-    Err(ViewError::NoDisplay {
-        scene: name.to_owned(),
-        reason: "the window is not built yet".to_owned(),
-    })
+    window::run(name, scene, options)
 }
 
 /// Steps the scene and writes the pictures `--png` and `--frames` ask for.
