@@ -82,6 +82,9 @@ fn png_and_frames_are_written_headless() {
             "2",
             "--size",
             "64x48",
+            // A leading minus is a coordinate, not a flag.
+            "--camera",
+            "-20,10,30,0,1,0",
             "--png",
             png.to_str().unwrap(),
             "--frames",

@@ -14,7 +14,6 @@ use crate::error::ViewError;
 
 /// A device and queue for rendering, with the adapter's description for messages.
 pub struct GpuContext {
-    pub instance: wgpu::Instance,
     pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -27,13 +26,13 @@ impl GpuContext {
         let descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         let backends = descriptor.backends;
         let instance = wgpu::Instance::new(descriptor);
-        pollster::block_on(Self::with_instance(instance, backends, None))
+        pollster::block_on(Self::with_instance(&instance, backends, None))
     }
 
     /// A context on `instance`'s adapters of `backends` that can present to `surface`, when one
     /// is given.
     pub async fn with_instance(
-        instance: wgpu::Instance,
+        instance: &wgpu::Instance,
         backends: wgpu::Backends,
         surface: Option<&wgpu::Surface<'_>>,
     ) -> Result<Self, ViewError> {
@@ -59,7 +58,6 @@ impl GpuContext {
                 reason: error.to_string(),
             })?;
         Ok(Self {
-            instance,
             adapter,
             device,
             queue,

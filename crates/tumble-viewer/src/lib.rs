@@ -71,7 +71,7 @@ pub struct ViewOptions {
     #[arg(long, default_value = "1280x720")]
     pub size: ImageSize,
     /// Camera as eye_x,eye_y,eye_z,target_x,target_y,target_z (m); default: frame the bodies.
-    #[arg(long, value_parser = camera::parse_camera, allow_negative_numbers = true)]
+    #[arg(long, value_parser = camera::parse_camera, allow_hyphen_values = true)]
     pub camera: Option<Camera>,
 }
 

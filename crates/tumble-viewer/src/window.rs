@@ -131,7 +131,7 @@ impl App<'_> {
             .create_surface(window.clone())
             .map_err(|e| ViewError::Surface(e.to_string()))?;
         let context = pollster::block_on(GpuContext::with_instance(
-            self.instance.clone(),
+            &self.instance,
             self.backends,
             Some(&surface),
         ))?;
