@@ -22,6 +22,19 @@ enum Command {
     Run(RunArgs),
     /// Lists the built-in scenes.
     Scenes,
+    /// Shows a scene in a window, or headless with --png / --frames.
+    View(ViewArgs),
+}
+
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// Built-in scene name (`tumble scenes`) or path to a JSON scene file.
+    scene: String,
+    /// Size of a built-in scene (1 = the talk's size).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    scale: f32,
+    #[command(flatten)]
+    options: tumble_viewer::ViewOptions,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -83,6 +96,9 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
+        Command::View(args) => load_scene(&args.scene, args.scale).and_then(|scene| {
+            tumble_viewer::view(&args.scene, &scene, &args.options).map_err(|e| e.to_string())
+        }),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

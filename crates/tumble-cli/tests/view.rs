@@ -1,0 +1,109 @@
+//! `tumble view`: headless pictures from the command line, and clear one-line errors when
+//! there is neither a display nor --png, or no adapter matches.
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// Runs `tumble` with no display: DISPLAY and WAYLAND_DISPLAY removed from its environment.
+fn tumble_without_display(args: &[&str], env: &[(&str, &str)]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        // Mesa's device-select Vulkan layer looks for a display and, finding none, has
+        // libwayland print "XDG_RUNTIME_DIR is invalid" on stderr: not ours to test.
+        .env("NODEVICE_SELECT", "1")
+        .envs(env.iter().copied())
+        .output()
+        .expect("tumble runs")
+}
+
+fn one_line_error(output: &Output) -> String {
+    let message = String::from_utf8_lossy(&output.stderr).into_owned();
+    assert!(!output.status.success(), "succeeded: {message}");
+    assert!(!message.contains("panicked"), "panicked: {message}");
+    assert_eq!(
+        message.trim_end().lines().count(),
+        1,
+        "not one line: {message}"
+    );
+    message
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let path = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&path);
+    std::fs::create_dir_all(&path).expect("scratch folder");
+    path
+}
+
+#[test]
+fn no_display_and_no_png_says_how_to_run_headless() {
+    let output = tumble_without_display(&["view", "falling-boxes", "--scale", "0.01"], &[]);
+    let message = one_line_error(&output);
+    assert!(message.contains("no display"), "{message}");
+    assert!(
+        message.contains("tumble view falling-boxes --steps 120 --png"),
+        "{message}"
+    );
+}
+
+#[test]
+fn unknown_adapter_is_a_clear_error() {
+    let dir = scratch("view-adapter");
+    let png = dir.join("out.png");
+    let output = tumble_without_display(
+        &[
+            "view",
+            "falling-boxes",
+            "--scale",
+            "0.01",
+            "--png",
+            png.to_str().unwrap(),
+        ],
+        &[("TUMBLE_ADAPTER", "no-such-adapter")],
+    );
+    let message = one_line_error(&output);
+    assert!(message.contains("TUMBLE_ADAPTER"), "{message}");
+    assert!(!png.exists());
+}
+
+#[test]
+fn png_and_frames_are_written_headless() {
+    let dir = scratch("view-frames");
+    let png = dir.join("out.png");
+    let frames = dir.join("frames");
+    let output = tumble_without_display(
+        &[
+            "view",
+            "falling-boxes",
+            "--scale",
+            "0.01",
+            "--steps",
+            "2",
+            "--size",
+            "64x48",
+            // A leading minus is a coordinate, not a flag.
+            "--camera",
+            "-20,10,30,0,1,0",
+            "--png",
+            png.to_str().unwrap(),
+            "--frames",
+            frames.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    for path in [
+        png,
+        frames.join("frame_00000.png"),
+        frames.join("frame_00002.png"),
+    ] {
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
+    }
+    assert!(!frames.join("frame_00003.png").exists());
+}

@@ -1,0 +1,288 @@
+//! What to draw, read from a [`World`]: instances grouped by mesh, contact markers, ground
+//! quads. Built on the CPU each frame; the renderer uploads and draws it.
+
+use std::collections::BTreeMap;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat4, Vec3};
+use tumble::World;
+use tumble::math::tangent_basis;
+use tumble::shape::Shape;
+
+use crate::camera::finite_bounds;
+
+/// Clear colour where nothing is drawn (linear RGB).
+pub const BACKGROUND: [f32; 3] = [0.30, 0.40, 0.55];
+/// Bodies that never move (boxes, spheres, capsules with mass 0), linear RGB.
+pub const STATIC_COLOUR: [f32; 3] = [0.45, 0.45, 0.45];
+/// Contact points and their normals (linear RGB).
+pub const CONTACT_POINT_COLOUR: [f32; 3] = [1.0, 0.15, 0.05];
+pub const CONTACT_NORMAL_COLOUR: [f32; 3] = [1.0, 0.9, 0.1];
+
+/// One instance of a mesh: where it is and its colour.
+// repr(C) + Pod: uploaded as is into the instance buffer the mesh shader reads.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Instance {
+    /// Mesh to world, column-major (glam's and WGSL's order).
+    pub model: [[f32; 4]; 4],
+    /// Linear RGB, alpha unused (1).
+    pub colour: [f32; 4],
+}
+
+const _: () = assert!(size_of::<Instance>() == 80);
+
+impl Instance {
+    fn new(model: Mat4, colour: [f32; 3]) -> Self {
+        Self {
+            model: model.to_cols_array_2d(),
+            colour: [colour[0], colour[1], colour[2], 1.0],
+        }
+    }
+}
+
+/// The meshes instances refer to. A capsule mesh is built per distinct size: the f32 bits are
+/// the key, so equal sizes share a mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum MeshKey {
+    Cube,
+    Sphere,
+    Capsule {
+        radius: u32,
+        half_height: u32,
+    },
+    /// The unit segment: contact normals.
+    Segment,
+}
+
+/// A finite square of an infinite plane, drawn as a grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GroundQuad {
+    /// The point of the plane nearest to the scene's centre (m).
+    pub center: Vec3,
+    /// Unit normal (out of the solid half-space) and two unit tangents.
+    pub normal: Vec3,
+    pub tangents: [Vec3; 2],
+    /// Half the side of the square (m).
+    pub half_size: f32,
+}
+
+/// How to draw, from the viewer's keys.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DrawSettings {
+    pub contacts: bool,
+    pub wireframe: bool,
+}
+
+/// Everything one frame draws.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DrawList {
+    pub instances: BTreeMap<MeshKey, Vec<Instance>>,
+    pub grounds: Vec<GroundQuad>,
+    pub wireframe: bool,
+}
+
+impl DrawList {
+    pub fn build(world: &World, settings: DrawSettings) -> Self {
+        let mut list = DrawList {
+            wireframe: settings.wireframe,
+            ..Default::default()
+        };
+        let bounds = finite_bounds(world);
+        let (scene_center, scene_radius) = bounds.map_or((Vec3::ZERO, 5.0), |aabb| {
+            (aabb.center(), aabb.half_extents().length())
+        });
+        // Contact markers scale with the smallest body so they never hide one.
+        let mut smallest = f32::MAX;
+        for handle in world.bodies() {
+            let (Ok(desc), Ok(pose), Ok(dynamic)) = (
+                world.body_desc(handle),
+                world.pose(handle),
+                world.is_dynamic(handle),
+            ) else {
+                continue;
+            };
+            let colour = if dynamic {
+                body_colour(handle.index() as usize)
+            } else {
+                STATIC_COLOUR
+            };
+            let (key, scale) = match desc.shape {
+                Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
+                Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
+                Shape::Capsule(capsule) => (
+                    MeshKey::Capsule {
+                        radius: capsule.radius.to_bits(),
+                        half_height: capsule.half_height.to_bits(),
+                    },
+                    Vec3::ONE,
+                ),
+                Shape::Plane(plane) => {
+                    let normal = pose.rotation * plane.normal;
+                    let origin = pose.position + normal * plane.offset;
+                    let center = scene_center - normal * normal.dot(scene_center - origin);
+                    let (u, v) = tangent_basis(normal);
+                    list.grounds.push(GroundQuad {
+                        center,
+                        normal,
+                        tangents: [u, v],
+                        // Far enough that the edge is rarely in view, close enough that the
+                        // depth range stays useful.
+                        half_size: (10.0 * scene_radius).max(50.0),
+                    });
+                    continue;
+                }
+            };
+            smallest = smallest.min(desc.shape.aabb(&pose).half_extents().min_element());
+            let model = Mat4::from_scale_rotation_translation(scale, pose.rotation, pose.position);
+            list.instances
+                .entry(key)
+                .or_default()
+                .push(Instance::new(model, colour));
+        }
+        if settings.contacts {
+            list.add_contacts(world, 0.15 * smallest.min(1.0));
+        }
+        list
+    }
+
+    /// A small cube at each contact point (12 triangles: thousands of contacts stay cheap on a
+    /// CPU rasterizer) and a segment along its normal (from B to A).
+    fn add_contacts(&mut self, world: &World, marker_size: f32) {
+        let normal_length = 4.0 * marker_size;
+        for (_, _, contact) in world.contacts() {
+            let normal = contact.manifold.normal;
+            let (u, v) = tangent_basis(normal);
+            for point in contact.manifold.points() {
+                let marker = Mat4::from_scale_rotation_translation(
+                    Vec3::splat(marker_size),
+                    glam::Quat::IDENTITY,
+                    point.position,
+                );
+                self.instances
+                    .entry(MeshKey::Cube)
+                    .or_default()
+                    .push(Instance::new(marker, CONTACT_POINT_COLOUR));
+                // Maps the segment's +Y onto the normal; u and v only keep the matrix regular.
+                let segment = Mat4::from_cols(
+                    u.extend(0.0),
+                    (normal * normal_length).extend(0.0),
+                    v.extend(0.0),
+                    point.position.extend(1.0),
+                );
+                self.instances
+                    .entry(MeshKey::Segment)
+                    .or_default()
+                    .push(Instance::new(segment, CONTACT_NORMAL_COLOUR));
+            }
+        }
+    }
+}
+
+/// The colour of the body in slot `index`: hues a golden angle apart, so neighbours in creation
+/// order (neighbours in space, in the built-in scenes) differ clearly. Linear RGB.
+pub fn body_colour(index: usize) -> [f32; 3] {
+    const GOLDEN: f32 = 0.618_034;
+    let hue = (index as f32 * GOLDEN).fract();
+    // Picked in sRGB, where saturation looks even, then made linear for the shading.
+    hsv_to_rgb(hue, 0.65, 0.9).map(srgb_to_linear)
+}
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// `hue` in [0, 1), saturation and value in [0, 1].
+fn hsv_to_rgb(hue: f32, saturation: f32, value: f32) -> [f32; 3] {
+    let h = hue * 6.0;
+    let chroma = value * saturation;
+    let x = chroma * (1.0 - (h % 2.0 - 1.0).abs());
+    let (r, g, b) = match h as u32 {
+        0 => (chroma, x, 0.0),
+        1 => (x, chroma, 0.0),
+        2 => (0.0, chroma, x),
+        3 => (0.0, x, chroma),
+        4 => (x, 0.0, chroma),
+        _ => (chroma, 0.0, x),
+    };
+    let m = value - chroma;
+    [r + m, g + m, b + m]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tumble::{BodyDesc, StepConfig};
+
+    fn world() -> World {
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        world
+            .add_body(
+                BodyDesc::dynamic(Shape::cuboid(Vec3::new(0.5, 0.25, 1.0)))
+                    .position(Vec3::new(0.0, 0.25, 0.0)),
+            )
+            .unwrap();
+        world
+            .add_body(
+                BodyDesc::dynamic(Shape::capsule(0.2, 0.5)).position(Vec3::new(2.0, 0.7, 0.0)),
+            )
+            .unwrap();
+        world
+    }
+
+    #[test]
+    fn one_instance_per_body_and_a_ground_per_plane() {
+        let list = DrawList::build(&world(), DrawSettings::default());
+        assert_eq!(list.grounds.len(), 1);
+        assert_eq!(list.grounds[0].normal, Vec3::Y);
+        assert_eq!(list.grounds[0].center.y, 0.0);
+        assert_eq!(list.instances[&MeshKey::Cube].len(), 1);
+        let capsule = MeshKey::Capsule {
+            radius: 0.2f32.to_bits(),
+            half_height: 0.5f32.to_bits(),
+        };
+        assert_eq!(list.instances[&capsule].len(), 1);
+        // The box's model matrix scales the unit cube to its half extents.
+        let model = Mat4::from_cols_array_2d(&list.instances[&MeshKey::Cube][0].model);
+        let corner = model.transform_point3(Vec3::ONE);
+        assert!((corner - Vec3::new(0.5, 0.5, 1.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn contacts_add_markers_once_bodies_touch() {
+        let mut world = world();
+        world.step();
+        let without = DrawList::build(&world, DrawSettings::default());
+        assert!(!without.instances.contains_key(&MeshKey::Segment));
+        let with = DrawList::build(
+            &world,
+            DrawSettings {
+                contacts: true,
+                ..Default::default()
+            },
+        );
+        let points: usize = world
+            .contacts()
+            .map(|(_, _, c)| c.manifold.points().len())
+            .sum();
+        assert!(points > 0, "the box rests on the ground");
+        assert_eq!(with.instances[&MeshKey::Segment].len(), points);
+        // One cube is the box itself, the others mark the points.
+        assert_eq!(with.instances[&MeshKey::Cube].len(), 1 + points);
+    }
+
+    #[test]
+    fn colours_are_in_range_and_differ() {
+        for index in 0..100 {
+            assert!(body_colour(index).iter().all(|c| (0.0..=1.0).contains(c)));
+        }
+        assert_ne!(body_colour(0), body_colour(1));
+    }
+}

@@ -1,0 +1,45 @@
+//! What can go wrong in the viewer, each message saying how to fix it.
+
+use std::path::PathBuf;
+
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    #[error(transparent)]
+    Scene(#[from] tumble::scene::SceneError),
+    #[error(
+        "no display to open a window on ({reason}); render headless instead, e.g. \
+         `tumble view {scene} --steps 120 --png {scene}.png` (or --frames DIR for a PNG per step)"
+    )]
+    NoDisplay { scene: String, reason: String },
+    #[error(
+        "no GPU adapter found (backends: {backends}); install a driver, or Mesa's CPU driver \
+         (`apt-get install mesa-vulkan-drivers` for lavapipe), or unset WGPU_BACKEND"
+    )]
+    NoAdapter { backends: String },
+    #[error(
+        "no GPU adapter name contains TUMBLE_ADAPTER={wanted:?}; available adapters: {available}"
+    )]
+    NoMatchingAdapter { wanted: String, available: String },
+    #[error("the adapter {adapter:?} refused to create a device: {reason}")]
+    RequestDevice { adapter: String, reason: String },
+    #[error(
+        "the adapter {adapter:?} cannot render a {width}x{height} image (largest: {limit}); \
+         use a smaller --size"
+    )]
+    TooLarge {
+        adapter: String,
+        width: u32,
+        height: u32,
+        limit: u32,
+    },
+    #[error("the GPU reported an error while rendering on {adapter:?}: {reason}")]
+    Render { adapter: String, reason: String },
+    #[error("reading the picture back from the GPU failed: {0}")]
+    Readback(String),
+    #[error("cannot write {path}: {reason}")]
+    Write { path: PathBuf, reason: String },
+    #[error("cannot open a window: {0}")]
+    Window(String),
+    #[error("cannot draw into the window: {0}")]
+    Surface(String),
+}

@@ -1,0 +1,191 @@
+//! Offscreen rendering: draw into a texture, read it back, write PNGs. Needs no window system,
+//! so it runs on a server with Mesa's lavapipe.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use tumble::World;
+
+use crate::camera::Camera;
+use crate::context::GpuContext;
+use crate::draw::{DrawList, DrawSettings};
+use crate::error::ViewError;
+use crate::renderer::{Renderer, depth_view};
+
+/// sRGB, so the hardware encodes the linear shading for the PNG (which is sRGB by default).
+const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+
+/// A picture read back from the GPU: `width` × `height` RGBA8 (sRGB), rows top to bottom.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<u8>,
+}
+
+impl Image {
+    /// The pixel in column `x`, row `y` (0 = top).
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let i = 4 * (y as usize * self.width as usize + x as usize);
+        [
+            self.rgba[i],
+            self.rgba[i + 1],
+            self.rgba[i + 2],
+            self.rgba[i + 3],
+        ]
+    }
+
+    pub fn save_png(&self, path: &Path) -> Result<(), ViewError> {
+        let error = |reason: String| ViewError::Write {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let file = File::create(path).map_err(|e| error(e.to_string()))?;
+        let mut encoder = png::Encoder::new(BufWriter::new(file), self.width, self.height);
+        encoder.set_color(png::ColorType::Rgba);
+        encoder.set_depth(png::BitDepth::Eight);
+        let mut writer = encoder.write_header().map_err(|e| error(e.to_string()))?;
+        writer
+            .write_image_data(&self.rgba)
+            .map_err(|e| error(e.to_string()))?;
+        writer.finish().map_err(|e| error(e.to_string()))
+    }
+}
+
+/// A renderer with its own colour and depth targets and a buffer to read the colour back.
+pub struct Offscreen {
+    renderer: Renderer,
+    color: wgpu::Texture,
+    color_view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    /// Bytes per row in `readback`: a row of pixels padded to wgpu's copy alignment.
+    padded_row: u32,
+    width: u32,
+    height: u32,
+}
+
+impl Offscreen {
+    pub fn new(context: &GpuContext, width: u32, height: u32) -> Result<Self, ViewError> {
+        let limit = context.device.limits().max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > limit || height > limit {
+            return Err(ViewError::TooLarge {
+                adapter: context.describe(),
+                width,
+                height,
+                limit,
+            });
+        }
+        let device = &context.device;
+        let color = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("offscreen colour"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let padded_row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("offscreen readback"),
+            size: u64::from(padded_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Ok(Self {
+            renderer: Renderer::new(device, &context.queue, FORMAT),
+            color_view: color.create_view(&Default::default()),
+            color,
+            depth: depth_view(device, width, height),
+            readback,
+            padded_row,
+            width,
+            height,
+        })
+    }
+
+    /// Draws `world` as `camera` sees it and reads the picture back.
+    pub fn render(
+        &mut self,
+        context: &GpuContext,
+        world: &World,
+        camera: &Camera,
+        settings: DrawSettings,
+    ) -> Result<Image, ViewError> {
+        let device = &context.device;
+        // Validation errors (an adapter that cannot do what we ask) become an error value
+        // instead of wgpu's default panic.
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let list = DrawList::build(world, settings);
+        self.renderer
+            .prepare(&list, camera, self.width as f32 / self.height as f32);
+        let mut encoder = device.create_command_encoder(&Default::default());
+        self.renderer
+            .encode(&mut encoder, &self.color_view, &self.depth);
+        encoder.copy_texture_to_buffer(
+            self.color.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        context.queue.submit([encoder.finish()]);
+        if let Some(error) = pollster::block_on(scope.pop()) {
+            return Err(ViewError::Render {
+                adapter: context.describe(),
+                reason: error.to_string(),
+            });
+        }
+        self.read_back(device)
+    }
+
+    fn read_back(&self, device: &wgpu::Device) -> Result<Image, ViewError> {
+        let slice = self.readback.slice(..);
+        let (sender, receiver) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |result| {
+            // The receiver lives until after the poll below; a failed send cannot happen.
+            let _ = sender.send(result);
+        });
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: Some(std::time::Duration::from_secs(60)),
+            })
+            .map_err(|e| ViewError::Readback(e.to_string()))?;
+        receiver
+            .recv()
+            .map_err(|e| ViewError::Readback(e.to_string()))?
+            .map_err(|e| ViewError::Readback(e.to_string()))?;
+        let mut rgba = Vec::with_capacity(4 * self.width as usize * self.height as usize);
+        {
+            let mapped = slice
+                .get_mapped_range()
+                .map_err(|e| ViewError::Readback(e.to_string()))?;
+            for row in mapped.chunks_exact(self.padded_row as usize) {
+                rgba.extend_from_slice(&row[..4 * self.width as usize]);
+            }
+        }
+        self.readback.unmap();
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            rgba,
+        })
+    }
+}

@@ -1,0 +1,133 @@
+//! `tumble view`: draws a [`tumble::World`] with wgpu, in a window (winit) or headless into
+//! PNG files.
+//!
+//! The pieces, from the world to the pixels:
+//! - [`draw::DrawList`] reads poses, shapes and contacts from the world into instance lists
+//!   (model matrix + colour per body, grouped by mesh) and ground quads for planes;
+//! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame;
+//! - [`headless::Offscreen`] renders into a texture and reads it back; the window path
+//!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes.
+//!
+//! The viewer makes its own device ([`context::GpuContext`]); once the step runs on the GPU it
+//! will take the physics device instead and draw the poses from the physics buffers.
+
+pub mod camera;
+pub mod context;
+pub mod draw;
+mod error;
+pub mod headless;
+pub mod input;
+pub mod mesh;
+mod renderer;
+mod window;
+
+use std::path::PathBuf;
+
+use tumble::scene::Scene;
+
+pub use camera::Camera;
+pub use context::GpuContext;
+pub use error::ViewError;
+pub use renderer::Renderer;
+
+/// A picture size `WIDTHxHEIGHT` in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageSize {
+    pub width: u32,
+    pub height: u32,
+}
+
+impl std::str::FromStr for ImageSize {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, Self::Err> {
+        let parse = |part: &str| part.trim().parse::<u32>().ok().filter(|&n| n > 0);
+        match text.split_once(['x', 'X']) {
+            Some((w, h)) => match (parse(w), parse(h)) {
+                (Some(width), Some(height)) => Ok(Self { width, height }),
+                _ => Err(format!(
+                    "{text:?}: width and height must be whole numbers > 0"
+                )),
+            },
+            None => Err(format!("{text:?} is not WIDTHxHEIGHT (e.g. 1280x720)")),
+        }
+    }
+}
+
+/// Options of `tumble view`, after the scene.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ViewOptions {
+    /// Steps to simulate before the first picture (headless) or before the window opens.
+    #[arg(long, default_value_t = 0)]
+    pub steps: u32,
+    /// Render offscreen (no display needed) and write the last step's picture to this PNG.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Render offscreen and write a PNG per step into this folder (frame_00000.png is the
+    /// start, frame_NNNNN.png the state after N steps), e.g. for a video.
+    #[arg(long)]
+    pub frames: Option<PathBuf>,
+    /// Picture or window size in pixels.
+    #[arg(long, default_value = "1280x720")]
+    pub size: ImageSize,
+    /// Camera as eye_x,eye_y,eye_z,target_x,target_y,target_z (m); default: frame the bodies.
+    #[arg(long, value_parser = camera::parse_camera, allow_hyphen_values = true)]
+    pub camera: Option<Camera>,
+}
+
+/// Shows `scene` (named `name` in messages): headless when `--png` or `--frames` is given,
+/// else in a window.
+pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
+    if options.png.is_some() || options.frames.is_some() {
+        return render_headless(scene, options);
+    }
+    window::run(name, scene, options)
+}
+
+/// Steps the scene and writes the pictures `--png` and `--frames` ask for.
+fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
+    let mut world = scene.build()?;
+    let context = GpuContext::headless()?;
+    let ImageSize { width, height } = options.size;
+    let mut offscreen = headless::Offscreen::new(&context, width, height)?;
+    // The camera frames the bodies as they are in the first picture, and then stays put so
+    // that frames of a video line up.
+    let mut camera = options.camera;
+    let mut picture = |world: &tumble::World, path: PathBuf| {
+        let camera = *camera.get_or_insert_with(|| Camera::framing(world));
+        offscreen
+            .render(&context, world, &camera, Default::default())?
+            .save_png(&path)
+    };
+    if let Some(dir) = &options.frames {
+        std::fs::create_dir_all(dir).map_err(|e| ViewError::Write {
+            path: dir.clone(),
+            reason: e.to_string(),
+        })?;
+        picture(&world, dir.join("frame_00000.png"))?;
+    }
+    for step in 1..=options.steps {
+        world.step();
+        if let Some(dir) = &options.frames {
+            picture(&world, dir.join(format!("frame_{step:05}.png")))?;
+        }
+    }
+    if let Some(path) = &options.png {
+        picture(&world, path.clone())?;
+    }
+    let mut written = Vec::new();
+    if let Some(png) = &options.png {
+        written.push(png.display().to_string());
+    }
+    if let Some(dir) = &options.frames {
+        written.push(format!("{} frames in {}", options.steps + 1, dir.display()));
+    }
+    println!(
+        "wrote {}: {width}x{height}, {} bodies after {} steps, on {}",
+        written.join(" and "),
+        world.body_count(),
+        options.steps,
+        context.describe()
+    );
+    Ok(())
+}

@@ -1,0 +1,187 @@
+//! Meshes of the shapes, built on the CPU once and instanced: a box of half extent 1 (scaled per
+//! instance), a sphere of radius 1 (scaled), a capsule per distinct radius and half height (a
+//! capsule does not scale: its caps would turn into ellipsoids), and a unit segment for lines.
+
+use std::f32::consts::PI;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+
+// repr(C) + Pod: uploaded as is into the vertex buffer the mesh shader reads.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+const _: () = assert!(size_of::<Vertex>() == 24);
+
+/// Vertices with triangle indices (solid) and edge indices (wireframe, lines).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshData {
+    pub vertices: Vec<Vertex>,
+    pub triangles: Vec<u32>,
+    pub lines: Vec<u32>,
+}
+
+/// Segments of a sphere or capsule around its axis, and rings per hemisphere.
+const SEGMENTS: u32 = 24;
+const RINGS: u32 = 8;
+
+impl MeshData {
+    /// A box from -1 to 1 on each axis, with a flat normal per face.
+    pub fn cube() -> Self {
+        let mut mesh = MeshData::default();
+        for axis in 0..3 {
+            for sign in [-1.0f32, 1.0] {
+                let mut normal = Vec3::ZERO;
+                normal[axis] = sign;
+                // u × v = normal, so the corners below wind counter-clockwise seen from outside.
+                let u = Vec3::from_array(std::array::from_fn(|i| {
+                    if i == (axis + 1) % 3 { 1.0 } else { 0.0 }
+                })) * sign;
+                let v = normal.cross(u);
+                let base = mesh.vertices.len() as u32;
+                for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                    mesh.push(normal + a * u + b * v, normal);
+                }
+                mesh.triangles
+                    .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                mesh.lines.extend([
+                    base,
+                    base + 1,
+                    base + 1,
+                    base + 2,
+                    base + 2,
+                    base + 3,
+                    base + 3,
+                    base,
+                ]);
+            }
+        }
+        mesh
+    }
+
+    /// A sphere of radius 1.
+    pub fn sphere() -> Self {
+        Self::capsule(1.0, 0.0)
+    }
+
+    /// A capsule along Y: the segment from -`half_height` to `half_height` swept by a ball of
+    /// `radius` (m), as [`tumble::shape::Capsule`]. With `half_height` 0 it is a sphere.
+    pub fn capsule(radius: f32, half_height: f32) -> Self {
+        let mut mesh = MeshData::default();
+        // Latitude rings from the south pole to the north pole; the two equator rings coincide
+        // for a sphere and are `2 * half_height` apart for a capsule (the cylinder between).
+        let rings = 2 * RINGS + 2;
+        for ring in 0..rings {
+            let (latitude, shift) = if ring <= RINGS {
+                (
+                    -PI / 2.0 + PI / 2.0 * ring as f32 / RINGS as f32,
+                    -half_height,
+                )
+            } else {
+                (
+                    PI / 2.0 * (ring - RINGS - 1) as f32 / RINGS as f32,
+                    half_height,
+                )
+            };
+            for segment in 0..=SEGMENTS {
+                let longitude = 2.0 * PI * segment as f32 / SEGMENTS as f32;
+                let normal = Vec3::new(
+                    latitude.cos() * longitude.sin(),
+                    latitude.sin(),
+                    latitude.cos() * longitude.cos(),
+                );
+                mesh.push(normal * radius + Vec3::Y * shift, normal);
+            }
+        }
+        let row = SEGMENTS + 1;
+        for ring in 0..rings - 1 {
+            for segment in 0..SEGMENTS {
+                let a = ring * row + segment;
+                let (b, c, d) = (a + 1, a + row, a + row + 1);
+                mesh.triangles.extend([a, b, d, a, d, c]);
+                // Wireframe: meridians and parallels, not the diagonals.
+                mesh.lines.extend([a, b, a, c]);
+            }
+        }
+        mesh
+    }
+
+    /// The segment from the origin to +Y (1 m), drawn as a line and scaled per instance.
+    pub fn segment() -> Self {
+        MeshData {
+            vertices: vec![
+                Vertex {
+                    position: [0.0; 3],
+                    normal: [0.0, 1.0, 0.0],
+                },
+                Vertex {
+                    position: [0.0, 1.0, 0.0],
+                    normal: [0.0, 1.0, 0.0],
+                },
+            ],
+            triangles: Vec::new(),
+            lines: vec![0, 1],
+        }
+    }
+
+    fn push(&mut self, position: Vec3, normal: Vec3) {
+        self.vertices.push(Vertex {
+            position: position.to_array(),
+            normal: normal.to_array(),
+        });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every triangle winds counter-clockwise seen from outside: its geometric normal points
+    /// the way of its vertex normals (back faces are culled, so a wrong winding hides faces).
+    fn assert_outward(mesh: &MeshData) {
+        for t in mesh.triangles.chunks_exact(3) {
+            let t: [u32; 3] = t.try_into().unwrap();
+            let p = t.map(|i| Vec3::from_array(mesh.vertices[i as usize].position));
+            let n = t.map(|i| Vec3::from_array(mesh.vertices[i as usize].normal));
+            let face = (p[1] - p[0]).cross(p[2] - p[0]);
+            // Triangles at the poles are degenerate (their corners coincide up to rounding).
+            if face.length() > 1e-6 {
+                assert!(face.dot(n[0] + n[1] + n[2]) > 0.0, "inward triangle {t:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn cube_has_a_flat_face_per_side() {
+        let cube = MeshData::cube();
+        assert_eq!(cube.vertices.len(), 24);
+        assert_eq!(cube.triangles.len(), 36);
+        assert_outward(&cube);
+        for v in &cube.vertices {
+            assert!(v.position.iter().all(|x| x.abs() == 1.0));
+        }
+    }
+
+    #[test]
+    fn capsule_spans_its_height() {
+        let capsule = MeshData::capsule(0.25, 0.5);
+        assert_outward(&capsule);
+        let ys = capsule.vertices.iter().map(|v| v.position[1]);
+        let (low, high) = ys.fold((f32::MAX, f32::MIN), |(l, h), y| (l.min(y), h.max(y)));
+        assert!((low + 0.75).abs() < 1e-6 && (high - 0.75).abs() < 1e-6);
+        assert_eq!(capsule.lines.len() % 2, 0);
+    }
+
+    #[test]
+    fn sphere_vertices_lie_on_the_unit_sphere() {
+        let sphere = MeshData::sphere();
+        assert_outward(&sphere);
+        for v in &sphere.vertices {
+            assert!((Vec3::from_array(v.position).length() - 1.0).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,431 @@
+//! The renderer: pipelines, meshes and per-frame buffers on a device it is given, so the same
+//! code draws into a window's surface and into an offscreen texture, and can later share the
+//! physics device.
+//!
+//! A frame is one render pass: clear, ground grids, then every mesh instanced once (solid
+//! triangles, or its edges as lines in wireframe mode), then contact segments as lines.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use wgpu::util::DeviceExt;
+
+use crate::camera::Camera;
+use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey};
+use crate::mesh::{MeshData, Vertex};
+
+pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+/// Towards the light (normalized before use): high and to the right of the default camera, so
+/// the three faces of a box it sees get three different shades (top, right, front).
+const LIGHT_DIRECTION: Vec3 = Vec3::new(0.5, 0.8, 0.3);
+/// Light reaching a surface facing away from the light, and the Lambert weight on top.
+const AMBIENT: f32 = 0.3;
+const DIFFUSE: f32 = 0.7;
+/// Grid lines on ground planes every GRID_SPACING metres.
+const GRID_SPACING: f32 = 1.0;
+const GROUND_COLOUR: [f32; 3] = [0.42, 0.42, 0.40];
+const LINE_COLOUR: [f32; 3] = [0.18, 0.18, 0.18];
+
+// repr(C) + Pod: the uniform buffer's bytes; mirrors `Globals` in common.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct Globals {
+    view_projection: [[f32; 4]; 4],
+    light_direction: [f32; 4],
+    lighting: [f32; 4],
+}
+
+const _: () = assert!(size_of::<Globals>() == 96);
+
+// repr(C) + Pod: the ground vertex buffer's bytes; mirrors `VertexIn` in grid.wgsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct GridVertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    plane: [f32; 2],
+}
+
+const _: () = assert!(size_of::<GridVertex>() == 32);
+
+/// A mesh on the GPU; index buffers are absent where the mesh has no such primitives.
+struct GpuMesh {
+    vertices: wgpu::Buffer,
+    triangles: Option<(wgpu::Buffer, u32)>,
+    lines: Option<(wgpu::Buffer, u32)>,
+}
+
+/// A vertex buffer that grows (to the next power of two) and never shrinks.
+struct GrowingBuffer {
+    label: &'static str,
+    buffer: wgpu::Buffer,
+}
+
+impl GrowingBuffer {
+    fn new(device: &wgpu::Device, label: &'static str) -> Self {
+        Self {
+            label,
+            buffer: Self::create(device, label, 4096),
+        }
+    }
+
+    fn create(device: &wgpu::Device, label: &'static str, size: u64) -> wgpu::Buffer {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size,
+            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    }
+
+    fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
+        let needed = bytes.len() as u64;
+        if needed > self.buffer.size() {
+            self.buffer = Self::create(device, self.label, needed.next_power_of_two());
+        }
+        if !bytes.is_empty() {
+            queue.write_buffer(&self.buffer, 0, bytes);
+        }
+    }
+}
+
+pub struct Renderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    globals: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    solid_pipeline: wgpu::RenderPipeline,
+    line_pipeline: wgpu::RenderPipeline,
+    grid_pipeline: wgpu::RenderPipeline,
+    meshes: BTreeMap<MeshKey, GpuMesh>,
+    instances: GrowingBuffer,
+    ground: GrowingBuffer,
+    /// This frame's instance range of each mesh, and whether to draw edges only.
+    draws: Vec<(MeshKey, Range<u32>)>,
+    ground_vertices: u32,
+    wireframe: bool,
+}
+
+impl Renderer {
+    /// Pipelines for colour targets of `format` (an sRGB format: shading is in linear RGB).
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, format: wgpu::TextureFormat) -> Self {
+        let common = include_str!("common.wgsl");
+        let mesh_source = format!("{common}\n{}", include_str!("mesh.wgsl"));
+        let [gr, gg, gb] = GROUND_COLOUR;
+        let [lr, lg, lb] = LINE_COLOUR;
+        let grid_source = format!(
+            "{common}\nconst GRID_SPACING: f32 = {GRID_SPACING:?};\n\
+             const GROUND_COLOUR: vec3<f32> = vec3<f32>({gr:?}, {gg:?}, {gb:?});\n\
+             const LINE_COLOUR: vec3<f32> = vec3<f32>({lr:?}, {lg:?}, {lb:?});\n{}",
+            include_str!("grid.wgsl")
+        );
+        let mesh_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("mesh.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(mesh_source.into()),
+        });
+        let grid_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("grid.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(grid_source.into()),
+        });
+
+        let globals = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("globals"),
+            size: size_of::<Globals>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("globals"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("globals"),
+            layout: &bind_group_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: globals.as_entire_binding(),
+            }],
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("viewer"),
+            bind_group_layouts: &[Some(&bind_group_layout)],
+            immediate_size: 0,
+        });
+
+        let mesh_buffers = [
+            Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<Vertex>() as u64,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+            }),
+            Some(wgpu::VertexBufferLayout {
+                array_stride: size_of::<Instance>() as u64,
+                step_mode: wgpu::VertexStepMode::Instance,
+                attributes: &wgpu::vertex_attr_array![
+                    2 => Float32x4, 3 => Float32x4, 4 => Float32x4, 5 => Float32x4, 6 => Float32x4
+                ],
+            }),
+        ];
+        let grid_buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<GridVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
+        })];
+        let pipeline = |label: &str,
+                        shader: &wgpu::ShaderModule,
+                        fragment: &str,
+                        buffers: &[Option<wgpu::VertexBufferLayout>],
+                        topology: wgpu::PrimitiveTopology,
+                        cull_mode: Option<wgpu::Face>| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                vertex: wgpu::VertexState {
+                    module: shader,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: shader,
+                    entry_point: Some(fragment),
+                    compilation_options: Default::default(),
+                    targets: &[Some(format.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let solid_pipeline = pipeline(
+            "solid",
+            &mesh_shader,
+            "fs_solid",
+            &mesh_buffers,
+            wgpu::PrimitiveTopology::TriangleList,
+            Some(wgpu::Face::Back),
+        );
+        let line_pipeline = pipeline(
+            "lines",
+            &mesh_shader,
+            "fs_line",
+            &mesh_buffers,
+            wgpu::PrimitiveTopology::LineList,
+            None,
+        );
+        // Planes are seen from both sides (a camera may dip below the ground).
+        let grid_pipeline = pipeline(
+            "grid",
+            &grid_shader,
+            "fs_main",
+            &grid_buffers,
+            wgpu::PrimitiveTopology::TriangleList,
+            None,
+        );
+
+        Self {
+            device: device.clone(),
+            queue: queue.clone(),
+            globals,
+            bind_group,
+            solid_pipeline,
+            line_pipeline,
+            grid_pipeline,
+            meshes: BTreeMap::new(),
+            instances: GrowingBuffer::new(device, "instances"),
+            ground: GrowingBuffer::new(device, "ground"),
+            draws: Vec::new(),
+            ground_vertices: 0,
+            wireframe: false,
+        }
+    }
+
+    /// Uploads what `list` draws, seen by `camera` on a viewport of `aspect` = width / height.
+    pub fn prepare(&mut self, list: &DrawList, camera: &Camera, aspect: f32) {
+        let globals = Globals {
+            view_projection: camera.view_projection(aspect).to_cols_array_2d(),
+            light_direction: LIGHT_DIRECTION.normalize().extend(0.0).to_array(),
+            lighting: [AMBIENT, DIFFUSE, 0.0, 0.0],
+        };
+        self.queue
+            .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
+
+        let mut instances: Vec<Instance> = Vec::new();
+        self.draws.clear();
+        for (&key, group) in &list.instances {
+            if !self.meshes.contains_key(&key) {
+                let mesh = upload_mesh(&self.device, &mesh_data(key));
+                self.meshes.insert(key, mesh);
+            }
+            let start = instances.len() as u32;
+            instances.extend_from_slice(group);
+            self.draws.push((key, start..instances.len() as u32));
+        }
+        self.instances
+            .write(&self.device, &self.queue, bytemuck::cast_slice(&instances));
+
+        let ground: Vec<GridVertex> = list.grounds.iter().flat_map(ground_vertices).collect();
+        self.ground
+            .write(&self.device, &self.queue, bytemuck::cast_slice(&ground));
+        self.ground_vertices = ground.len() as u32;
+        self.wireframe = list.wireframe;
+    }
+
+    /// Records the frame prepared last into `encoder`: clears `color` and `depth` (a
+    /// [`DEPTH_FORMAT`] view of the same size) and draws.
+    pub fn encode(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        color: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+    ) {
+        let [r, g, b] = BACKGROUND.map(f64::from);
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("frame"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: color,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        if self.ground_vertices > 0 {
+            pass.set_pipeline(&self.grid_pipeline);
+            pass.set_vertex_buffer(0, self.ground.buffer.slice(..));
+            pass.draw(0..self.ground_vertices, 0..1);
+        }
+        pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
+        for (key, range) in &self.draws {
+            let mesh = &self.meshes[key];
+            let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
+                (Some(triangles), false) => (&self.solid_pipeline, triangles),
+                _ => match &mesh.lines {
+                    Some(lines) => (&self.line_pipeline, lines),
+                    None => continue,
+                },
+            };
+            pass.set_pipeline(pipeline);
+            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+            pass.set_index_buffer(indices.0.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..indices.1, 0, range.clone());
+        }
+    }
+}
+
+/// A depth attachment for a `width` × `height` colour target.
+pub fn depth_view(device: &wgpu::Device, width: u32, height: u32) -> wgpu::TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("depth"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&Default::default())
+}
+
+fn mesh_data(key: MeshKey) -> MeshData {
+    match key {
+        MeshKey::Cube => MeshData::cube(),
+        MeshKey::Sphere => MeshData::sphere(),
+        MeshKey::Capsule {
+            radius,
+            half_height,
+        } => MeshData::capsule(f32::from_bits(radius), f32::from_bits(half_height)),
+        MeshKey::Segment => MeshData::segment(),
+    }
+}
+
+fn upload_mesh(device: &wgpu::Device, mesh: &MeshData) -> GpuMesh {
+    let indices = |label: &str, data: &[u32]| {
+        (!data.is_empty()).then(|| {
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytemuck::cast_slice(data),
+                usage: wgpu::BufferUsages::INDEX,
+            });
+            (buffer, data.len() as u32)
+        })
+    };
+    GpuMesh {
+        vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("mesh vertices"),
+            contents: bytemuck::cast_slice(&mesh.vertices),
+            usage: wgpu::BufferUsages::VERTEX,
+        }),
+        triangles: indices("mesh triangles", &mesh.triangles),
+        lines: indices("mesh lines", &mesh.lines),
+    }
+}
+
+/// Two triangles covering the quad (the grid pipeline does not cull, so winding is free).
+fn ground_vertices(quad: &GroundQuad) -> [GridVertex; 6] {
+    let [u, v] = quad.tangents;
+    // Plane coordinates are measured from the world origin's projection, so grid lines do not
+    // slide when the quad's centre follows the scene.
+    let origin_u = quad.center.dot(u);
+    let origin_v = quad.center.dot(v);
+    let corner = |a: f32, b: f32| {
+        let (du, dv) = (a * quad.half_size, b * quad.half_size);
+        GridVertex {
+            position: (quad.center + du * u + dv * v).to_array(),
+            normal: quad.normal.to_array(),
+            plane: [origin_u + du, origin_v + dv],
+        }
+    };
+    let (a, b, c, d) = (
+        corner(-1.0, -1.0),
+        corner(1.0, -1.0),
+        corner(1.0, 1.0),
+        corner(-1.0, 1.0),
+    );
+    [a, b, c, a, c, d]
+}

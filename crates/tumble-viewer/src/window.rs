@@ -1,0 +1,372 @@
+//! The window: a winit event loop that steps the world, draws it into the window's surface and
+//! feeds keys and the mouse to [`InputState`]. The profile "overlay" is printed to stdout (about
+//! once a second while `p` is on) and a status line is kept in the window title: drawing text
+//! in the window needs a font renderer, left for later.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use tumble::World;
+use tumble::scene::Scene;
+use winit::application::ApplicationHandler;
+use winit::dpi::{LogicalSize, PhysicalPosition};
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key as WinitKey, NamedKey};
+use winit::window::{Window, WindowId};
+
+use crate::camera::Camera;
+use crate::context::GpuContext;
+use crate::draw::DrawList;
+use crate::error::ViewError;
+use crate::input::{Action, HELP, InputState, Key};
+use crate::renderer::{Renderer, depth_view};
+use crate::{ImageSize, ViewOptions};
+
+/// How often the title's status line and the printed profile are refreshed.
+const STATUS_PERIOD: Duration = Duration::from_millis(500);
+const PROFILE_PERIOD: Duration = Duration::from_secs(1);
+/// Camera distance factor per mouse wheel line.
+const WHEEL_ZOOM: f32 = 0.9;
+
+/// Opens a window on `scene` and runs until it is closed or `q` is pressed.
+pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
+    let no_display = |reason: String| ViewError::NoDisplay {
+        scene: name.to_owned(),
+        reason,
+    };
+    if let Some(reason) = missing_display() {
+        return Err(no_display(reason));
+    }
+    let event_loop = EventLoop::new().map_err(|e| no_display(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    // The display handle lets the GL backend present too (Vulkan does not need it).
+    let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
+        event_loop.owned_display_handle(),
+    ));
+    let backends = descriptor.backends;
+    let instance = wgpu::Instance::new(descriptor);
+    let mut world = scene.build()?;
+    for _ in 0..options.steps {
+        world.step();
+    }
+    let camera = options.camera.unwrap_or_else(|| Camera::framing(&world));
+    println!("{HELP}");
+    let mut app = App {
+        name: name.to_owned(),
+        scene,
+        world,
+        input: InputState::new(camera),
+        size: options.size,
+        instance,
+        backends,
+        view: None,
+        cursor: (0.0, 0.0),
+        error: None,
+        frames: 0,
+        last_status: Instant::now(),
+        last_profile: Instant::now(),
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| ViewError::Window(e.to_string()))?;
+    app.error.map_or(Ok(()), Err)
+}
+
+/// Why no window can open here, if there is no display to open it on. winit would fail too,
+/// but with a message that does not say what to do instead.
+fn missing_display() -> Option<String> {
+    if !cfg!(all(
+        unix,
+        not(target_os = "macos"),
+        not(target_os = "android")
+    )) {
+        return None;
+    }
+    let set = |name: &str| std::env::var_os(name).is_some_and(|value| !value.is_empty());
+    (!set("DISPLAY") && !set("WAYLAND_DISPLAY"))
+        .then(|| "DISPLAY and WAYLAND_DISPLAY are not set".to_owned())
+}
+
+/// What exists once the window is open.
+struct WindowView {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    context: GpuContext,
+    renderer: Renderer,
+    depth: wgpu::TextureView,
+}
+
+struct App<'a> {
+    name: String,
+    scene: &'a Scene,
+    world: World,
+    input: InputState,
+    size: ImageSize,
+    instance: wgpu::Instance,
+    backends: wgpu::Backends,
+    view: Option<WindowView>,
+    cursor: (f32, f32),
+    /// The error that ended the event loop, returned by [`run`].
+    error: Option<ViewError>,
+    /// Frames drawn since the last status update.
+    frames: u32,
+    last_status: Instant,
+    last_profile: Instant,
+}
+
+impl App<'_> {
+    fn open(&self, event_loop: &ActiveEventLoop) -> Result<WindowView, ViewError> {
+        let attributes = Window::default_attributes()
+            .with_title(format!("tumble view {}", self.name))
+            .with_inner_size(LogicalSize::new(self.size.width, self.size.height));
+        let window = Arc::new(
+            event_loop
+                .create_window(attributes)
+                .map_err(|e| ViewError::Window(e.to_string()))?,
+        );
+        let surface = self
+            .instance
+            .create_surface(window.clone())
+            .map_err(|e| ViewError::Surface(e.to_string()))?;
+        let context = pollster::block_on(GpuContext::with_instance(
+            &self.instance,
+            self.backends,
+            Some(&surface),
+        ))?;
+        let size = window.inner_size();
+        let (width, height) = (size.width.max(1), size.height.max(1));
+        let mut config = surface
+            .get_default_config(&context.adapter, width, height)
+            .ok_or_else(|| {
+                ViewError::Surface(format!(
+                    "the adapter {} cannot present to this window",
+                    context.describe()
+                ))
+            })?;
+        // The shaders write linear colour: an sRGB target encodes it for the screen.
+        let capabilities = surface.get_capabilities(&context.adapter);
+        if let Some(&srgb) = capabilities.formats.iter().find(|f| f.is_srgb()) {
+            config.format = srgb;
+        }
+        config.present_mode = wgpu::PresentMode::AutoVsync;
+        surface.configure(&context.device, &config);
+        let renderer = Renderer::new(&context.device, &context.queue, config.format);
+        let depth = depth_view(&context.device, width, height);
+        println!("drawing on {}", context.describe());
+        Ok(WindowView {
+            window,
+            surface,
+            config,
+            context,
+            renderer,
+            depth,
+        })
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, error: ViewError) {
+        self.error = Some(error);
+        event_loop.exit();
+    }
+
+    fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
+        match action {
+            Action::None => {}
+            Action::Reset => match self.scene.build() {
+                Ok(world) => self.world = world,
+                Err(error) => self.fail(event_loop, error.into()),
+            },
+            Action::Step => self.world.step(),
+            Action::Help => println!("{HELP}"),
+            Action::Profile => self.print_profile(),
+            Action::Notice(text) => println!("{text}"),
+            Action::Quit => event_loop.exit(),
+        }
+    }
+
+    /// The talk's profile screen, as text: stage times, counts and the batch histogram. The
+    /// timings restart after each report, so each covers the frames since the last.
+    fn print_profile(&mut self) {
+        let stats = self.world.stats();
+        print!("{}", self.world.profiler().report());
+        println!(
+            "# bodies = {}  # pairs = {}  # manifolds = {}  # contacts = {}",
+            self.world.body_count(),
+            stats.pairs,
+            stats.manifolds,
+            stats.contacts
+        );
+        for (batch, count) in stats.batch_histogram.iter().enumerate() {
+            println!("{batch:4} : {count}");
+        }
+        self.world.profiler_mut().reset();
+        self.last_profile = Instant::now();
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) {
+        if self.input.running {
+            self.world.step();
+        }
+        self.input.batch_count = self.world.stats().batch_histogram.len();
+        let Some(view) = &mut self.view else {
+            return;
+        };
+        let frame = match view.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(frame)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(frame) => frame,
+            // Minimized or busy: skip this frame.
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return;
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                view.surface.configure(&view.context.device, &view.config);
+                return;
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                let error = ViewError::Surface("the surface texture failed validation".into());
+                self.fail(event_loop, error);
+                return;
+            }
+        };
+        let list = DrawList::build(&self.world, self.input.draw_settings());
+        let aspect = view.config.width as f32 / view.config.height as f32;
+        view.renderer.prepare(&list, &self.input.camera, aspect);
+        let target = frame.texture.create_view(&Default::default());
+        let mut encoder = view
+            .context
+            .device
+            .create_command_encoder(&Default::default());
+        view.renderer.encode(&mut encoder, &target, &view.depth);
+        view.context.queue.submit([encoder.finish()]);
+        view.window.pre_present_notify();
+        view.context.queue.present(frame);
+
+        self.frames += 1;
+        let elapsed = self.last_status.elapsed();
+        if elapsed >= STATUS_PERIOD {
+            let fps = self.frames as f32 / elapsed.as_secs_f32();
+            let stats = self.world.stats();
+            view.window.set_title(&format!(
+                "tumble view {}: {} bodies, {} contacts, {} batches, {fps:.0} fps{}  (h: help)",
+                self.name,
+                self.world.body_count(),
+                stats.contacts,
+                stats.batch_histogram.len(),
+                if self.input.running { "" } else { ", paused" },
+            ));
+            self.frames = 0;
+            self.last_status = Instant::now();
+        }
+        if self.input.profile && self.last_profile.elapsed() >= PROFILE_PERIOD {
+            self.print_profile();
+        }
+    }
+}
+
+impl ApplicationHandler for App<'_> {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.view.is_none() {
+            match self.open(event_loop) {
+                Ok(view) => self.view = Some(view),
+                Err(error) => self.fail(event_loop, error),
+            }
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let (Some(view), true) = (&mut self.view, size.width > 0 && size.height > 0) {
+                    view.config.width = size.width;
+                    view.config.height = size.height;
+                    view.surface.configure(&view.context.device, &view.config);
+                    view.depth = depth_view(&view.context.device, size.width, size.height);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                if let Some(key) = translate(&event.logical_key) {
+                    let action = self.input.key(key);
+                    self.act(event_loop, action);
+                }
+            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => self
+                .input
+                .mouse_button(state == ElementState::Pressed, self.cursor),
+            WindowEvent::CursorMoved {
+                position: PhysicalPosition { x, y },
+                ..
+            } => {
+                self.cursor = (x as f32, y as f32);
+                self.input.cursor_moved(self.cursor);
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, lines) => lines,
+                    MouseScrollDelta::PixelDelta(pixels) => pixels.y as f32 / 40.0,
+                };
+                self.input.camera.zoom(WHEEL_ZOOM.powf(lines));
+            }
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _: &ActiveEventLoop) {
+        if let Some(view) = &self.view {
+            view.window.request_redraw();
+        }
+    }
+}
+
+/// winit's logical key to the viewer's (layout-aware: `z` is where the user's layout puts it).
+fn translate(key: &WinitKey) -> Option<Key> {
+    match key {
+        WinitKey::Named(NamedKey::Space) => Some(Key::Space),
+        WinitKey::Named(NamedKey::Escape) => Some(Key::Escape),
+        WinitKey::Named(NamedKey::ArrowLeft) => Some(Key::Left),
+        WinitKey::Named(NamedKey::ArrowRight) => Some(Key::Right),
+        WinitKey::Named(NamedKey::ArrowUp) => Some(Key::Up),
+        WinitKey::Named(NamedKey::ArrowDown) => Some(Key::Down),
+        WinitKey::Character(text) => text
+            .chars()
+            .next()
+            .map(|c| Key::Char(c.to_ascii_lowercase())),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn winit_keys_translate_to_viewer_keys() {
+        assert_eq!(
+            translate(&WinitKey::Character("Z".into())),
+            Some(Key::Char('z'))
+        );
+        assert_eq!(
+            translate(&WinitKey::Character("b".into())),
+            Some(Key::Char('b'))
+        );
+        assert_eq!(
+            translate(&WinitKey::Named(NamedKey::Space)),
+            Some(Key::Space)
+        );
+        assert_eq!(
+            translate(&WinitKey::Named(NamedKey::ArrowUp)),
+            Some(Key::Up)
+        );
+        assert_eq!(
+            translate(&WinitKey::Named(NamedKey::Escape)),
+            Some(Key::Escape)
+        );
+        assert_eq!(translate(&WinitKey::Named(NamedKey::Shift)), None);
+    }
+}

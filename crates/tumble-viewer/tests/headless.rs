@@ -1,0 +1,94 @@
+//! A headless render of one box on a plane, on whatever adapter wgpu finds (lavapipe where
+//! there is no GPU): the picture is not blank, shows the background where nothing is, and shows
+//! the box where its centre projects with the same camera matrix the renderer uses.
+
+use tumble::math::Vec3;
+use tumble::{BodyDesc, Shape, StepConfig, World};
+use tumble_viewer::draw::{BACKGROUND, DrawSettings, body_colour};
+use tumble_viewer::headless::Offscreen;
+use tumble_viewer::{Camera, GpuContext};
+
+// Small: lavapipe rasterizes on the CPU.
+const WIDTH: u32 = 128;
+const HEIGHT: u32 = 96;
+
+/// sRGB encoding of a linear channel, as the Rgba8UnormSrgb target stores it.
+fn encode_srgb(linear: f32) -> f32 {
+    if linear <= 0.003_130_8 {
+        12.92 * linear
+    } else {
+        1.055 * linear.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+fn decode_srgb(encoded: u8) -> f32 {
+    let c = f32::from(encoded) / 255.0;
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Direction of an RGB colour (its hue and saturation, without its brightness).
+fn chromaticity(rgb: [f32; 3]) -> Vec3 {
+    Vec3::from_array(rgb).normalize()
+}
+
+#[test]
+fn box_on_a_plane() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    // Slightly above the box and in front of it: the top corners of the picture look at the sky.
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default())
+        .unwrap();
+    assert_eq!(image.rgba.len(), (4 * WIDTH * HEIGHT) as usize);
+
+    // Not blank: many distinct colours (sky, ground, grid lines, three lit box faces).
+    let mut colours: Vec<[u8; 4]> = image
+        .rgba
+        .chunks_exact(4)
+        .map(|p| p.try_into().unwrap())
+        .collect();
+    colours.sort_unstable();
+    colours.dedup();
+    assert!(colours.len() > 10, "only {} colours", colours.len());
+
+    // Background in a corner where nothing is drawn.
+    let background = BACKGROUND.map(|c| (encode_srgb(c) * 255.0).round() as i32);
+    let corner = image.pixel(0, 0);
+    for channel in 0..3 {
+        assert!(
+            (i32::from(corner[channel]) - background[channel]).abs() <= 1,
+            "corner {corner:?}, background {background:?}"
+        );
+    }
+    assert_eq!(corner[3], 255);
+
+    // The box's centre, projected with the renderer's matrix, lands on one of its lit faces:
+    // the pixel has the box's hue (Lambert + ambient scale the colour, keeping its hue).
+    let centre = world.pose(cube).unwrap().position;
+    let clip = camera.view_projection(WIDTH as f32 / HEIGHT as f32) * centre.extend(1.0);
+    let ndc = clip.truncate() / clip.w;
+    let x = ((ndc.x + 1.0) * 0.5 * WIDTH as f32) as u32;
+    let y = ((1.0 - ndc.y) * 0.5 * HEIGHT as f32) as u32;
+    let pixel = image.pixel(x, y);
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(pixel[c])));
+    let expected = chromaticity(body_colour(cube.index() as usize));
+    assert!(
+        seen.dot(expected) > 0.995,
+        "pixel ({x}, {y}) = {pixel:?}: hue {seen:?}, the box's is {expected:?}"
+    );
+}
