@@ -1,4 +1,4 @@
-//! `tumble`: run, list and (later) benchmark and view scenes. See DESIGN.md's CLI contract.
+//! `tumble`: run, list and benchmark (and later view) scenes. See DESIGN.md's CLI contract.
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -22,6 +22,8 @@ enum Command {
     Run(RunArgs),
     /// Lists the built-in scenes.
     Scenes,
+    /// Times scenes on Tumble and on peer engines across sizes and thread counts.
+    Bench(tumble_bench::BenchArgs),
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -83,6 +85,7 @@ fn main() -> ExitCode {
             }
             Ok(())
         }
+        Command::Bench(args) => tumble_bench::run(&args).map_err(|e| e.to_string()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
