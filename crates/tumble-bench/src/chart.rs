@@ -71,14 +71,33 @@ fn draw_chart(path: &Path, results: &[CaseResult]) -> Result<(), String> {
     if panels.is_empty() {
         panels.insert("no timed cases", Panel::new());
     }
-    let height = PANEL_SIZE.1 * panels.len() as u32;
-    let root = BitMapBackend::new(path, (PANEL_SIZE.0, height)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let areas = root.split_evenly((panels.len(), 1));
-    for (area, (scene, lines)) in areas.iter().zip(&panels) {
-        draw_panel(area, scene, lines)?;
+    let (width, height) = (PANEL_SIZE.0, PANEL_SIZE.1 * panels.len() as u32);
+    // 8-bit RGB, row after row: the layout plotters draws into and PNG stores.
+    let mut pixels = vec![0u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let areas = root.split_evenly((panels.len(), 1));
+        for (area, (scene, lines)) in areas.iter().zip(&panels) {
+            draw_panel(area, scene, lines)?;
+        }
+        root.present().map_err(|e| e.to_string())?;
     }
-    root.present().map_err(|e| e.to_string())
+    write_png(path, (width, height), &pixels).map_err(|e| e.to_string())
+}
+
+fn write_png(
+    path: &Path,
+    (width, height): (u32, u32),
+    pixels: &[u8],
+) -> Result<(), png::EncodingError> {
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let mut encoder = png::Encoder::new(file, width, height);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(pixels)?;
+    writer.finish()
 }
 
 fn draw_panel(
