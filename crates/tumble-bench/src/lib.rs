@@ -9,9 +9,10 @@
 //! A *case* is one scene at one scale on one engine with one thread count: it builds the scene,
 //! runs `--warmup` steps, then `--steps` timed steps, each timed alone with a wall clock around
 //! the engine's step call. A *column* is one scene on one engine with one thread count across
-//! the scales, smallest first: when any step of a case takes longer than `--time-limit-ms`, that
+//! the scales, smallest first: when a step of a case takes longer than `--time-limit-ms`, that
 //! case ends there (status `time-limit`, its figures from the steps it ran) and the larger scales
-//! of its column are `skipped`.
+//! of its column are `skipped`. The first step, which builds the engines' acceleration
+//! structures from nothing, is exempt.
 //!
 //! Engines (`--engines`), each an engine on a device:
 //! - `tumble-cpu`: Tumble's CPU step on a rayon pool of `--threads` threads;

@@ -188,16 +188,22 @@ mod tests {
         args.steps = 3;
         args.time_limit_ms = 1e-6;
         let results = quiet_sweep(&args).unwrap();
+        // With no warm-up, the limit strikes at the second timed step.
+        args.warmup = 0;
+        let no_warmup = quiet_sweep(&args).unwrap();
+        assert_eq!(no_warmup[0].status, Status::TimeLimit);
+        let figures = no_warmup[0].figures.as_ref().unwrap();
+        assert_eq!((figures.warmup_steps, figures.timed_steps), (0, 2));
         assert_eq!(results.len(), 6);
         for engine in [EngineKind::TumbleCpu, EngineKind::Rapier] {
             let column: Vec<_> = results.iter().filter(|r| r.key.engine == engine).collect();
             let bodies: Vec<_> = column.iter().map(|r| r.key.bodies).collect();
             assert!(bodies.is_sorted(), "smallest first: {bodies:?}");
-            // The first warm-up step is over the limit: the case ends with no timed step.
+            // The first step is exempt; the second, the first timed one, ends the case.
             assert_eq!(column[0].status, Status::TimeLimit);
             let figures = column[0].figures.as_ref().unwrap();
-            assert_eq!((figures.warmup_steps, figures.timed_steps), (1, 0));
-            assert_eq!(figures.step_ms, None);
+            assert_eq!((figures.warmup_steps, figures.timed_steps), (1, 1));
+            assert!(figures.step_ms.is_some());
             assert!(column[1..].iter().all(|r| r.status == Status::Skipped));
             assert!(column[1..].iter().all(|r| r.figures.is_none()));
         }
