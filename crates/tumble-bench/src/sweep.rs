@@ -102,7 +102,7 @@ pub fn sweep(
                     };
                     let column = (scene_index, engine, *threads);
                     bar.set_message(format!(
-                        "{name} ×{scale} ({bodies} bodies) {} {threads}t",
+                        "{name} ×{scale:.3} ({bodies} bodies) {} {threads}t",
                         engine.name()
                     ));
                     let result = if stopped.contains(&column) {
