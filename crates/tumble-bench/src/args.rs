@@ -27,7 +27,7 @@ pub struct BenchArgs {
     )]
     pub engines: Vec<EngineKind>,
     /// Rayon thread counts to run each case with, e.g. `1,16`. Default: 1 and all cores.
-    #[arg(long, value_delimiter = ',', value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+    #[arg(long, value_delimiter = ',', value_parser = parse_threads)]
     pub threads: Vec<usize>,
     /// Untimed steps before the timed ones (caches, pair lists and warm starts fill up).
     #[arg(long, default_value_t = 30)]
@@ -83,6 +83,15 @@ fn parse_scale(text: &str) -> Result<f32, String> {
         Ok(scale) if scale.is_finite() && scale > 0.0 => Ok(scale),
         Ok(scale) => Err(format!("a scale must be a positive number, got {scale}")),
         Err(_) => Err(format!("{text:?} is not a number (e.g. 0.1,1,10)")),
+    }
+}
+
+fn parse_threads(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(threads) if threads >= 1 => Ok(threads),
+        _ => Err(format!(
+            "a thread count is a whole number of at least 1, got {text:?}"
+        )),
     }
 }
 
@@ -152,7 +161,11 @@ mod tests {
     #[test]
     fn bad_flags_say_what_is_wrong() {
         let cases: &[(&[&str], &str)] = &[
-            (&["falling-boxes", "--threads", "0"], "--threads"),
+            (&["falling-boxes", "--threads", "0"], "at least 1"),
+            (
+                &["falling-boxes", "--threads", "1,x"],
+                "at least 1, got \"x\"",
+            ),
             (&["falling-boxes", "--engines", "bullet"], "bullet"),
             (&["falling-boxes", "--scales", "1,-2"], "positive"),
             (&["falling-boxes", "--scales", "big"], "not a number"),

@@ -13,8 +13,24 @@ use tumble::scene::{Scene, builtin};
 
 /// Runs `tumble bench`: the table on stdout, then the CSV and PNG files asked for.
 pub fn run(args: &BenchArgs) -> Result<(), BenchError> {
-    println!("{}", report::table_header());
+    // Unwritable output paths are found now, not after a long run: the CSV starts as its
+    // header; the chart's folder must exist.
+    if let Some(path) = &args.csv {
+        report::write_csv(path, &[])?;
+    }
+    if let Some(path) = &args.png {
+        let folder = path.parent().filter(|p| !p.as_os_str().is_empty());
+        if folder.is_some_and(|folder| !folder.is_dir()) {
+            return Err(BenchError::Write {
+                path: path.display().to_string(),
+                message: "its folder does not exist".into(),
+            });
+        }
+    }
     let results = sweep(args, ProgressDrawTarget::stderr(), &|results| {
+        if results.len() == 1 {
+            println!("{}", report::table_header());
+        }
         if let Some(last) = results.last() {
             println!("{}", report::table_row(last));
         }
@@ -236,6 +252,24 @@ mod tests {
             assert!(spread.median <= spread.p90 && spread.p90 <= spread.max);
             assert!(!figures.stage_ms.is_empty());
         }
+    }
+
+    #[test]
+    fn unwritable_outputs_are_errors_before_any_case_runs() {
+        let mut args = BenchArgs::new(&["falling-boxes"]);
+        args.csv = Some("/no-such-folder/out.csv".into());
+        let error = run(&args).unwrap_err().to_string();
+        assert!(
+            error.starts_with("cannot write /no-such-folder/out.csv"),
+            "{error}"
+        );
+        args.csv = None;
+        args.png = Some("/no-such-folder/out.png".into());
+        let error = run(&args).unwrap_err().to_string();
+        assert_eq!(
+            error,
+            "cannot write /no-such-folder/out.png: its folder does not exist"
+        );
     }
 
     #[test]
