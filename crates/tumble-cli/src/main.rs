@@ -1,4 +1,4 @@
-//! `tumble`: run, list and (later) benchmark and view scenes. See DESIGN.md's CLI contract.
+//! `tumble`: run, list and benchmark (and later view) scenes. See DESIGN.md's CLI contract.
 
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
@@ -24,6 +24,8 @@ enum Command {
     Scenes,
     /// Shows a scene in a window, or headless with --png / --frames.
     View(ViewArgs),
+    /// Times scenes on Tumble and on peer engines across sizes and thread counts.
+    Bench(tumble_bench::BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -99,6 +101,7 @@ fn main() -> ExitCode {
         Command::View(args) => load_scene(&args.scene, args.scale).and_then(|scene| {
             tumble_viewer::view(&args.scene, &scene, &args.options).map_err(|e| e.to_string())
         }),
+        Command::Bench(args) => tumble_bench::run(&args).map_err(|e| e.to_string()),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# The benchmark suite on the GPU machine, in one call of the `device` tool (BENCHMARKS.md,
+# "Reproducing"). Builds nothing, copies nothing: runs the release binary built here beforehand
+# by scripts/build-devbin.sh and writes tables, CSVs, charts and machine.txt into $OUT.
+#
+#   bash scripts/bench-on-device.sh [all|falling|stacked]
+#
+# Environment: THREADS (default "1,<all cores>"), TIME_LIMIT_MS (default 250).
+set -euo pipefail
+
+part=${1:-all}
+case "$part" in
+  all | falling | stacked) ;;
+  *) echo "usage: $0 [all|falling|stacked]" >&2; exit 2 ;;
+esac
+out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
+binary=.devbin/tumble
+if [ ! -x "$binary" ]; then
+  echo "$binary is missing: run scripts/build-devbin.sh on the development machine and carry .devbin" >&2
+  exit 1
+fi
+
+# Vulkan loader and NVIDIA driver paths (../shared/device/prelude.sh), for the GPU engine.
+if compgen -G ".gl/*.deb" > /dev/null; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+export WGPU_BACKEND=vulkan
+
+threads=${THREADS:-1,$(nproc)}
+limit=${TIME_LIMIT_MS:-250}
+{
+  echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+  echo "commit: $(cat .devbin/COMMIT 2> /dev/null || echo unknown)"
+  echo "gpu: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2> /dev/null || echo none)"
+  echo "cpu: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2- | sed 's/^ *//')"
+  echo "cores: $(nproc)"
+  echo "threads: $threads  time limit: $limit ms"
+} | tee "$out/machine.txt"
+
+# One scene with its flags; the table goes to stdout and to $out/<scene>.txt.
+bench() {
+  local scene=$1
+  shift
+  "$binary" bench "$scene" "$@" --threads "$threads" --time-limit-ms "$limit" \
+    --csv "$out/$scene.csv" --png "$out/$scene.png" | tee "$out/$scene.txt"
+}
+
+if [ "$part" = all ] || [ "$part" = falling ]; then
+  bench falling-boxes --bodies 1000,3000,10000,30000,100000,300000,1000000 \
+    --engines tumble-cpu,tumble-gpu,rapier --warmup 60 --steps 120
+fi
+if [ "$part" = all ] || [ "$part" = stacked ]; then
+  bench stacked-boxes --scales 1,10 \
+    --engines tumble-cpu,tumble-gpu,rapier,rapier-default --warmup 60 --steps 120
+fi

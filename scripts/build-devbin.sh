@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Builds the release `tumble` binary here and puts it, with the commit it was built from, into
+# .devbin/ for scripts/bench-on-device.sh on the GPU machine (binaries built here run there).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo build --release -p tumble-cli
+target=${CARGO_TARGET_DIR:-target}
+mkdir -p .devbin
+cp "$target/release/tumble" .devbin/tumble
+commit=$(git rev-parse --short HEAD)
+# A build from uncommitted changes says so: its numbers belong to no commit.
+git diff --quiet HEAD -- . ':!.devbin' ':!.gl' || commit="$commit-dirty"
+echo "$commit" > .devbin/COMMIT
+echo "built .devbin/tumble at $commit"
