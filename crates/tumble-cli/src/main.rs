@@ -1,5 +1,7 @@
 //! `tumble`: run, list and benchmark (and later view) scenes. See DESIGN.md's CLI contract.
 
+mod particles;
+
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -74,6 +76,9 @@ struct RunArgs {
     /// Write the final state as a scene file that loads and continues the run.
     #[arg(long)]
     dump: Option<PathBuf>,
+    /// For `particles`: print the talk's uniform-grid tables for its six-particle example.
+    #[arg(long)]
+    explain: bool,
 }
 
 /// Stage names a `--stages` list may assign.
@@ -96,6 +101,10 @@ fn main() -> ExitCode {
             for (name, about) in BUILTIN_SCENES {
                 println!("{name:16} {about}");
             }
+            println!(
+                "{:16} the uniform-grid particle demo: 1M particles at scale 1 (use --scale 0.05 on a CPU)",
+                "particles"
+            );
             Ok(())
         }
         Command::View(args) => load_scene(&args.scene, args.scale).and_then(|scene| {
@@ -155,6 +164,25 @@ fn resolve_device(args: &RunArgs) -> Result<&'static str, String> {
 }
 
 fn run(args: &RunArgs) -> Result<(), String> {
+    if args.scene == "particles" {
+        let device = match args.device {
+            Device::Cpu => "cpu",
+            Device::Gpu => "gpu",
+            Device::Auto => "auto",
+        };
+        let request = particles::ParticleRun {
+            device,
+            scale: args.scale,
+            steps: args.steps,
+            profile: args.profile,
+            json: args.json,
+            explain: args.explain,
+        };
+        return particles::run(&request);
+    }
+    if args.explain {
+        return Err("--explain is for the particles scene".into());
+    }
     let device = resolve_device(args)?;
     if let Some(threads) = args.threads {
         if threads == 0 {

@@ -105,6 +105,12 @@ impl GpuContext {
     }
 
     /// "name (backend, device type)", for reports.
+    /// True for a driver that runs on the CPU (Mesa's lavapipe or llvmpipe): it runs every
+    /// kernel, but slower than the CPU executors, so `--device auto` passes it over.
+    pub fn is_cpu_driver(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
     pub fn describe(&self) -> String {
         format!(
             "{} ({:?}, {:?})",
