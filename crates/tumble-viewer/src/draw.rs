@@ -1,6 +1,7 @@
 //! What to draw, read from a [`World`]: instances grouped by mesh, contact markers, ground
 //! quads. Built on the CPU each frame; the renderer uploads and draws it.
 
+use crate::input::BatchView;
 use std::collections::BTreeMap;
 
 use bytemuck::{Pod, Zeroable};
@@ -68,11 +69,26 @@ pub struct GroundQuad {
 }
 
 /// How to draw, from the viewer's keys.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DrawSettings {
     pub contacts: bool,
     pub wireframe: bool,
+    /// Colour bodies by constraint batch (the talk's "colored batches").
+    pub batches: BatchView,
 }
+
+impl Default for DrawSettings {
+    fn default() -> Self {
+        Self {
+            contacts: false,
+            wireframe: false,
+            batches: BatchView::Off,
+        }
+    }
+}
+
+/// Colour of bodies while batches are shown: light grey, so the constraint colours stand out.
+const BATCH_BODY_COLOUR: [f32; 3] = [0.55, 0.55, 0.55];
 
 /// Everything one frame draws.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -102,10 +118,11 @@ impl DrawList {
             ) else {
                 continue;
             };
-            let colour = if dynamic {
-                body_colour(handle.index() as usize)
-            } else {
-                STATIC_COLOUR
+            // With batches shown, bodies step back to grey and the constraints carry the colour.
+            let colour = match (dynamic, settings.batches) {
+                (false, _) => STATIC_COLOUR,
+                (true, BatchView::Off) => body_colour(handle.index() as usize),
+                (true, _) => BATCH_BODY_COLOUR,
             };
             let (key, scale) = match desc.shape {
                 Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
@@ -140,17 +157,25 @@ impl DrawList {
                 .or_default()
                 .push(Instance::new(model, colour));
         }
-        if settings.contacts {
-            list.add_contacts(world, 0.15 * smallest.min(1.0));
+        if settings.contacts || settings.batches != BatchView::Off {
+            list.add_contacts(world, 0.15 * smallest.min(1.0), settings.batches);
         }
         list
     }
 
     /// A small cube at each contact point (12 triangles: thousands of contacts stay cheap on a
     /// CPU rasterizer) and a segment along its normal (from B to A).
-    fn add_contacts(&mut self, world: &World, marker_size: f32) {
+    /// With `batches` shown, each manifold's markers take its batch's colour (the talk's
+    /// "colored batches"), and manifolds outside a single shown batch are left out.
+    fn add_contacts(&mut self, world: &World, marker_size: f32, batches: BatchView) {
         let normal_length = 4.0 * marker_size;
-        for (_, _, contact) in world.contacts() {
+        for ((_, _, contact), (_, _, batch)) in world.contacts().zip(world.contact_batches()) {
+            let marker_colour = match batches {
+                BatchView::Off => CONTACT_POINT_COLOUR,
+                BatchView::All => body_colour(batch as usize),
+                BatchView::One(shown) if batch as usize == shown => body_colour(batch as usize),
+                BatchView::One(_) => continue,
+            };
             let normal = contact.manifold.normal;
             let (u, v) = tangent_basis(normal);
             for point in contact.manifold.points() {
@@ -162,7 +187,7 @@ impl DrawList {
                 self.instances
                     .entry(MeshKey::Cube)
                     .or_default()
-                    .push(Instance::new(marker, CONTACT_POINT_COLOUR));
+                    .push(Instance::new(marker, marker_colour));
                 // Maps the segment's +Y onto the normal; u and v only keep the matrix regular.
                 let segment = Mat4::from_cols(
                     u.extend(0.0),

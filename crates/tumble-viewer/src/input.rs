@@ -85,8 +85,6 @@ const GPU_NOT_YET: &str =
     "GPU solver not available yet: the step keeps running on the CPU (the switch is remembered)";
 const GPU_BATCHER_NOT_YET: &str =
     "GPU batcher not available yet: the step keeps running on the CPU (the switch is remembered)";
-const BATCHES_NOT_YET: &str = "batch colours need each contact's batch from the engine \
-     (not exposed yet): bodies keep their own colours";
 
 /// The viewer's state as the keys and mouse change it.
 #[derive(Clone, Debug, PartialEq)]
@@ -126,6 +124,7 @@ impl InputState {
         DrawSettings {
             contacts: self.contacts,
             wireframe: self.wireframe,
+            batches: self.batches,
         }
     }
 
@@ -178,11 +177,7 @@ impl InputState {
                     }
                     BatchView::All | BatchView::One(_) => BatchView::Off,
                 };
-                if self.batches == BatchView::Off {
-                    Action::None
-                } else {
-                    Action::Notice(BATCHES_NOT_YET)
-                }
+                Action::None
             }
             Key::Char('u') => {
                 self.solver = self.solver.toggled();

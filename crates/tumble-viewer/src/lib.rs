@@ -21,6 +21,8 @@ pub mod mesh;
 mod renderer;
 mod window;
 
+use crate::draw::DrawSettings;
+use crate::input::BatchView;
 use std::path::PathBuf;
 
 use tumble::scene::Scene;
@@ -73,6 +75,9 @@ pub struct ViewOptions {
     /// Camera as eye_x,eye_y,eye_z,target_x,target_y,target_z (m); default: frame the bodies.
     #[arg(long, value_parser = camera::parse_camera, allow_hyphen_values = true)]
     pub camera: Option<Camera>,
+    /// Headless: colour the bodies by constraint batch (the talk's "colored batches").
+    #[arg(long)]
+    pub batches: bool,
 }
 
 /// Shows `scene` (named `name` in messages): headless when `--png` or `--frames` is given,
@@ -93,10 +98,18 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
     // The camera frames the bodies as they are in the first picture, and then stays put so
     // that frames of a video line up.
     let mut camera = options.camera;
+    let settings = DrawSettings {
+        batches: if options.batches {
+            BatchView::All
+        } else {
+            BatchView::Off
+        },
+        ..DrawSettings::default()
+    };
     let mut picture = |world: &tumble::World, path: PathBuf| {
         let camera = *camera.get_or_insert_with(|| Camera::framing(world));
         offscreen
-            .render(&context, world, &camera, Default::default())?
+            .render(&context, world, &camera, settings)?
             .save_png(&path)
     };
     if let Some(dir) = &options.frames {

@@ -2,7 +2,7 @@
 
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
-use crate::pipeline::world::{StepStats, World};
+use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
 use crate::stages::constraints::{
     ContactConstraint, JointConstraint, RowInputs, build_constraints, build_joint_constraints,
@@ -132,6 +132,12 @@ impl World {
                 &mut scratch.batched_contacts,
                 &mut scratch.contact_offsets,
             );
+            // Which batch each pair's manifold went to, for the viewer's colored batches.
+            self.pair_batches.clear();
+            self.pair_batches.resize(self.pairs.len(), NO_BATCH);
+            for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
+                self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
+            }
         });
 
         // 7. Solver: the soft step's sub-steps over the batches.

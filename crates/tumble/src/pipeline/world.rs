@@ -27,6 +27,9 @@ use crate::stages::broadphase::Broadphase;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::PairCache;
 
+/// Batch number of a pair that has no constraint this step.
+pub const NO_BATCH: u32 = u32::MAX;
+
 /// Counts from the last step, for reports and the profiler.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct StepStats {
@@ -84,6 +87,8 @@ pub struct World {
     pub(crate) pairs: PairCache<PairContact>,
     pub(crate) scratch: StepScratch,
     pub(crate) stats: StepStats,
+    /// The batch of each pair's manifold in the last step ([`NO_BATCH`] without contacts).
+    pub(crate) pair_batches: Vec<u32>,
     pub(crate) profiler: Profiler,
     pub(crate) steps: u64,
 }
@@ -109,6 +114,7 @@ impl World {
             pairs: PairCache::default(),
             scratch: StepScratch::default(),
             stats: StepStats::default(),
+            pair_batches: Vec::new(),
             profiler: Profiler::new("step"),
             steps: 0,
         })
@@ -439,6 +445,23 @@ impl World {
             .map(|(&key, contact)| {
                 let (a, b) = crate::stages::pairs::pair_bodies(key);
                 (self.handle_of(a), self.handle_of(b), contact)
+            })
+    }
+
+    /// The batch each contact manifold was solved in during the last step, as (body A, body B,
+    /// batch), in the order of [`contacts`](Self::contacts): the talk's "colored batches".
+    /// Batches are numbered as in [`StepStats::batch_histogram`] (the last one is the
+    /// sequential overflow batch when there is one).
+    pub fn contact_batches(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, u32)> + '_ {
+        self.pairs
+            .keys()
+            .iter()
+            .zip(self.pairs.values())
+            .zip(self.pair_batches.iter().chain(std::iter::repeat(&NO_BATCH)))
+            .filter(|((_, contact), _)| contact.manifold.count > 0)
+            .map(|((&key, _), &batch)| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                (self.handle_of(a), self.handle_of(b), batch)
             })
     }
 
