@@ -71,12 +71,22 @@ pub mod args;
 pub mod chart;
 pub mod engine;
 pub mod measure;
+pub mod prims;
 pub mod rapier;
 pub mod report;
 pub mod sweep;
 
 pub use args::BenchArgs;
-pub use sweep::run;
+
+/// `tumble bench`: `prims` runs the GPU primitive benchmarks ([`prims`]); anything else is a
+/// list of scenes to sweep ([`sweep::run`]).
+pub fn run(args: &BenchArgs) -> Result<(), BenchError> {
+    if args.scenes.len() == 1 && args.scenes[0] == "prims" {
+        let scale = args.scales.first().copied().unwrap_or(1.0);
+        return prims::run(scale as f64).map_err(BenchError::Gpu);
+    }
+    sweep::run(args)
+}
 
 /// Why a benchmark could not run. Messages say what was wrong and how to fix it.
 #[derive(Debug, thiserror::Error)]
@@ -89,4 +99,6 @@ pub enum BenchError {
     ThreadPool { threads: usize, message: String },
     #[error("cannot write {path}: {message}")]
     Write { path: String, message: String },
+    #[error("GPU benchmark: {0}")]
+    Gpu(String),
 }
