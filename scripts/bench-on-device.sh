@@ -3,15 +3,15 @@
 # "Reproducing"). Builds nothing, copies nothing: runs the release binary built here beforehand
 # by scripts/build-devbin.sh and writes tables, CSVs, charts and machine.txt into $OUT.
 #
-#   bash scripts/bench-on-device.sh [all|falling|stacked]
+#   bash scripts/bench-on-device.sh [all|falling|stacked|prims]
 #
 # Environment: THREADS (default "1,<all cores>"), TIME_LIMIT_MS (default 250).
 set -euo pipefail
 
 part=${1:-all}
 case "$part" in
-  all | falling | stacked) ;;
-  *) echo "usage: $0 [all|falling|stacked]" >&2; exit 2 ;;
+  all | falling | stacked | prims) ;;
+  *) echo "usage: $0 [all|falling|stacked|prims]" >&2; exit 2 ;;
 esac
 out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
 binary=.devbin/tumble
@@ -55,4 +55,25 @@ fi
 if [ "$part" = all ] || [ "$part" = stacked ]; then
   bench stacked-boxes --scales 1,10 \
     --engines tumble-cpu,tumble-gpu,rapier,rapier-default --warmup 60 --steps 120
+fi
+if [ "$part" = all ] || [ "$part" = prims ]; then
+  "$binary" bench prims | tee "$out/prims.txt"
+  # The peer for the sort: PyTorch on the same GPU, in the same call (median of 7, 20 sorts each).
+  python3 - << 'PY' 2>&1 | tee -a "$out/prims.txt" || true
+import time, torch
+for n in (1 << 20, 1 << 24):
+    keys = torch.randint(0, 2**31 - 1, (n,), dtype=torch.int64, device="cuda").to(torch.int32)
+    for _ in range(3):
+        torch.sort(keys, stable=True)
+    torch.cuda.synchronize()
+    samples = []
+    for _ in range(7):
+        start = time.perf_counter()
+        for _ in range(20):
+            torch.sort(keys, stable=True)
+        torch.cuda.synchronize()
+        samples.append((time.perf_counter() - start) * 1e3 / 20)
+    ms = sorted(samples)[3]
+    print(f"torch.sort (stable, with indices) {n:>9} keys {ms:10.4f} ms {n / ms / 1e3:10.0f} Mkeys/s")
+PY
 fi

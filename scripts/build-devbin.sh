@@ -6,7 +6,8 @@ cd "$(dirname "$0")/.."
 cargo build --release -p tumble-cli
 target=${CARGO_TARGET_DIR:-target}
 mkdir -p .devbin
-cp "$target/release/tumble" .devbin/tumble
+# Stripped: the debug line tables make the binary larger than what a device call carries (64 MiB).
+strip -o .devbin/tumble "$target/release/tumble"
 commit=$(git rev-parse --short HEAD)
 # A build from uncommitted changes says so: its numbers belong to no commit.
 git diff --quiet HEAD -- . ':!.devbin' ':!.gl' || commit="$commit-dirty"
