@@ -92,10 +92,10 @@ impl JointDesc {
         if !self.anchor.is_finite() {
             return Err(JointError::NotFinite("anchor"));
         }
-        if let Some(impulse) = self.break_impulse {
-            if !(impulse.is_finite() && impulse > 0.0) {
-                return Err(JointError::BadBreakImpulse(impulse));
-            }
+        if let Some(impulse) = self.break_impulse
+            && !(impulse.is_finite() && impulse > 0.0)
+        {
+            return Err(JointError::BadBreakImpulse(impulse));
         }
         let check_axis = |axis: Vec3| {
             if !axis.is_finite() {

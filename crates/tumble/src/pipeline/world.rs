@@ -129,10 +129,10 @@ impl World {
     /// Adds a body; `Err` says which field of `desc` is invalid.
     pub fn add_body(&mut self, desc: BodyDesc) -> Result<BodyHandle, BodyError> {
         desc.validate()?;
-        if let Some(name) = &desc.name {
-            if self.find(name).is_some() {
-                return Err(BodyError::DuplicateName(name.clone()));
-            }
+        if let Some(name) = &desc.name
+            && self.find(name).is_some()
+        {
+            return Err(BodyError::DuplicateName(name.clone()));
         }
         let dynamic = !desc.is_static();
         let pose = BodyPose::new(desc.position, desc.unit_rotation());

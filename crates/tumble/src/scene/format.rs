@@ -218,13 +218,13 @@ impl Scene {
         for (i, body) in file.bodies.iter().enumerate() {
             let desc = body_desc(body)
                 .map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
-            if let Some(name) = &desc.name {
-                if !names.insert(name.clone()) {
-                    return Err(invalid(
-                        format!("bodies[{i}].name"),
-                        format!("{name:?} is used by an earlier body; names must be unique"),
-                    ));
-                }
+            if let Some(name) = &desc.name
+                && !names.insert(name.clone())
+            {
+                return Err(invalid(
+                    format!("bodies[{i}].name"),
+                    format!("{name:?} is used by an earlier body; names must be unique"),
+                ));
             }
             bodies.push(desc);
         }
