@@ -210,7 +210,7 @@ pub struct Joint {
     pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
 }
 
-/// Most angular rows a joint uses (hinge: 2 alignment, 2 limits, 1 motor).
+/// Most angular rows a joint uses (hinge: 2 alignment, 1 motor, 2 limits).
 pub const MAX_ANGULAR_ROWS: usize = 5;
 
 impl Joint {

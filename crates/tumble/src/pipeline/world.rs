@@ -261,6 +261,22 @@ impl World {
         Ok(self.joints[self.check_joint(handle)?].is_some_and(|joint| joint.broken))
     }
 
+    /// The joint's anchor as attached to body A and to body B, in the world frame at the current
+    /// poses (m). They coincide while the joint holds; their distance is the joint's error
+    /// (tests measure it, a viewer can draw it).
+    pub fn joint_anchors(&self, handle: JointHandle) -> Result<(Vec3, Vec3), JointError> {
+        let index = self.check_joint(handle)?;
+        let Some(joint) = self.joints[index] else {
+            return Err(JointError::StaleHandle);
+        };
+        let anchor =
+            |body: u32, local: Vec3| self.poses[body as usize].transform().transform_point(local);
+        Ok((
+            anchor(joint.body_a, joint.local_anchor_a),
+            anchor(joint.body_b, joint.local_anchor_b),
+        ))
+    }
+
     /// Live joints, in slot order.
     pub fn joints(&self) -> impl Iterator<Item = (JointHandle, &Joint)> + '_ {
         self.joints.iter().enumerate().filter_map(|(index, joint)| {

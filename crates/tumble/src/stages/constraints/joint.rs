@@ -162,21 +162,23 @@ impl JointConstraint {
                 let (b1, b2) = tangent_basis(axis_b);
                 rows[0] = equality(b1.cross(axis_a), axis_a.dot(b1));
                 rows[1] = equality(b2.cross(axis_a), axis_a.dot(b2));
-                if let Some((lower, upper)) = limits {
-                    let angle = twist_angle(joint, q_a, q_b, axis_a, axis_b);
-                    rows[2] = limit(axis_a, angle - lower);
-                    rows[3] = limit(-axis_a, upper - angle);
-                }
+                // The motor before the limits: Gauss-Seidel favours the row solved last, and a
+                // motor driving into a limit must not push past it (Box2D orders them so too).
                 if let Some(motor) = motor {
                     let kind = RowKind::Motor {
                         target_speed: motor.target_speed,
                         max_impulse: motor.max_torque * h,
                     };
-                    rows[4] = AngularRow {
+                    rows[2] = AngularRow {
                         kind,
                         direction: axis_a,
                         error: 0.0,
                     };
+                }
+                if let Some((lower, upper)) = limits {
+                    let angle = twist_angle(joint, q_a, q_b, axis_a, axis_b);
+                    rows[3] = limit(axis_a, angle - lower);
+                    rows[4] = limit(-axis_a, upper - angle);
                 }
             }
             JointKind::ConeTwist {
