@@ -154,7 +154,7 @@ impl World {
         };
         solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
         store_contact_impulses(&scratch.batched_contacts, self.pairs.values_mut());
-        store_joint_impulses(&scratch.batched_joints, &mut self.joints);
+        let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         profiler.end();
 
         // 8. Integrate: the step's motion into the poses.
@@ -167,6 +167,10 @@ impl World {
         });
 
         self.stats = collect_stats(&scratch.pair_keys, &self.pairs, scratch);
+        if joint_broke {
+            // The bodies of a broken joint collide again from the next step.
+            self.update_jointed_pairs();
+        }
     }
 }
 
@@ -189,10 +193,12 @@ fn store_contact_impulses(
 }
 
 /// Solved impulses back into the joints; a joint whose impulse passed its threshold breaks.
+/// Returns whether one broke.
 fn store_joint_impulses(
     constraints: &[JointConstraint],
     joints: &mut [Option<crate::dynamics::joint::Joint>],
-) {
+) -> bool {
+    let mut any_broke = false;
     for constraint in constraints {
         let Some(joint) = joints[constraint.joint as usize].as_mut() else {
             continue;
@@ -207,8 +213,10 @@ fn store_joint_impulses(
                     .map(|i| i.abs())
                     .sum::<f32>();
             joint.broken = total > threshold;
+            any_broke |= joint.broken;
         }
     }
+    any_broke
 }
 
 fn collect_stats(

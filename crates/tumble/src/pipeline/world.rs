@@ -18,7 +18,7 @@
 use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
-use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle};
+use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
@@ -77,7 +77,7 @@ pub struct World {
     pub(crate) joints: Vec<Option<Joint>>,
     joint_generations: Vec<u32>,
     free_joints: Vec<u32>,
-    /// Sorted pair keys of jointed bodies: their contacts are skipped.
+    /// Sorted pair keys of bodies joined by an unbroken joint: their contacts are skipped.
     pub(crate) jointed_pairs: Vec<u64>,
     // State carried from step to step.
     pub(crate) broadphase: Broadphase,
@@ -255,8 +255,32 @@ impl World {
         Ok(())
     }
 
+    /// Sets a joint's frames, warm-start impulses and broken flag, as read from a dumped scene
+    /// (the joint was added with [`add_joint`](Self::add_joint) from the same description).
+    pub fn restore_joint_state(
+        &mut self,
+        handle: JointHandle,
+        state: &JointState,
+    ) -> Result<(), JointError> {
+        let index = self.check_joint(handle)?;
+        if !state.is_finite() {
+            return Err(JointError::NotFinite { field: "state" });
+        }
+        if let Some(joint) = self.joints[index].as_mut() {
+            joint.restore(state);
+        }
+        self.update_jointed_pairs();
+        Ok(())
+    }
+
+    /// The joint as the step sees it (frames in the bodies, impulses).
+    pub fn joint(&self, handle: JointHandle) -> Result<&Joint, JointError> {
+        let index = self.check_joint(handle)?;
+        self.joints[index].as_ref().ok_or(JointError::StaleHandle)
+    }
+
     /// True once the joint's impulse passed its break threshold; a broken joint stays in the
-    /// world, inert, until removed.
+    /// world, inert, until removed, and its bodies collide again.
     pub fn is_joint_broken(&self, handle: JointHandle) -> Result<bool, JointError> {
         Ok(self.joints[self.check_joint(handle)?].is_some_and(|joint| joint.broken))
     }
@@ -296,12 +320,13 @@ impl World {
         self.update_jointed_pairs();
     }
 
-    fn update_jointed_pairs(&mut self) {
+    pub(crate) fn update_jointed_pairs(&mut self) {
         self.jointed_pairs.clear();
         self.jointed_pairs.extend(
             self.joints
                 .iter()
                 .flatten()
+                .filter(|j| !j.broken)
                 .map(|j| crate::stages::pairs::pair_key(j.body_a, j.body_b)),
         );
         self.jointed_pairs.sort_unstable();
