@@ -40,7 +40,11 @@ fn run(world: &mut World, steps: usize) {
 
 #[test]
 fn dump_at_step_50_then_load_and_run_50_equals_100_steps() {
-    for (name, scale) in [("falling-boxes", 0.05), ("stacked-boxes", 0.05)] {
+    for (name, scale) in [
+        ("falling-boxes", 0.05),
+        ("stacked-boxes", 0.05),
+        ("ragdolls", 0.05),
+    ] {
         let scene = builtin(name, scale).unwrap();
         let mut straight = scene.build().unwrap();
         run(&mut straight, 100);
