@@ -75,6 +75,74 @@ pub struct JointConstraint {
     /// Accumulated impulses: point part (N s) and angular rows (N m s).
     pub point_impulse: Vec3,
     pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    /// Largest point impulse per sub-step (N s): infinite for joints, max_force · h for a drag.
+    pub max_point_impulse: f32,
+}
+
+/// The `joint` index of the drag constraint (it is no joint of the world).
+pub const DRAG_JOINT: u32 = u32::MAX;
+
+/// A temporary point constraint pulling a body's point towards a moving target (the viewer's
+/// mouse drag), as [`World::set_drag_target`](crate::World::set_drag_target) sets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Drag {
+    pub body: u32,
+    /// The dragged point in the body's frame (m).
+    pub local_anchor: Vec3,
+    /// Where the point is pulled, world frame (m).
+    pub target: Vec3,
+    /// Largest pull (N).
+    pub max_force: f32,
+    /// Warm-start impulse (N s), kept while the same point is dragged.
+    pub impulse: Vec3,
+}
+
+/// The drag as a point joint whose body A is the static world with the target as its anchor;
+/// `softness` (softer than the joints') lets the point trail a moving target instead of
+/// jumping onto it.
+pub fn drag_constraint(
+    drag: &Drag,
+    poses: &[BodyPose],
+    masses: &[BodyMass],
+    inverse_inertia: &[Mat3],
+    softness: Softness,
+    h: f32,
+) -> JointConstraint {
+    let body = drag.body as usize;
+    let frame = Joint {
+        kind: JointKind::Point,
+        body_a: STATIC_BODY,
+        body_b: drag.body,
+        local_anchor_a: drag.target,
+        local_anchor_b: drag.local_anchor,
+        local_axis_a: Vec3::X,
+        local_axis_b: Vec3::X,
+        local_reference_a: Vec3::Y,
+        local_reference_b: Vec3::Y,
+        relative_rotation: Quat::IDENTITY,
+        break_impulse: None,
+        broken: false,
+        point_impulse: drag.impulse,
+        angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+    };
+    JointConstraint {
+        body_a: STATIC_BODY,
+        body_b: drag.body,
+        joint: DRAG_JOINT,
+        inverse_mass_a: 0.0,
+        inverse_mass_b: masses[body].inverse_mass,
+        inverse_inertia_a: Mat3::ZERO,
+        inverse_inertia_b: inverse_inertia[body],
+        frame,
+        rotation_a: Quat::IDENTITY,
+        rotation_b: poses[body].rotation,
+        // The world frame is A's: its origin is A's centre.
+        center_offset: poses[body].position,
+        softness,
+        point_impulse: drag.impulse,
+        angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+        max_point_impulse: drag.max_force * h,
+    }
 }
 
 /// Builds the constraint of every live, unbroken joint (`None` is a free joint slot).
@@ -116,6 +184,7 @@ pub fn build_joint_constraints(
             softness,
             point_impulse: joint.point_impulse,
             angular_impulse: joint.angular_impulse,
+            max_point_impulse: f32::INFINITY,
         });
     }
 }
