@@ -18,7 +18,7 @@ pub mod shape;
 pub mod stages;
 
 pub use dynamics::body::{BodyDesc, BodyError, BodyHandle};
-pub use dynamics::joint::{JointDesc, JointError, JointHandle, JointKind, Motor};
+pub use dynamics::joint::{JointDesc, JointError, JointHandle, JointKind, JointState, Motor};
 pub use pipeline::config::{ConfigError, StepConfig};
 pub use pipeline::world::{StepStats, World};
 pub use shape::Shape;

@@ -1,7 +1,9 @@
 //! Same scene, same build → bitwise the same state, whatever the thread count; and a dumped
 //! state loads and continues the run bitwise.
-use tumble::World;
+use tumble::math::{Quat, Vec3};
+use tumble::scene::format::SceneJoint;
 use tumble::scene::{Scene, builtin};
+use tumble::{BodyDesc, JointKind, Motor, Shape, StepConfig, World};
 
 fn run_in_pool(threads: usize, scene: &Scene, steps: usize) -> String {
     let pool = rayon::ThreadPoolBuilder::new()
@@ -38,7 +40,11 @@ fn run(world: &mut World, steps: usize) {
 
 #[test]
 fn dump_at_step_50_then_load_and_run_50_equals_100_steps() {
-    for (name, scale) in [("falling-boxes", 0.05), ("stacked-boxes", 0.05)] {
+    for (name, scale) in [
+        ("falling-boxes", 0.05),
+        ("stacked-boxes", 0.05),
+        ("ragdolls", 0.05),
+    ] {
         let scene = builtin(name, scale).unwrap();
         let mut straight = scene.build().unwrap();
         run(&mut straight, 100);
@@ -56,6 +62,76 @@ fn dump_at_step_50_then_load_and_run_50_equals_100_steps() {
 
         assert_same_state(name, &straight, &resumed);
     }
+}
+
+/// Every joint kind at once: a hinged, motorized and limited arm hanging from a post, a
+/// cone-twist link below it, a welded pair and a breakable joint that lets go, all landing on
+/// the ground, so that joints and contacts are solved together.
+fn jointed_scene() -> Scene {
+    let mut scene = Scene::new(StepConfig::default());
+    let body = |shape, position: Vec3| BodyDesc::dynamic(shape).position(position);
+    let bar = Shape::cuboid(Vec3::new(0.4, 0.05, 0.05));
+    scene.bodies = vec![
+        BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)).name("ground"),
+        BodyDesc::fixed(Shape::sphere(0.05)).position(Vec3::new(0.0, 2.0, 0.0)),
+        body(bar, Vec3::new(0.4, 2.0, 0.0)),
+        body(Shape::capsule(0.05, 0.3), Vec3::new(0.8, 1.65, 0.0)),
+        body(Shape::cuboid(Vec3::splat(0.2)), Vec3::new(-1.0, 1.0, 0.0))
+            .rotation(Quat::from_rotation_z(0.3)),
+        body(Shape::sphere(0.15), Vec3::new(-1.0, 1.35, 0.0)),
+        body(Shape::sphere(0.2), Vec3::new(1.5, 1.0, 0.5)).mass(5.0),
+    ];
+    let hinge = JointKind::Hinge {
+        axis: Vec3::Z,
+        limits: Some((-1.0, 0.2)),
+        motor: Some(Motor {
+            target_speed: -0.5,
+            max_torque: 2.0,
+        }),
+    };
+    let cone = JointKind::ConeTwist {
+        axis: -Vec3::Y,
+        swing_limit: 0.6,
+        twist_limits: (-0.3, 0.3),
+    };
+    let mut breakable = SceneJoint::new(JointKind::Point, 1, 6, Vec3::new(1.5, 2.0, 0.5));
+    breakable.break_impulse = Some(0.05);
+    scene.joints = vec![
+        SceneJoint::new(hinge, 1, 2, Vec3::new(0.0, 2.0, 0.0)),
+        SceneJoint::new(cone, 2, 3, Vec3::new(0.8, 2.0, 0.0)),
+        SceneJoint::new(JointKind::Fixed, 4, 5, Vec3::new(-1.0, 1.2, 0.0)),
+        breakable,
+    ];
+    scene
+}
+
+#[test]
+fn a_jointed_scene_dumps_and_continues_bitwise() {
+    let scene = jointed_scene();
+    let mut straight = scene.build().unwrap();
+    run(&mut straight, 100);
+
+    let mut first_half = scene.build().unwrap();
+    run(&mut first_half, 50);
+    let dump = Scene::from_world(&first_half).to_json();
+    let loaded = Scene::from_json(&dump).unwrap();
+    assert_eq!(loaded.joints.len(), 4);
+    assert!(
+        loaded.joints.iter().all(|joint| joint.state.is_some()),
+        "the dump carries the joints' frames and impulses"
+    );
+    assert!(
+        loaded.joints[3].state.is_some_and(|state| state.broken),
+        "the breakable joint broke and the dump says so"
+    );
+    assert!(
+        !loaded.contacts.is_empty(),
+        "the welded pair rests on the ground"
+    );
+    let mut resumed = loaded.build().unwrap();
+    run(&mut resumed, 50);
+
+    assert_same_state("jointed scene", &straight, &resumed);
 }
 
 /// Fails with the first line where the two worlds' dumps differ.

@@ -150,3 +150,157 @@ fn a_non_unit_rotation_is_normalized() {
     let body = world.bodies().nth(1).unwrap();
     assert_eq!(world.pose(body).unwrap().rotation.w, 1.0);
 }
+
+/// A scene with a static ground, two dynamic bodies ("ball", index 1; a box, index 2) and a
+/// static "post" (index 3), and the given joints.
+fn scene_with_joints(joints: &str) -> String {
+    format!(
+        r#"{{ "bodies": [
+            {{ "name": "ground", "shape": {{ "plane": {{ "normal": [0, 1, 0] }} }}, "mass": 0 }},
+            {{ "name": "ball", "shape": {{ "sphere": {{ "radius": 0.2 }} }}, "position": [0, 2, 0] }},
+            {{ "shape": {{ "box": {{ "half_extents": [0.2, 0.2, 0.2] }} }}, "position": [1, 2, 0] }},
+            {{ "name": "post", "shape": {{ "sphere": {{ "radius": 0.1 }} }}, "position": [0, 3, 0],
+               "mass": 0 }}
+          ],
+          "joints": [ {joints} ] }}"#
+    )
+}
+
+#[test]
+fn each_bad_joint_names_its_field() {
+    let hinge = |extra: &str| {
+        format!(r#"{{ "kind": "hinge", "body_a": 1, "body_b": 2, "anchor": [0.5, 2, 0] {extra} }}"#)
+    };
+    let cone = |extra: &str| {
+        format!(
+            r#"{{ "kind": "cone_twist", "body_a": "post", "body_b": "ball", "anchor": [0, 3, 0],
+                 "axis": [0, -1, 0] {extra} }}"#
+        )
+    };
+    let good = r#"{ "kind": "point", "body_a": "post", "body_b": "ball", "anchor": [0, 3, 0] }"#;
+    let cases = [
+        (
+            r#"{ "kind": "point", "body_a": 7, "body_b": 1, "anchor": [0, 0, 0] }"#.to_string(),
+            "joints[0].body_a: body index 7 is out of range: the scene has 4 bodies",
+        ),
+        (
+            r#"{ "kind": "point", "body_a": 1, "body_b": "nobody", "anchor": [0, 0, 0] }"#
+                .to_string(),
+            r#"joints[0].body_b: no body is named "nobody""#,
+        ),
+        (
+            r#"{ "kind": "point", "body_a": -1, "body_b": 1, "anchor": [0, 0, 0] }"#.to_string(),
+            "joints[0].body_a: invalid type: integer `-1`, expected a body index",
+        ),
+        (
+            r#"{ "kind": "point", "body_a": 1, "body_b": "ball", "anchor": [0, 0, 0] }"#
+                .to_string(),
+            "joints[0].body_b: is the same body as body_a",
+        ),
+        (
+            r#"{ "kind": "point", "body_a": "ground", "body_b": 3, "anchor": [0, 0, 0] }"#
+                .to_string(),
+            "joints[0]: both bodies are static",
+        ),
+        (
+            r#"{ "kind": "point", "body_a": 1, "body_b": 2 }"#.to_string(),
+            "joints[0]: missing field `anchor`",
+        ),
+        (
+            r#"{ "kind": "slider", "body_a": 1, "body_b": 2, "anchor": [0, 0, 0] }"#.to_string(),
+            "joints[0].kind: unknown variant `slider`",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "stiffness": 3"#),
+            "joints[0].stiffness: unknown field `stiffness`",
+        ),
+        (
+            format!("{good}, {}", hinge(r#", "axis": [0, 0, 0]"#)),
+            "joints[1].axis: must be non-zero",
+        ),
+        (hinge(""), "joints[0].axis: a hinge joint needs axis"),
+        (
+            hinge(r#", "axis": [0, 0, 1], "limits": [1, -1]"#),
+            "joints[0].limits: [1, -1] must have lower <= upper, both within [-pi, pi] rad",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "limits": [-4, 0]"#),
+            "joints[0].limits: [-4, 0] must have lower <= upper",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "motor": { "target_speed": 1, "max_torque": -1 }"#),
+            "joints[0].motor.max_torque: must be >= 0, got -1",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "motor": { "target_speed": 1, "torque": 1 }"#),
+            "joints[0].motor.torque: unknown field `torque`",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "swing_limit": 1"#),
+            "joints[0].swing_limit: a hinge joint has no swing_limit; remove it",
+        ),
+        (
+            hinge(r#", "axis": [0, 0, 1], "break_impulse": 0"#),
+            "joints[0].break_impulse: must be > 0, got 0",
+        ),
+        (
+            r#"{ "kind": "point", "body_a": 1, "body_b": 2, "anchor": [0, 0, 0], "axis": [1, 0, 0] }"#
+                .to_string(),
+            "joints[0].axis: a point joint has no axis; remove it",
+        ),
+        (
+            r#"{ "kind": "fixed", "body_a": 1, "body_b": 2, "anchor": [0, 0, 0], "limits": [0, 1] }"#
+                .to_string(),
+            "joints[0].limits: a fixed joint has no limits; remove it",
+        ),
+        (
+            cone(r#", "twist_limits": [-1, 1]"#),
+            "joints[0].swing_limit: a cone_twist joint needs swing_limit",
+        ),
+        (
+            cone(r#", "swing_limit": 1"#),
+            "joints[0].twist_limits: a cone_twist joint needs twist_limits",
+        ),
+        (
+            cone(r#", "swing_limit": 4, "twist_limits": [-1, 1]"#),
+            "joints[0].swing_limit: must be within [0, pi] rad, got 4",
+        ),
+        (
+            cone(r#", "swing_limit": 1, "twist_limits": [0.5, -0.5]"#),
+            "joints[0].twist_limits: [0.5, -0.5] must have lower <= upper",
+        ),
+        (
+            cone(
+                r#", "swing_limit": 1, "twist_limits": [-1, 1], "motor": { "target_speed": 1, "max_torque": 1 }"#,
+            ),
+            "joints[0].motor: a cone_twist joint has no motor; remove it",
+        ),
+    ];
+    for (joints, expected) in cases {
+        let message = error_of(&scene_with_joints(&joints));
+        assert!(
+            message.contains(expected),
+            "error {message:?} should contain {expected:?}"
+        );
+        assert!(!message.contains('\n'), "one line: {message:?}");
+    }
+}
+
+#[test]
+fn joints_load_by_index_and_by_name() {
+    let joints = r#"
+        { "kind": "point", "body_a": "post", "body_b": "ball", "anchor": [0, 3, 0] },
+        { "kind": "hinge", "body_a": 1, "body_b": 2, "anchor": [0.5, 2, 0], "axis": [0, 0, 2],
+          "limits": [-1, 1], "motor": { "target_speed": 1, "max_torque": 2 }, "break_impulse": 10 },
+        { "kind": "cone_twist", "body_a": "ball", "body_b": 2, "anchor": [0.5, 2, 0],
+          "axis": [1, 0, 0], "swing_limit": 0.5, "twist_limits": [-0.2, 0.3] },
+        { "kind": "fixed", "body_a": 2, "body_b": "post", "anchor": [1, 2.5, 0] }"#;
+    let scene = Scene::from_json(&scene_with_joints(joints)).unwrap();
+    let pairs: Vec<_> = scene.joints.iter().map(|j| (j.body_a, j.body_b)).collect();
+    assert_eq!(pairs, [(3, 1), (1, 2), (1, 2), (2, 3)]);
+    let world = scene.build().unwrap();
+    assert_eq!(world.joints().count(), 4);
+    // The loader normalized the hinge axis.
+    let hinge = world.joints().nth(1).unwrap().1;
+    assert!((hinge.local_axis_a.length() - 1.0).abs() < 1e-6);
+}

@@ -90,28 +90,32 @@ impl JointDesc {
             return Err(JointError::SameBody);
         }
         if !self.anchor.is_finite() {
-            return Err(JointError::NotFinite("anchor"));
+            return Err(JointError::NotFinite { field: "anchor" });
         }
-        if let Some(impulse) = self.break_impulse {
-            if !(impulse.is_finite() && impulse > 0.0) {
-                return Err(JointError::BadBreakImpulse(impulse));
-            }
+        if let Some(impulse) = self.break_impulse
+            && !(impulse.is_finite() && impulse > 0.0)
+        {
+            return Err(JointError::BadBreakImpulse(impulse));
         }
         let check_axis = |axis: Vec3| {
             if !axis.is_finite() {
-                Err(JointError::NotFinite("axis"))
+                Err(JointError::NotFinite { field: "axis" })
             } else if axis.length_squared() < 1e-12 {
                 Err(JointError::ZeroAxis)
             } else {
                 Ok(())
             }
         };
-        let check_range = |name: &'static str, (lower, upper): (f32, f32)| {
+        let check_range = |field: &'static str, (lower, upper): (f32, f32)| {
             let pi = std::f32::consts::PI;
             if !(lower.is_finite() && upper.is_finite()) {
-                Err(JointError::NotFinite(name))
+                Err(JointError::NotFinite { field })
             } else if lower > upper || lower < -pi || upper > pi {
-                Err(JointError::BadLimits { name, lower, upper })
+                Err(JointError::BadLimits {
+                    field,
+                    lower,
+                    upper,
+                })
             } else {
                 Ok(())
             }
@@ -129,14 +133,10 @@ impl JointDesc {
                 }
                 if let Some(motor) = motor {
                     if !(motor.target_speed.is_finite() && motor.max_torque.is_finite()) {
-                        return Err(JointError::NotFinite("motor"));
+                        return Err(JointError::NotFinite { field: "motor" });
                     }
                     if motor.max_torque < 0.0 {
-                        return Err(JointError::BadLimits {
-                            name: "motor max_torque",
-                            lower: motor.max_torque,
-                            upper: motor.max_torque,
-                        });
+                        return Err(JointError::NegativeMaxTorque(motor.max_torque));
                     }
                 }
                 Ok(())
@@ -148,11 +148,7 @@ impl JointDesc {
             } => {
                 check_axis(axis)?;
                 if !(0.0..=std::f32::consts::PI).contains(&swing_limit) {
-                    return Err(JointError::BadLimits {
-                        name: "swing_limit",
-                        lower: 0.0,
-                        upper: swing_limit,
-                    });
+                    return Err(JointError::BadSwingLimit(swing_limit));
                 }
                 check_range("twist_limits", twist_limits)
             }
@@ -160,22 +156,26 @@ impl JointDesc {
     }
 }
 
-/// Why a joint could not be created.
+/// Why a joint could not be created or restored.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum JointError {
     #[error("a joint needs two different bodies")]
     SameBody,
-    #[error("joint {0} must be finite")]
-    NotFinite(&'static str),
+    #[error("joint {field} must be finite (no NaN or infinity)")]
+    NotFinite { field: &'static str },
     #[error("joint axis must be non-zero")]
     ZeroAxis,
-    #[error("joint {name} [{lower}, {upper}] must satisfy lower <= upper within [-pi, pi]")]
+    #[error("joint {field} [{lower}, {upper}] must have lower <= upper, both within [-pi, pi] rad")]
     BadLimits {
-        name: &'static str,
+        field: &'static str,
         lower: f32,
         upper: f32,
     },
-    #[error("break_impulse must be > 0, got {0}")]
+    #[error("joint swing_limit must be within [0, pi] rad, got {0}")]
+    BadSwingLimit(f32),
+    #[error("joint motor max_torque must be >= 0, got {0}")]
+    NegativeMaxTorque(f32),
+    #[error("joint break_impulse must be > 0, got {0}")]
     BadBreakImpulse(f32),
     #[error("a joint needs at least one dynamic body")]
     BothStatic,
@@ -183,6 +183,77 @@ pub enum JointError {
     StaleBody,
     #[error("the joint handle is stale: that joint was removed")]
     StaleHandle,
+}
+
+impl JointError {
+    /// The field of the description (as the scene file names it) the error is about, if one.
+    pub fn field(&self) -> Option<&'static str> {
+        match self {
+            JointError::SameBody => Some("body_b"),
+            JointError::NotFinite { field } | JointError::BadLimits { field, .. } => Some(field),
+            JointError::ZeroAxis => Some("axis"),
+            JointError::BadSwingLimit(_) => Some("swing_limit"),
+            JointError::NegativeMaxTorque(_) => Some("motor.max_torque"),
+            JointError::BadBreakImpulse(_) => Some("break_impulse"),
+            JointError::BothStatic | JointError::StaleBody | JointError::StaleHandle => None,
+        }
+    }
+
+    /// The problem without the field's name, for callers that name the field themselves
+    /// (the scene loader writes `joints[2].axis: must be non-zero`).
+    pub fn requirement(&self) -> String {
+        match self {
+            JointError::SameBody => {
+                "is the same body as body_a; a joint needs two different bodies".into()
+            }
+            JointError::NotFinite { .. } => "must be finite (no NaN or infinity)".into(),
+            JointError::ZeroAxis => "must be non-zero".into(),
+            JointError::BadLimits { lower, upper, .. } => {
+                format!("[{lower}, {upper}] must have lower <= upper, both within [-pi, pi] rad")
+            }
+            JointError::BadSwingLimit(value) => {
+                format!("must be within [0, pi] rad, got {value}")
+            }
+            JointError::NegativeMaxTorque(value) => format!("must be >= 0, got {value}"),
+            JointError::BadBreakImpulse(value) => format!("must be > 0, got {value}"),
+            other => other.to_string(),
+        }
+    }
+}
+
+/// What a joint carries beyond its description: its frames in the two bodies (fixed when it
+/// was created, which is where its angles are zero), its warm-start impulses and whether it
+/// broke. A dumped scene stores it so that loading the dump continues the run bitwise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointState {
+    pub local_anchor_a: Vec3,
+    pub local_anchor_b: Vec3,
+    pub local_axis_a: Vec3,
+    pub local_axis_b: Vec3,
+    pub local_reference_a: Vec3,
+    pub local_reference_b: Vec3,
+    pub relative_rotation: Quat,
+    pub point_impulse: Vec3,
+    pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    pub broken: bool,
+}
+
+impl JointState {
+    pub fn is_finite(&self) -> bool {
+        [
+            self.local_anchor_a,
+            self.local_anchor_b,
+            self.local_axis_a,
+            self.local_axis_b,
+            self.local_reference_a,
+            self.local_reference_b,
+            self.point_impulse,
+        ]
+        .iter()
+        .all(|v| v.is_finite())
+            && self.relative_rotation.is_finite()
+            && self.angular_impulse.iter().all(|v| v.is_finite())
+    }
 }
 
 /// A joint as the step sees it: everything in the bodies' local frames.
@@ -210,7 +281,7 @@ pub struct Joint {
     pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
 }
 
-/// Most angular rows a joint uses (hinge: 2 alignment, 2 limits, 1 motor).
+/// Most angular rows a joint uses (hinge: 2 alignment, 1 motor, 2 limits).
 pub const MAX_ANGULAR_ROWS: usize = 5;
 
 impl Joint {
@@ -242,5 +313,34 @@ impl Joint {
             point_impulse: Vec3::ZERO,
             angular_impulse: [0.0; MAX_ANGULAR_ROWS],
         }
+    }
+
+    pub fn state(&self) -> JointState {
+        JointState {
+            local_anchor_a: self.local_anchor_a,
+            local_anchor_b: self.local_anchor_b,
+            local_axis_a: self.local_axis_a,
+            local_axis_b: self.local_axis_b,
+            local_reference_a: self.local_reference_a,
+            local_reference_b: self.local_reference_b,
+            relative_rotation: self.relative_rotation,
+            point_impulse: self.point_impulse,
+            angular_impulse: self.angular_impulse,
+            broken: self.broken,
+        }
+    }
+
+    /// Replaces the frames, impulses and broken flag; the kind and bodies stay.
+    pub fn restore(&mut self, state: &JointState) {
+        self.local_anchor_a = state.local_anchor_a;
+        self.local_anchor_b = state.local_anchor_b;
+        self.local_axis_a = state.local_axis_a;
+        self.local_axis_b = state.local_axis_b;
+        self.local_reference_a = state.local_reference_a;
+        self.local_reference_b = state.local_reference_b;
+        self.relative_rotation = state.relative_rotation;
+        self.point_impulse = state.point_impulse;
+        self.angular_impulse = state.angular_impulse;
+        self.broken = state.broken;
     }
 }

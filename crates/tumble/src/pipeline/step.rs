@@ -2,11 +2,12 @@
 
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
+use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
 use crate::stages::constraints::{
-    ContactConstraint, JointConstraint, RowInputs, build_constraints, build_joint_constraints,
-    world_inverse_inertia,
+    ContactConstraint, DRAG_JOINT, JointConstraint, RowInputs, build_constraints,
+    build_joint_constraints, drag_constraint, world_inverse_inertia,
 };
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
@@ -108,6 +109,20 @@ impl World {
             joint_softness,
             &mut scratch.joints,
         );
+        // The drag (picking) joins the joints, so the batching and solver treat it as one.
+        if let Some(drag) = &self.drag
+            && self.masses[drag.body as usize].inverse_mass > 0.0
+        {
+            let softness = Softness::new(DRAG_HERTZ, DRAG_DAMPING_RATIO, h);
+            scratch.joints.push(drag_constraint(
+                drag,
+                &self.poses,
+                &self.masses,
+                &scratch.inverse_inertia,
+                softness,
+                h,
+            ));
+        }
         profiler.end();
 
         // 6. Batching: joints and contacts colored together, then laid out batch after batch.
@@ -160,7 +175,15 @@ impl World {
         };
         solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
         store_contact_impulses(&scratch.batched_contacts, self.pairs.values_mut());
-        store_joint_impulses(&scratch.batched_joints, &mut self.joints);
+        let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
+        if let Some(drag) = self.drag.as_mut()
+            && let Some(solved) = scratch
+                .batched_joints
+                .iter()
+                .find(|j| j.joint == DRAG_JOINT)
+        {
+            drag.impulse = solved.point_impulse;
+        }
         profiler.end();
 
         // 8. Integrate: the step's motion into the poses.
@@ -173,6 +196,10 @@ impl World {
         });
 
         self.stats = collect_stats(&scratch.pair_keys, &self.pairs, scratch);
+        if joint_broke {
+            // The bodies of a broken joint collide again from the next step.
+            self.update_jointed_pairs();
+        }
     }
 }
 
@@ -195,12 +222,18 @@ fn store_contact_impulses(
 }
 
 /// Solved impulses back into the joints; a joint whose impulse passed its threshold breaks.
+/// Returns whether one broke.
 fn store_joint_impulses(
     constraints: &[JointConstraint],
     joints: &mut [Option<crate::dynamics::joint::Joint>],
-) {
+) -> bool {
+    let mut any_broke = false;
     for constraint in constraints {
-        let Some(joint) = joints[constraint.joint as usize].as_mut() else {
+        // The drag (`DRAG_JOINT`) is no joint of the world: it has no slot here.
+        let Some(joint) = joints
+            .get_mut(constraint.joint as usize)
+            .and_then(Option::as_mut)
+        else {
             continue;
         };
         joint.point_impulse = constraint.point_impulse;
@@ -213,8 +246,10 @@ fn store_joint_impulses(
                     .map(|i| i.abs())
                     .sum::<f32>();
             joint.broken = total > threshold;
+            any_broke |= joint.broken;
         }
     }
+    any_broke
 }
 
 fn collect_stats(

@@ -15,15 +15,23 @@
 //! assert!((height - 0.5).abs() < 0.01, "the ball rests on the ground: y = {height}");
 //! ```
 
+/// Stiffness of the drag of [`World::set_drag_target`] (Hz) and its damping ratio. The drag is
+/// solved like the joints, soft in the solve iterations and rigid in the relax iteration, which
+/// makes it an overdamped follower rather than a spring: at 20 Hz the dragged point trails a
+/// target moving at 1 m/s by 4 cm (at 5 Hz, Box2D's mouse-joint value, it trailed by 46 cm).
+pub const DRAG_HERTZ: f32 = 20.0;
+pub const DRAG_DAMPING_RATIO: f32 = 1.0;
+
 use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
-use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle};
+use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
 use crate::stages::broadphase::Broadphase;
+use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::PairCache;
 
@@ -44,7 +52,7 @@ pub struct StepStats {
     pub contacts: usize,
     /// Deepest overlap of any contact (m, ≥ 0).
     pub max_penetration: f32,
-    /// Joints solved this step (unbroken ones).
+    /// Joints solved this step (unbroken ones, and the drag of `set_drag_target`).
     pub joints: usize,
     /// Constraints (contact manifolds and joints) per batch: the talk's batch histogram.
     pub batch_histogram: Vec<u32>,
@@ -80,8 +88,10 @@ pub struct World {
     pub(crate) joints: Vec<Option<Joint>>,
     joint_generations: Vec<u32>,
     free_joints: Vec<u32>,
-    /// Sorted pair keys of jointed bodies: their contacts are skipped.
+    /// Sorted pair keys of bodies joined by an unbroken joint: their contacts are skipped.
     pub(crate) jointed_pairs: Vec<u64>,
+    /// The body point being dragged towards a target (picking), if any.
+    pub(crate) drag: Option<Drag>,
     // State carried from step to step.
     pub(crate) broadphase: Broadphase,
     pub(crate) pairs: PairCache<PairContact>,
@@ -110,6 +120,7 @@ impl World {
             joint_generations: Vec::new(),
             free_joints: Vec::new(),
             jointed_pairs: Vec::new(),
+            drag: None,
             broadphase,
             pairs: PairCache::default(),
             scratch: StepScratch::default(),
@@ -135,10 +146,10 @@ impl World {
     /// Adds a body; `Err` says which field of `desc` is invalid.
     pub fn add_body(&mut self, desc: BodyDesc) -> Result<BodyHandle, BodyError> {
         desc.validate()?;
-        if let Some(name) = &desc.name {
-            if self.find(name).is_some() {
-                return Err(BodyError::DuplicateName(name.clone()));
-            }
+        if let Some(name) = &desc.name
+            && self.find(name).is_some()
+        {
+            return Err(BodyError::DuplicateName(name.clone()));
         }
         let dynamic = !desc.is_static();
         let pose = BodyPose::new(desc.position, desc.unit_rotation());
@@ -218,6 +229,9 @@ impl World {
         slot.state = SlotState::Free;
         slot.generation = slot.generation.wrapping_add(1);
         slot.name = None;
+        if self.drag.is_some_and(|drag| drag.body == handle.index) {
+            self.drag = None;
+        }
         // A free slot is static and shapeless for the stages: it never moves or collides.
         self.masses[i] = BodyMass::default();
         self.velocities[i] = BodyVelocity::default();
@@ -261,10 +275,50 @@ impl World {
         Ok(())
     }
 
+    /// Sets a joint's frames, warm-start impulses and broken flag, as read from a dumped scene
+    /// (the joint was added with [`add_joint`](Self::add_joint) from the same description).
+    pub fn restore_joint_state(
+        &mut self,
+        handle: JointHandle,
+        state: &JointState,
+    ) -> Result<(), JointError> {
+        let index = self.check_joint(handle)?;
+        if !state.is_finite() {
+            return Err(JointError::NotFinite { field: "state" });
+        }
+        if let Some(joint) = self.joints[index].as_mut() {
+            joint.restore(state);
+        }
+        self.update_jointed_pairs();
+        Ok(())
+    }
+
+    /// The joint as the step sees it (frames in the bodies, impulses).
+    pub fn joint(&self, handle: JointHandle) -> Result<&Joint, JointError> {
+        let index = self.check_joint(handle)?;
+        self.joints[index].as_ref().ok_or(JointError::StaleHandle)
+    }
+
     /// True once the joint's impulse passed its break threshold; a broken joint stays in the
-    /// world, inert, until removed.
+    /// world, inert, until removed, and its bodies collide again.
     pub fn is_joint_broken(&self, handle: JointHandle) -> Result<bool, JointError> {
         Ok(self.joints[self.check_joint(handle)?].is_some_and(|joint| joint.broken))
+    }
+
+    /// The joint's anchor as attached to body A and to body B, in the world frame at the current
+    /// poses (m). They coincide while the joint holds; their distance is the joint's error
+    /// (tests measure it, a viewer can draw it).
+    pub fn joint_anchors(&self, handle: JointHandle) -> Result<(Vec3, Vec3), JointError> {
+        let index = self.check_joint(handle)?;
+        let Some(joint) = self.joints[index] else {
+            return Err(JointError::StaleHandle);
+        };
+        let anchor =
+            |body: u32, local: Vec3| self.poses[body as usize].transform().transform_point(local);
+        Ok((
+            anchor(joint.body_a, joint.local_anchor_a),
+            anchor(joint.body_b, joint.local_anchor_b),
+        ))
     }
 
     /// Live joints, in slot order.
@@ -286,12 +340,13 @@ impl World {
         self.update_jointed_pairs();
     }
 
-    fn update_jointed_pairs(&mut self) {
+    pub(crate) fn update_jointed_pairs(&mut self) {
         self.jointed_pairs.clear();
         self.jointed_pairs.extend(
             self.joints
                 .iter()
                 .flatten()
+                .filter(|j| !j.broken)
                 .map(|j| crate::stages::pairs::pair_key(j.body_a, j.body_b)),
         );
         self.jointed_pairs.sort_unstable();
@@ -305,6 +360,49 @@ impl World {
             }
             _ => Err(JointError::StaleHandle),
         }
+    }
+
+    /// Pulls the point `local_anchor` of `body` (body frame, m) towards `target` (world frame,
+    /// m) with at most `max_force` (N), until [`clear_drag`](Self::clear_drag): the picking
+    /// of a viewer's mouse drag. It is solved with the joints, as a soft point joint
+    /// ([`DRAG_HERTZ`]) to the static world. Call it again each frame as the target moves;
+    /// a new body or anchor replaces the drag, one body at a time. A static body is not moved.
+    /// A `max_force` of a few times the body's weight lifts it without flinging it.
+    pub fn set_drag_target(
+        &mut self,
+        body: BodyHandle,
+        local_anchor: Vec3,
+        target: Vec3,
+        max_force: f32,
+    ) -> Result<(), BodyError> {
+        let index = self.check(body)? as u32;
+        if !(local_anchor.is_finite() && target.is_finite()) {
+            return Err(BodyError::NotFinite { field: "drag" });
+        }
+        if !(max_force.is_finite() && max_force >= 0.0) {
+            return Err(BodyError::Negative {
+                field: "max_force",
+                value: max_force,
+            });
+        }
+        // The same point keeps its warm-start impulse, so a moving target pulls smoothly.
+        let impulse = self
+            .drag
+            .filter(|drag| drag.body == index && drag.local_anchor == local_anchor)
+            .map_or(Vec3::ZERO, |drag| drag.impulse);
+        self.drag = Some(Drag {
+            body: index,
+            local_anchor,
+            target,
+            max_force,
+            impulse,
+        });
+        Ok(())
+    }
+
+    /// Lets go of the dragged body.
+    pub fn clear_drag(&mut self) {
+        self.drag = None;
     }
 
     /// Advances the world by `config.dt`.

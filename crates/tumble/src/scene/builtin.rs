@@ -5,6 +5,7 @@ use crate::dynamics::body::BodyDesc;
 use crate::math::Vec3;
 use crate::pipeline::config::StepConfig;
 use crate::scene::format::{Scene, SceneError};
+use crate::scene::ragdoll::{RAGDOLL_HALF_SPAN, add_ragdoll, arms_along_z};
 use crate::shape::Shape;
 
 /// Built-in scene names with a line on each.
@@ -17,6 +18,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "stacked-boxes",
         "about 1000 boxes at rest: a pyramid, a brick wall and a tower",
     ),
+    (
+        "ragdolls",
+        "136 ragdolls (11 capsules, hinges and cone-twists) in a pyramid 16 + 15 + ... + 1 falling on a plane",
+    ),
 ];
 
 /// The built-in scene `name` at `scale` (1 = the talk's size; body counts scale linearly).
@@ -27,6 +32,7 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
     match name {
         "falling-boxes" => Ok(falling_boxes(scale)),
         "stacked-boxes" => Ok(stacked_boxes(scale)),
+        "ragdolls" => Ok(ragdolls(scale)),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
 }
@@ -130,6 +136,42 @@ fn stacked_boxes(scale: f32) -> Scene {
     scene
 }
 
+/// Bullet's BenchmarkDemo test 3: standing ragdolls in a pyramid of rows 16, 15, ..., 1 (136),
+/// each row in the air above the one below, side by side along x with their arms along z, all
+/// falling onto each other and a plane. Below scale 1 the pyramid's base shrinks (about
+/// 136 · scale ragdolls); above it, whole pyramids stand side by side along z.
+fn ragdolls(scale: f32) -> Scene {
+    /// Distance between neighbours in a row (m): a little more than a pelvis is wide.
+    const SPACING: f32 = 0.6;
+    /// Height between rows, soles to soles (m): a ragdoll is 1.76 m tall.
+    const ROW_HEIGHT: f32 = 2.0;
+    /// The lowest row's soles start this high (m).
+    const DROP: f32 = 0.5;
+    let (base, copies) = if scale < 1.0 {
+        // Rows n, n − 1, ..., 1 hold n (n + 1) / 2 ragdolls.
+        let target = 136.0 * scale;
+        let base = ((((1.0 + 8.0 * target).sqrt() - 1.0) * 0.5).round() as usize).max(1);
+        (base, 1)
+    } else {
+        (16, scale.round() as usize)
+    };
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    let copy_pitch = 2.0 * RAGDOLL_HALF_SPAN + 1.0;
+    for copy in 0..copies {
+        let z = (copy as f32 - 0.5 * (copies as f32 - 1.0)) * copy_pitch;
+        for row in 0..base {
+            let count = base - row;
+            for i in 0..count {
+                let x = (i as f32 - 0.5 * (count as f32 - 1.0)) * SPACING;
+                let feet = Vec3::new(x, DROP + row as f32 * ROW_HEIGHT, z);
+                add_ragdoll(&mut scene, feet, arms_along_z());
+            }
+        }
+    }
+    scene
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -142,6 +184,11 @@ mod tests {
         );
         let stacked = builtin("stacked-boxes", 1.0).unwrap().bodies.len() - 1;
         assert!((950..=1050).contains(&stacked), "{stacked} boxes");
+        let ragdolls = builtin("ragdolls", 1.0).unwrap();
+        assert_eq!(ragdolls.bodies.len(), 136 * 11 + 1);
+        assert_eq!(ragdolls.joints.len(), 136 * 10);
+        assert_eq!(builtin("ragdolls", 10.0).unwrap().joints.len(), 1360 * 10);
+        assert_eq!(builtin("ragdolls", 0.05).unwrap().joints.len(), 6 * 10);
     }
 
     #[test]

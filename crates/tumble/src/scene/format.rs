@@ -2,10 +2,13 @@
 //! (`bodies[3].shape.box.half_extents: must be > 0, got 0`).
 //!
 //! Beyond DESIGN.md's fields, a dumped scene carries `contacts`: the warm-start impulses of the
-//! persistent contacts, so that loading a dump continues the run bitwise (the impulses are
-//! solver state, as much a part of the world as the velocities).
+//! persistent contacts, and each joint's `state`: its frames in the two bodies (where its angles
+//! are zero), its warm-start impulses and whether it broke. Loading a dump therefore continues
+//! the run bitwise (the impulses are solver state, as much a part of the world as the
+//! velocities). A joint without `state` is made at the bodies' poses in the file.
 
 use crate::dynamics::body::{BodyDesc, BodyError};
+use crate::dynamics::joint::{JointDesc, JointKind, JointState, MAX_ANGULAR_ROWS, Motor};
 use crate::math::{Quat, Vec3};
 use crate::pipeline::config::StepConfig;
 use crate::pipeline::world::World;
@@ -52,9 +55,8 @@ pub struct SceneFile {
     #[serde(default = "default_solver_iterations")]
     pub solver_iterations: u32,
     pub bodies: Vec<BodyFile>,
-    /// Joints arrive with the joints issue; a scene with joints is refused until then.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub joints: Vec<serde_json::Value>,
+    pub joints: Vec<JointFile>,
     /// Warm-start state of persistent contacts (written by dumps).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub contacts: Vec<ContactFile>,
@@ -102,6 +104,122 @@ pub enum ShapeFile {
     },
 }
 
+/// One joint. `anchor` and `axis` are in the world frame at the poses of `bodies`; which of the
+/// optional fields a joint takes depends on its kind (DESIGN.md), and any other is an error.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointFile {
+    pub kind: JointKindFile,
+    pub body_a: BodyReference,
+    pub body_b: BodyReference,
+    /// m.
+    pub anchor: [f32; 3],
+    /// Hinge and cone-twist: the hinge or twist axis (normalized by the loader).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axis: Option<[f32; 3]>,
+    /// Hinge, optional: [lower, upper] angle of B relative to A about the axis (rad).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub limits: Option<[f32; 2]>,
+    /// Hinge, optional.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motor: Option<MotorFile>,
+    /// Cone-twist: largest angle between the two bodies' twist axes (rad).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub swing_limit: Option<f32>,
+    /// Cone-twist: [lower, upper] twist of B relative to A about the axis (rad).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub twist_limits: Option<[f32; 2]>,
+    /// Optional: the joint breaks when its impulse in one sub-step exceeds this (N s).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub break_impulse: Option<f32>,
+    /// Written by dumps (see the module documentation).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub state: Option<JointStateFile>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointKindFile {
+    Point,
+    Hinge,
+    ConeTwist,
+    Fixed,
+}
+
+impl JointKindFile {
+    fn name(self) -> &'static str {
+        match self {
+            JointKindFile::Point => "point",
+            JointKindFile::Hinge => "hinge",
+            JointKindFile::ConeTwist => "cone_twist",
+            JointKindFile::Fixed => "fixed",
+        }
+    }
+}
+
+/// A body named by its index in `bodies` or by its name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BodyReference {
+    Index(usize),
+    Name(String),
+}
+
+impl Serialize for BodyReference {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        match self {
+            BodyReference::Index(index) => serializer.serialize_u64(*index as u64),
+            BodyReference::Name(name) => serializer.serialize_str(name),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for BodyReference {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl serde::de::Visitor<'_> for Visitor {
+            type Value = BodyReference;
+            fn expecting(&self, formatter: &mut std::fmt::Formatter) -> std::fmt::Result {
+                formatter.write_str("a body index (0, 1, ...) or a body name")
+            }
+            fn visit_u64<E: serde::de::Error>(self, index: u64) -> Result<Self::Value, E> {
+                usize::try_from(index)
+                    .map(BodyReference::Index)
+                    .map_err(|_| E::invalid_value(serde::de::Unexpected::Unsigned(index), &self))
+            }
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<Self::Value, E> {
+                Ok(BodyReference::Name(name.to_string()))
+            }
+        }
+        deserializer.deserialize_any(Visitor)
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MotorFile {
+    /// rad/s of B relative to A about the axis.
+    pub target_speed: f32,
+    /// N m, ≥ 0.
+    pub max_torque: f32,
+}
+
+/// [`JointState`] field for field; vectors in the frame of the body they name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointStateFile {
+    pub local_anchor_a: [f32; 3],
+    pub local_anchor_b: [f32; 3],
+    pub local_axis_a: [f32; 3],
+    pub local_axis_b: [f32; 3],
+    pub local_reference_a: [f32; 3],
+    pub local_reference_b: [f32; 3],
+    /// [x, y, z, w]; kept as written (not normalized), so that a dump reloads bitwise.
+    pub relative_rotation: [f32; 4],
+    pub point_impulse: [f32; 3],
+    pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    pub broken: bool,
+}
+
 /// One persistent contact: the two bodies (indices into `bodies`) and its points' impulses.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -143,13 +261,40 @@ fn default_friction() -> f32 {
     0.5
 }
 
-/// A validated scene: step settings, bodies, and warm-start contacts.
+/// A validated scene: step settings, bodies, joints and warm-start contacts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Scene {
     pub config: StepConfig,
     pub bodies: Vec<BodyDesc>,
+    pub joints: Vec<SceneJoint>,
     /// (body index, body index, impulses by feature id).
     pub contacts: Vec<(usize, usize, PairContact)>,
+}
+
+/// A joint of a scene: a [`JointDesc`] whose bodies are indices into [`Scene::bodies`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneJoint {
+    pub kind: JointKind,
+    pub body_a: usize,
+    pub body_b: usize,
+    /// World frame, at the bodies' poses in the scene (m).
+    pub anchor: Vec3,
+    pub break_impulse: Option<f32>,
+    /// Frames and impulses of a dumped joint; `None` makes the joint at the bodies' poses.
+    pub state: Option<JointState>,
+}
+
+impl SceneJoint {
+    pub fn new(kind: JointKind, body_a: usize, body_b: usize, anchor: Vec3) -> Self {
+        Self {
+            kind,
+            body_a,
+            body_b,
+            anchor,
+            break_impulse: None,
+            state: None,
+        }
+    }
 }
 
 impl Scene {
@@ -158,6 +303,7 @@ impl Scene {
         Self {
             config,
             bodies: Vec::new(),
+            joints: Vec::new(),
             contacts: Vec::new(),
         }
     }
@@ -197,12 +343,6 @@ impl Scene {
     /// Validates a parsed scene file.
     pub fn from_file(file: &SceneFile) -> Result<Self, SceneError> {
         let invalid = |field: String, message: String| SceneError::Invalid { field, message };
-        if !file.joints.is_empty() {
-            return Err(invalid(
-                "joints".into(),
-                "joints are not supported yet; remove them to run this scene".into(),
-            ));
-        }
         let config = StepConfig {
             gravity: Vec3::from_array(file.gravity),
             dt: file.dt,
@@ -218,15 +358,21 @@ impl Scene {
         for (i, body) in file.bodies.iter().enumerate() {
             let desc = body_desc(body)
                 .map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
-            if let Some(name) = &desc.name {
-                if !names.insert(name.clone()) {
-                    return Err(invalid(
-                        format!("bodies[{i}].name"),
-                        format!("{name:?} is used by an earlier body; names must be unique"),
-                    ));
-                }
+            if let Some(name) = &desc.name
+                && !names.insert(name.clone())
+            {
+                return Err(invalid(
+                    format!("bodies[{i}].name"),
+                    format!("{name:?} is used by an earlier body; names must be unique"),
+                ));
             }
             bodies.push(desc);
+        }
+        let mut joints = Vec::with_capacity(file.joints.len());
+        for (i, joint) in file.joints.iter().enumerate() {
+            let joint = scene_joint(joint, &bodies)
+                .map_err(|(field, message)| invalid(format!("joints[{i}]{field}"), message))?;
+            joints.push(joint);
         }
         let mut contacts = Vec::with_capacity(file.contacts.len());
         for (i, contact) in file.contacts.iter().enumerate() {
@@ -278,6 +424,7 @@ impl Scene {
         Ok(Scene {
             config,
             bodies,
+            joints,
             contacts,
         })
     }
@@ -297,6 +444,27 @@ impl Scene {
                     message: e.to_string(),
                 })?;
             handles.push(handle);
+        }
+        for (i, joint) in self.joints.iter().enumerate() {
+            let field = format!("joints[{i}]");
+            let bad = |error: crate::JointError| SceneError::Invalid {
+                field: field.clone(),
+                message: error.to_string(),
+            };
+            let (body_a, body_b) = (
+                handles
+                    .get(joint.body_a)
+                    .ok_or_else(|| bad(crate::JointError::StaleBody))?,
+                handles
+                    .get(joint.body_b)
+                    .ok_or_else(|| bad(crate::JointError::StaleBody))?,
+            );
+            let mut desc = JointDesc::new(joint.kind, *body_a, *body_b, joint.anchor);
+            desc.break_impulse = joint.break_impulse;
+            let handle = world.add_joint(desc).map_err(bad)?;
+            if let Some(state) = &joint.state {
+                world.restore_joint_state(handle, state).map_err(bad)?;
+            }
         }
         for (i, &(a, b, contact)) in self.contacts.iter().enumerate() {
             world
@@ -321,6 +489,42 @@ impl Scene {
                 bodies.push(desc);
             }
         }
+        let joints = world
+            .joints()
+            .filter_map(|(_, joint)| {
+                let (a, b) = (joint.body_a, joint.body_b);
+                let body_a = *index_of.get(&world.handle_of(a))?;
+                let body_b = *index_of.get(&world.handle_of(b))?;
+                // Anchor and axis where body A carries them now; the state keeps the frames.
+                let pose_a = &world.poses[a as usize];
+                let axis = pose_a.rotation * joint.local_axis_a;
+                let kind = match joint.kind {
+                    JointKind::Hinge { limits, motor, .. } => JointKind::Hinge {
+                        axis,
+                        limits,
+                        motor,
+                    },
+                    JointKind::ConeTwist {
+                        swing_limit,
+                        twist_limits,
+                        ..
+                    } => JointKind::ConeTwist {
+                        axis,
+                        swing_limit,
+                        twist_limits,
+                    },
+                    other @ (JointKind::Point | JointKind::Fixed) => other,
+                };
+                Some(SceneJoint {
+                    kind,
+                    body_a,
+                    body_b,
+                    anchor: pose_a.transform().transform_point(joint.local_anchor_a),
+                    break_impulse: joint.break_impulse,
+                    state: Some(joint.state()),
+                })
+            })
+            .collect();
         let contacts = world
             .contacts()
             .filter_map(|(a, b, contact)| Some((*index_of.get(&a)?, *index_of.get(&b)?, *contact)))
@@ -328,6 +532,7 @@ impl Scene {
         Scene {
             config: *world.config(),
             bodies,
+            joints,
             contacts,
         }
     }
@@ -340,7 +545,11 @@ impl Scene {
             substeps: self.config.substeps,
             solver_iterations: self.config.solver_iterations,
             bodies: self.bodies.iter().map(body_file).collect(),
-            joints: Vec::new(),
+            joints: self
+                .joints
+                .iter()
+                .map(|joint| joint_file(joint, &self.bodies))
+                .collect(),
             contacts: self
                 .contacts
                 .iter()
@@ -456,4 +665,193 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         friction: desc.friction,
         restitution: desc.restitution,
     }
+}
+
+/// A joint of the file with its bodies resolved against `bodies`, or (field after `joints[i]`,
+/// message) of the first problem.
+fn scene_joint(joint: &JointFile, bodies: &[BodyDesc]) -> Result<SceneJoint, (String, String)> {
+    let resolve = |field: &str, reference: &BodyReference| match reference {
+        BodyReference::Index(index) if *index < bodies.len() => Ok(*index),
+        BodyReference::Index(index) => Err((
+            format!(".{field}"),
+            format!(
+                "body index {index} is out of range: the scene has {} bodies",
+                bodies.len()
+            ),
+        )),
+        BodyReference::Name(name) => bodies
+            .iter()
+            .position(|body| body.name.as_deref() == Some(name.as_str()))
+            .ok_or_else(|| (format!(".{field}"), format!("no body is named {name:?}"))),
+    };
+    let body_a = resolve("body_a", &joint.body_a)?;
+    let body_b = resolve("body_b", &joint.body_b)?;
+    if bodies[body_a].is_static() && bodies[body_b].is_static() {
+        return Err((
+            String::new(),
+            "both bodies are static (mass 0); a joint needs at least one dynamic body".into(),
+        ));
+    }
+
+    // Which optional fields each kind takes: a field the kind does not use is an error rather
+    // than silently ignored, and a field it needs must be there.
+    let kind_name = joint.kind.name();
+    let unused = |field: &str, present: bool| {
+        if present {
+            Err((
+                format!(".{field}"),
+                format!("a {kind_name} joint has no {field}; remove it"),
+            ))
+        } else {
+            Ok(())
+        }
+    };
+    let required = |field: &str| {
+        (
+            format!(".{field}"),
+            format!("a {kind_name} joint needs {field}"),
+        )
+    };
+    let pair = |values: [f32; 2]| (values[0], values[1]);
+    let kind = match joint.kind {
+        JointKindFile::Point | JointKindFile::Fixed => {
+            unused("axis", joint.axis.is_some())?;
+            unused("limits", joint.limits.is_some())?;
+            unused("motor", joint.motor.is_some())?;
+            unused("swing_limit", joint.swing_limit.is_some())?;
+            unused("twist_limits", joint.twist_limits.is_some())?;
+            if joint.kind == JointKindFile::Point {
+                JointKind::Point
+            } else {
+                JointKind::Fixed
+            }
+        }
+        JointKindFile::Hinge => {
+            unused("swing_limit", joint.swing_limit.is_some())?;
+            unused("twist_limits", joint.twist_limits.is_some())?;
+            JointKind::Hinge {
+                axis: Vec3::from_array(joint.axis.ok_or_else(|| required("axis"))?),
+                limits: joint.limits.map(pair),
+                motor: joint.motor.as_ref().map(|motor| Motor {
+                    target_speed: motor.target_speed,
+                    max_torque: motor.max_torque,
+                }),
+            }
+        }
+        JointKindFile::ConeTwist => {
+            unused("limits", joint.limits.is_some())?;
+            unused("motor", joint.motor.is_some())?;
+            JointKind::ConeTwist {
+                axis: Vec3::from_array(joint.axis.ok_or_else(|| required("axis"))?),
+                swing_limit: joint.swing_limit.ok_or_else(|| required("swing_limit"))?,
+                twist_limits: pair(joint.twist_limits.ok_or_else(|| required("twist_limits"))?),
+            }
+        }
+    };
+    // The description's own checks, against stand-in handles: the bodies are known to exist.
+    let handle = |index: usize| crate::BodyHandle {
+        index: index as u32,
+        generation: 0,
+    };
+    let mut desc = JointDesc::new(
+        kind,
+        handle(body_a),
+        handle(body_b),
+        Vec3::from_array(joint.anchor),
+    );
+    desc.break_impulse = joint.break_impulse;
+    desc.validate().map_err(|error| {
+        let field = error
+            .field()
+            .map(|field| format!(".{field}"))
+            .unwrap_or_default();
+        (field, error.requirement())
+    })?;
+
+    let state = joint.state.as_ref().map(|state| JointState {
+        local_anchor_a: Vec3::from_array(state.local_anchor_a),
+        local_anchor_b: Vec3::from_array(state.local_anchor_b),
+        local_axis_a: Vec3::from_array(state.local_axis_a),
+        local_axis_b: Vec3::from_array(state.local_axis_b),
+        local_reference_a: Vec3::from_array(state.local_reference_a),
+        local_reference_b: Vec3::from_array(state.local_reference_b),
+        relative_rotation: Quat::from_array(state.relative_rotation),
+        point_impulse: Vec3::from_array(state.point_impulse),
+        angular_impulse: state.angular_impulse,
+        broken: state.broken,
+    });
+    if state.is_some_and(|state| !state.is_finite()) {
+        return Err((
+            ".state".into(),
+            "must be finite (no NaN or infinity)".into(),
+        ));
+    }
+    Ok(SceneJoint {
+        kind,
+        body_a,
+        body_b,
+        anchor: desc.anchor,
+        break_impulse: joint.break_impulse,
+        state,
+    })
+}
+
+fn joint_file(joint: &SceneJoint, bodies: &[BodyDesc]) -> JointFile {
+    // Named bodies are written by name, which reads better and survives reordering.
+    let reference = |index: usize| match &bodies[index].name {
+        Some(name) => BodyReference::Name(name.clone()),
+        None => BodyReference::Index(index),
+    };
+    let mut file = JointFile {
+        kind: JointKindFile::Point,
+        body_a: reference(joint.body_a),
+        body_b: reference(joint.body_b),
+        anchor: joint.anchor.to_array(),
+        axis: None,
+        limits: None,
+        motor: None,
+        swing_limit: None,
+        twist_limits: None,
+        break_impulse: joint.break_impulse,
+        state: joint.state.as_ref().map(|state| JointStateFile {
+            local_anchor_a: state.local_anchor_a.to_array(),
+            local_anchor_b: state.local_anchor_b.to_array(),
+            local_axis_a: state.local_axis_a.to_array(),
+            local_axis_b: state.local_axis_b.to_array(),
+            local_reference_a: state.local_reference_a.to_array(),
+            local_reference_b: state.local_reference_b.to_array(),
+            relative_rotation: state.relative_rotation.to_array(),
+            point_impulse: state.point_impulse.to_array(),
+            angular_impulse: state.angular_impulse,
+            broken: state.broken,
+        }),
+    };
+    match joint.kind {
+        JointKind::Point => {}
+        JointKind::Fixed => file.kind = JointKindFile::Fixed,
+        JointKind::Hinge {
+            axis,
+            limits,
+            motor,
+        } => {
+            file.kind = JointKindFile::Hinge;
+            file.axis = Some(axis.to_array());
+            file.limits = limits.map(|(lower, upper)| [lower, upper]);
+            file.motor = motor.map(|motor| MotorFile {
+                target_speed: motor.target_speed,
+                max_torque: motor.max_torque,
+            });
+        }
+        JointKind::ConeTwist {
+            axis,
+            swing_limit,
+            twist_limits: (lower, upper),
+        } => {
+            file.kind = JointKindFile::ConeTwist;
+            file.axis = Some(axis.to_array());
+            file.swing_limit = Some(swing_limit);
+            file.twist_limits = Some([lower, upper]);
+        }
+    }
+    file
 }

@@ -3,6 +3,7 @@
 
 pub mod builtin;
 pub mod format;
+pub mod ragdoll;
 
 pub use builtin::{BUILTIN_SCENES, builtin};
 pub use format::{Scene, SceneError, SceneFile};

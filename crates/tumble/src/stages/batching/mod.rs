@@ -177,7 +177,7 @@ mod tests {
                     let a = (next(&mut state) % bodies as u64) as u32;
                     // A quarter of the constraints are against a static body; none of a body with itself.
                     let b = (next(&mut state) % bodies as u64) as u32;
-                    if next(&mut state) % 4 == 0 || a == b {
+                    if next(&mut state).is_multiple_of(4) || a == b {
                         (a, STATIC_BODY)
                     } else {
                         (a, b)

@@ -75,6 +75,74 @@ pub struct JointConstraint {
     /// Accumulated impulses: point part (N s) and angular rows (N m s).
     pub point_impulse: Vec3,
     pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    /// Largest point impulse per sub-step (N s): infinite for joints, max_force · h for a drag.
+    pub max_point_impulse: f32,
+}
+
+/// The `joint` index of the drag constraint (it is no joint of the world).
+pub const DRAG_JOINT: u32 = u32::MAX;
+
+/// A temporary point constraint pulling a body's point towards a moving target (the viewer's
+/// mouse drag), as [`World::set_drag_target`](crate::World::set_drag_target) sets it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Drag {
+    pub body: u32,
+    /// The dragged point in the body's frame (m).
+    pub local_anchor: Vec3,
+    /// Where the point is pulled, world frame (m).
+    pub target: Vec3,
+    /// Largest pull (N).
+    pub max_force: f32,
+    /// Warm-start impulse (N s), kept while the same point is dragged.
+    pub impulse: Vec3,
+}
+
+/// The drag as a point joint whose body A is the static world with the target as its anchor;
+/// `softness` (softer than the joints') lets the point trail a moving target instead of
+/// jumping onto it.
+pub fn drag_constraint(
+    drag: &Drag,
+    poses: &[BodyPose],
+    masses: &[BodyMass],
+    inverse_inertia: &[Mat3],
+    softness: Softness,
+    h: f32,
+) -> JointConstraint {
+    let body = drag.body as usize;
+    let frame = Joint {
+        kind: JointKind::Point,
+        body_a: STATIC_BODY,
+        body_b: drag.body,
+        local_anchor_a: drag.target,
+        local_anchor_b: drag.local_anchor,
+        local_axis_a: Vec3::X,
+        local_axis_b: Vec3::X,
+        local_reference_a: Vec3::Y,
+        local_reference_b: Vec3::Y,
+        relative_rotation: Quat::IDENTITY,
+        break_impulse: None,
+        broken: false,
+        point_impulse: drag.impulse,
+        angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+    };
+    JointConstraint {
+        body_a: STATIC_BODY,
+        body_b: drag.body,
+        joint: DRAG_JOINT,
+        inverse_mass_a: 0.0,
+        inverse_mass_b: masses[body].inverse_mass,
+        inverse_inertia_a: Mat3::ZERO,
+        inverse_inertia_b: inverse_inertia[body],
+        frame,
+        rotation_a: Quat::IDENTITY,
+        rotation_b: poses[body].rotation,
+        // The world frame is A's: its origin is A's centre.
+        center_offset: poses[body].position,
+        softness,
+        point_impulse: drag.impulse,
+        angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+        max_point_impulse: drag.max_force * h,
+    }
 }
 
 /// Builds the constraint of every live, unbroken joint (`None` is a free joint slot).
@@ -116,6 +184,7 @@ pub fn build_joint_constraints(
             softness,
             point_impulse: joint.point_impulse,
             angular_impulse: joint.angular_impulse,
+            max_point_impulse: f32::INFINITY,
         });
     }
 }
@@ -162,26 +231,30 @@ impl JointConstraint {
                 let (b1, b2) = tangent_basis(axis_b);
                 rows[0] = equality(b1.cross(axis_a), axis_a.dot(b1));
                 rows[1] = equality(b2.cross(axis_a), axis_a.dot(b2));
-                if let Some((lower, upper)) = limits {
-                    let angle = twist_angle(joint, q_a, q_b, axis_a, axis_b);
-                    rows[2] = limit(axis_a, angle - lower);
-                    rows[3] = limit(-axis_a, upper - angle);
-                }
+                // The motor before the limits: Gauss-Seidel favours the row solved last, and a
+                // motor driving into a limit must not push past it (Box2D orders them so too).
                 if let Some(motor) = motor {
                     let kind = RowKind::Motor {
                         target_speed: motor.target_speed,
                         max_impulse: motor.max_torque * h,
                     };
-                    rows[4] = AngularRow {
+                    rows[2] = AngularRow {
                         kind,
                         direction: axis_a,
                         error: 0.0,
                     };
                 }
+                if let Some(limits) = limits
+                    && let Some([lower_row, upper_row]) =
+                        twist_limit_rows(joint, q_a, q_b, axis_a, axis_b, limits)
+                {
+                    rows[3] = lower_row;
+                    rows[4] = upper_row;
+                }
             }
             JointKind::ConeTwist {
                 swing_limit,
-                twist_limits: (lower, upper),
+                twist_limits,
                 ..
             } => {
                 let swing_axis = axis_a.cross(axis_b);
@@ -191,13 +264,54 @@ impl JointConstraint {
                     // Swinging further turns B's axis away from A's about a × b.
                     rows[0] = limit(-swing_axis / sin_swing, swing_limit - swing);
                 }
-                let angle = twist_angle(joint, q_a, q_b, axis_a, axis_b);
-                rows[1] = limit(axis_a, angle - lower);
-                rows[2] = limit(-axis_a, upper - angle);
+                if let Some([lower_row, upper_row]) =
+                    twist_limit_rows(joint, q_a, q_b, axis_a, axis_b, twist_limits)
+                {
+                    rows[1] = lower_row;
+                    rows[2] = upper_row;
+                }
             }
         }
         rows
     }
+}
+
+/// The two limit rows on the twist angle φ (lower, then upper), or `None` where φ is undefined
+/// (the axes opposite).
+///
+/// φ does not change at the rate `a·Δω`: turning B about its own axis b changes it as fast as
+/// turning about a, and turning about n = a × b (pure swing) not at all. Hence
+/// `φ̇ = J·(ω_b − ω_a)` with `J = (a + b) / (1 + a·b)` (J·a = J·b = 1, J·n = 0). The rows use
+/// the unit direction d = J/|J| (Bullet's cone-twist uses the same bisector) and express the
+/// distance to the limit along it, `(φ − lower) / |J|`. With `a` alone as the direction, a
+/// swung cone-twist (a shoulder at 1.5 rad) measured its twist rate wrongly, and its limit rows
+/// pumped energy into the limb: ragdoll arms kept flailing on the ground.
+fn twist_limit_rows(
+    joint: &Joint,
+    q_a: Quat,
+    q_b: Quat,
+    axis_a: Vec3,
+    axis_b: Vec3,
+    (lower, upper): (f32, f32),
+) -> Option<[AngularRow; 2]> {
+    let one_plus_cos = 1.0 + axis_a.dot(axis_b);
+    if one_plus_cos < 1e-3 {
+        return None;
+    }
+    let bisector = axis_a + axis_b;
+    let bisector_length = bisector.length();
+    let direction = bisector / bisector_length;
+    let rate = bisector_length / one_plus_cos;
+    let angle = twist_angle(joint, q_a, q_b, axis_a, axis_b);
+    let row = |direction: Vec3, error: f32| AngularRow {
+        kind: RowKind::Limit,
+        direction,
+        error: error / rate,
+    };
+    Some([
+        row(direction, angle - lower),
+        row(-direction, upper - angle),
+    ])
 }
 
 /// Rotation of B relative to A about the axis (rad, in (−π, π]), zero at creation: B's
@@ -218,4 +332,55 @@ pub fn skew(v: Vec3) -> Mat3 {
         Vec3::new(-v.z, 0.0, v.x),
         Vec3::new(v.y, -v.x, 0.0),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::dynamics::joint::JointDesc;
+
+    /// The twist limit rows' direction and error scale match the twist angle's actual rate of
+    /// change, also far from the cone's centre (a finite-difference check).
+    #[test]
+    fn twist_rows_follow_the_twist_rate_at_large_swing() {
+        let handle = |index| crate::BodyHandle {
+            index,
+            generation: 0,
+        };
+        let kind = JointKind::ConeTwist {
+            axis: Vec3::X,
+            swing_limit: 3.0,
+            twist_limits: (-3.0, 3.0),
+        };
+        let desc = JointDesc::new(kind, handle(0), handle(1), Vec3::ZERO);
+        let joint = Joint::new(
+            &desc,
+            (Vec3::ZERO, Quat::IDENTITY),
+            (Vec3::ZERO, Quat::IDENTITY),
+        );
+        let q_a = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.2, 0.5);
+        for swing in [0.0, 0.7, 1.5, 2.5] {
+            let q_b = Quat::from_rotation_z(swing) * Quat::from_rotation_x(0.4) * q_a;
+            let (axis_a, axis_b) = (q_a * joint.local_axis_a, q_b * joint.local_axis_b);
+            let [lower_row, _] =
+                twist_limit_rows(&joint, q_a, q_b, axis_a, axis_b, (-3.0, 3.0)).unwrap();
+            for omega in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -1.0, 0.7)] {
+                let epsilon = 1e-3;
+                let turned = Quat::from_scaled_axis(omega * epsilon) * q_b;
+                let axis_turned = turned * joint.local_axis_b;
+                let measured = (twist_angle(&joint, q_a, turned, axis_a, axis_turned)
+                    - twist_angle(&joint, q_a, q_b, axis_a, axis_b))
+                    / epsilon;
+                // The row's error is the angle's distance divided by |J|, along d = J/|J|.
+                let rate = (lower_row.error
+                    / (twist_angle(&joint, q_a, q_b, axis_a, axis_b) + 3.0))
+                    .recip();
+                let predicted = rate * lower_row.direction.dot(omega);
+                assert!(
+                    (measured - predicted).abs() < 0.02 * (1.0 + predicted.abs()),
+                    "swing {swing}, ω {omega}: error changes at {measured}, row says {predicted}"
+                );
+            }
+        }
+    }
 }

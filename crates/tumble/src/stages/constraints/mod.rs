@@ -7,7 +7,10 @@ pub mod joint;
 pub use contact::{
     ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints, world_inverse_inertia,
 };
-pub use joint::{AngularRow, JointConstraint, RowKind, build_joint_constraints};
+pub use joint::{
+    AngularRow, DRAG_JOINT, Drag, JointConstraint, RowKind, build_joint_constraints,
+    drag_constraint,
+};
 
 /// Body index of a constraint's static side: such a body has zero velocity and infinite mass.
 pub const STATIC_BODY: u32 = u32::MAX;

@@ -84,8 +84,14 @@ pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint, sweep: Sw
         (Vec3::ZERO, 1.0, 0.0)
     };
     if k.determinant().abs() > f32::MIN_POSITIVE {
-        let impulse =
+        let mut impulse =
             -(k.inverse() * (velocity + bias)) * mass_scale - j.point_impulse * impulse_scale;
+        if j.max_point_impulse.is_finite() {
+            // A drag pulls with a bounded force: clamp the accumulated impulse (Box2D's mouse
+            // joint does the same).
+            let total = (j.point_impulse + impulse).clamp_length_max(j.max_point_impulse);
+            impulse = total - j.point_impulse;
+        }
         j.point_impulse += impulse;
         apply_point(j, arm_a, arm_b, impulse, &mut a, &mut b);
     }

@@ -1,0 +1,100 @@
+//! Picking: a body dragged by a point follows a moving target, is limited by the drag's
+//! largest force, and falls when let go.
+mod common;
+use common::*;
+use tumble::World;
+use tumble::math::Vec3;
+
+/// Where the dragged point of `body` is now.
+fn dragged_point(world: &World, body: tumble::BodyHandle, local_anchor: Vec3) -> Vec3 {
+    world.pose(body).unwrap().transform_point(local_anchor)
+}
+
+#[test]
+fn a_dragged_box_follows_the_target() {
+    let mut world = world_with_ground(0.5, 0.0);
+    let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));
+    // A corner of the box, lifted to 2 m, then carried around a circle at 1 m/s.
+    let corner = Vec3::splat(0.5);
+    let max_force = 50.0 * G;
+    let lift = Vec3::new(0.0, 2.0, 0.0);
+    for _ in 0..120 {
+        world
+            .set_drag_target(body, corner, lift, max_force)
+            .unwrap();
+        world.step();
+    }
+    let lifted_error = (dragged_point(&world, body, corner) - lift).length();
+
+    let dt = world.config().dt;
+    let mut worst_error = 0.0f32;
+    let mut target = lift;
+    for step in 0..240 {
+        let angle = step as f32 * dt;
+        target = lift + Vec3::new(angle.sin(), 0.0, 1.0 - angle.cos());
+        world
+            .set_drag_target(body, corner, target, max_force)
+            .unwrap();
+        world.step();
+        worst_error = worst_error.max((dragged_point(&world, body, corner) - target).length());
+    }
+    println!(
+        "drag: {:.1} mm from the lift target after 2 s, worst {:.1} mm behind a target moving \
+         at 1 m/s",
+        lifted_error * 1e3,
+        worst_error * 1e3
+    );
+    assert!(
+        lifted_error < 0.005,
+        "the corner hangs {lifted_error} m from the target"
+    );
+    assert!(worst_error < 0.08, "the corner fell {worst_error} m behind");
+
+    // Let go: it falls back to the ground.
+    world.clear_drag();
+    run(&mut world, 2.0);
+    let height = world.pose(body).unwrap().position.y;
+    assert!(height < 0.6, "the box did not fall: y = {height}");
+    assert!((world.pose(body).unwrap().position - target).length() > 1.0);
+}
+
+#[test]
+fn a_drag_weaker_than_the_weight_cannot_lift_the_box() {
+    let mut world = world_with_ground(0.5, 0.0);
+    let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));
+    // Pulling the centre straight up with half the box's weight.
+    for _ in 0..120 {
+        world
+            .set_drag_target(body, Vec3::ZERO, Vec3::new(0.0, 3.0, 0.0), 0.5 * G)
+            .unwrap();
+        world.step();
+    }
+    let height = world.pose(body).unwrap().position.y;
+    println!("weak drag: the box's centre at {height:.4} m");
+    assert!(
+        (height - 0.5).abs() < 0.01,
+        "a weak drag lifted the box to {height}"
+    );
+}
+
+#[test]
+fn bad_drags_are_errors() {
+    let mut world = world_with_ground(0.5, 0.0);
+    let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));
+    assert!(
+        world
+            .set_drag_target(body, Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), 1.0)
+            .is_err()
+    );
+    assert!(
+        world
+            .set_drag_target(body, Vec3::ZERO, Vec3::ZERO, -1.0)
+            .is_err()
+    );
+    world.remove_body(body).unwrap();
+    assert!(
+        world
+            .set_drag_target(body, Vec3::ZERO, Vec3::ZERO, 1.0)
+            .is_err()
+    );
+}
