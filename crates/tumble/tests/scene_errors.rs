@@ -304,3 +304,9 @@ fn joints_load_by_index_and_by_name() {
     let hinge = world.joints().nth(1).unwrap().1;
     assert!((hinge.local_axis_a.length() - 1.0).abs() < 1e-6);
 }
+
+#[test]
+fn a_scene_file_without_settings_gets_the_engine_defaults() {
+    let scene = Scene::from_json(r#"{ "bodies": [] }"#).unwrap();
+    assert_eq!(scene.config, tumble::StepConfig::default());
+}

@@ -239,17 +239,18 @@ pub struct ContactPointFile {
     pub tangent_impulse: [f32; 2],
 }
 
+// A scene file's defaults are the engine's (`StepConfig::default()`), written once.
 fn default_gravity() -> [f32; 3] {
-    [0.0, -9.81, 0.0]
+    StepConfig::default().gravity.to_array()
 }
 fn default_dt() -> f32 {
-    1.0 / 60.0
+    StepConfig::default().dt
 }
 fn default_substeps() -> u32 {
-    1
+    StepConfig::default().substeps
 }
 fn default_solver_iterations() -> u32 {
-    10
+    StepConfig::default().solver_iterations
 }
 fn default_mass() -> f32 {
     1.0
