@@ -52,8 +52,10 @@ impl World {
 
         // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
         profiler.begin("broadphase");
-        self.broadphase.update(&scratch.aabbs);
-        self.broadphase.find_pairs(&mut scratch.pair_keys);
+        profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
+        profiler.scope("find pairs", || {
+            self.broadphase.find_pairs(&mut scratch.pair_keys)
+        });
         profiler.end();
 
         // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.

@@ -8,15 +8,29 @@
 //! was last (re-)inserted. [`Broadphase::update`] re-inserts a proxy only when the body's AABB
 //! has left its fat box, so a body creeping less than the margin costs one containment test.
 //!
+//! Pairs are found incrementally, with Box2D's *move buffer*. Whether two bodies make a pair
+//! depends only on their fat AABBs, on which tree each is in and on both being present, and
+//! those change only in [`Broadphase::insert`], [`Broadphase::remove`],
+//! [`Broadphase::set_moving`] and a re-insertion by [`Broadphase::update`]. Each of these puts
+//! the body in the move buffer. [`Broadphase::find_pairs`] then queries only the moved bodies
+//! (against both trees) and keeps every pair of its last result that has no moved body, which
+//! is exactly the full result: an unmoved pair's status cannot have changed, and a moved
+//! body's query decides all of its pairs afresh. In a settled pile almost no proxy leaves its
+//! fat box, so a step costs a merge pass over the pairs instead of two queries per body.
+//!
 //! Invariants:
 //! - Every body is in at most one tree, and after [`Broadphase::update`] each proxy's fat AABB
 //!   contains the AABB it was last given.
+//! - The move buffer holds, once each, every body inserted, re-inserted, moved between the
+//!   trees or removed since the last [`Broadphase::find_pairs`]; `in_move_buffer[body]` is true
+//!   exactly for those bodies.
+//! - `pairs` is the last result of [`Broadphase::find_pairs`] (empty before the first call).
 //! - [`Broadphase::find_pairs`] returns exactly the keys
 //!   ([`pair_key`](crate::stages::pairs::pair_key)) of the body pairs whose fat AABBs overlap
 //!   or touch and of which at least one body is moving: each pair once, sorted ascending, no
-//!   duplicates.
+//!   duplicates. The result is the same as querying every moving body, as the tests check.
 //! - That output is bitwise the same for any rayon thread count: tasks only read the trees,
-//!   and the sort fixes the order however the tasks were scheduled.
+//!   and the sort and merge fix the order however the tasks were scheduled.
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
 mod cpu;
@@ -46,8 +60,18 @@ pub struct Broadphase {
     fixed: Dbvt,
     /// Indexed by body; `None` for an index with no body.
     proxies: Vec<Option<BodyProxy>>,
-    /// One pair buffer per task of [`Broadphase::find_pairs`], kept from step to step so that
-    /// their capacity is reused.
+    /// Bodies whose pairs may have changed since the last [`Broadphase::find_pairs`], each
+    /// once, in the order they were marked (see the module documentation).
+    move_buffer: Vec<u32>,
+    /// Indexed by body, as long as `proxies`: whether the body is in `move_buffer`. Removed
+    /// bodies keep their slot, so every body of a key in `pairs` has one.
+    in_move_buffer: Vec<bool>,
+    /// The last result of [`Broadphase::find_pairs`], sorted ascending.
+    pairs: Vec<u64>,
+    /// [`Broadphase::find_pairs`]'s pairs of moved bodies, concatenated and sorted.
+    new_pairs: Vec<u64>,
+    /// One pair buffer per task of [`Broadphase::find_pairs`]. All buffers here are kept from
+    /// step to step so that their capacity is reused.
     task_pairs: Vec<Vec<u64>>,
 }
 
@@ -64,6 +88,10 @@ impl Broadphase {
             moving: Dbvt::new(),
             fixed: Dbvt::new(),
             proxies: Vec::new(),
+            move_buffer: Vec::new(),
+            in_move_buffer: Vec::new(),
+            pairs: Vec::new(),
+            new_pairs: Vec::new(),
             task_pairs: Vec::new(),
         }
     }
@@ -75,10 +103,12 @@ impl Broadphase {
         let index = body as usize;
         if self.proxies.len() <= index {
             self.proxies.resize(index + 1, None);
+            self.in_move_buffer.resize(index + 1, false);
         }
         let fat = aabb.expanded(self.fat_margin);
         let proxy = self.tree_mut(moving).insert(fat, body);
         self.proxies[index] = Some(BodyProxy { proxy, moving });
+        self.mark_moved(body);
     }
 
     /// Removes `body`; returns false if it was not in the broadphase.
@@ -88,6 +118,8 @@ impl Broadphase {
         };
         self.tree_mut(moving).remove(proxy);
         self.proxies[body as usize] = None;
+        // Its pairs must go: find_pairs drops the kept pairs of moved bodies.
+        self.mark_moved(body);
         true
     }
 
@@ -102,6 +134,8 @@ impl Broadphase {
             self.tree_mut(current.moving).remove(current.proxy);
             let proxy = self.tree_mut(moving).insert(fat, body);
             self.proxies[body as usize] = Some(BodyProxy { proxy, moving });
+            // Same fat AABB, but its pairs with fixed bodies appear or go.
+            self.mark_moved(body);
         }
         true
     }
@@ -117,17 +151,33 @@ impl Broadphase {
     ///
     /// Panics if `aabbs` is shorter than the highest body index in the broadphase + 1.
     pub fn update(&mut self, aabbs: &[Aabb]) -> usize {
+        let Self {
+            fat_margin,
+            moving: moving_tree,
+            fixed: fixed_tree,
+            proxies,
+            move_buffer,
+            in_move_buffer,
+            ..
+        } = self;
         let mut reinserted = 0;
-        for (body, slot) in self.proxies.iter().enumerate() {
+        for (body, slot) in proxies.iter().enumerate() {
             let Some(BodyProxy { proxy, moving }) = *slot else {
                 continue;
             };
             let tree = if moving {
-                &mut self.moving
+                &mut *moving_tree
             } else {
-                &mut self.fixed
+                &mut *fixed_tree
             };
-            reinserted += usize::from(tree.update(proxy, aabbs[body], self.fat_margin));
+            if tree.update(proxy, aabbs[body], *fat_margin) {
+                reinserted += 1;
+                if !in_move_buffer[body] {
+                    in_move_buffer[body] = true;
+                    // Lossless: bodies enter the broadphase by u32 index.
+                    move_buffer.push(body as u32);
+                }
+            }
         }
         reinserted
     }
@@ -150,6 +200,15 @@ impl Broadphase {
 
     pub fn is_empty(&self) -> bool {
         self.len() == 0
+    }
+
+    /// Puts `body` in the move buffer, once. `body` must have a slot in `in_move_buffer`.
+    fn mark_moved(&mut self, body: u32) {
+        let flag = &mut self.in_move_buffer[body as usize];
+        if !*flag {
+            *flag = true;
+            self.move_buffer.push(body);
+        }
     }
 
     fn proxy(&self, body: u32) -> Option<BodyProxy> {
@@ -210,6 +269,42 @@ mod tests {
         pairs
     }
 
+    /// The pairs found the non-incremental way: every moving body queried against both trees
+    /// (the algorithm `find_pairs` replaced). The incremental result must equal it.
+    fn full_query_pairs(broadphase: &Broadphase) -> Vec<u64> {
+        let mut pairs = Vec::new();
+        for (body, slot) in broadphase.proxies.iter().enumerate() {
+            let Some(BodyProxy {
+                proxy,
+                moving: true,
+            }) = *slot
+            else {
+                continue;
+            };
+            let body = body as u32;
+            let fat = broadphase.moving.fat_aabb(proxy);
+            broadphase.moving.query(&fat, |other| {
+                if other > body {
+                    pairs.push(pair_key(body, other));
+                }
+                true
+            });
+            broadphase.fixed.query(&fat, |other| {
+                pairs.push(pair_key(body, other));
+                true
+            });
+        }
+        pairs.sort_unstable();
+        pairs
+    }
+
+    /// The move buffer is empty and its flags are all clear, as `find_pairs` leaves them.
+    fn assert_move_buffer_empty(broadphase: &Broadphase) {
+        assert!(broadphase.move_buffer.is_empty());
+        assert!(broadphase.in_move_buffer.iter().all(|&moved| !moved));
+        assert_eq!(broadphase.in_move_buffer.len(), broadphase.proxies.len());
+    }
+
     fn assert_find_pairs_exact(broadphase: &mut Broadphase) -> Vec<u64> {
         broadphase.moving.validate();
         broadphase.fixed.validate();
@@ -226,6 +321,8 @@ mod tests {
             );
         }
         assert_eq!(single, brute_force_pairs(broadphase));
+        assert_eq!(single, full_query_pairs(broadphase));
+        assert_move_buffer_empty(broadphase);
         single
     }
 
@@ -308,6 +405,147 @@ mod tests {
         }
     }
 
+    /// Many steps of a churning scene, each step's incremental `find_pairs` (on 1, 2 or 3
+    /// threads) checked against the full query: bodies creep inside their fat box, leave it,
+    /// teleport (fixed ones too), swap trees, are replaced, removed and inserted (sometimes
+    /// the same index in one step), the margin changes, and some steps update twice or skip
+    /// `find_pairs` so that the move buffer spans several updates.
+    #[test]
+    fn incremental_pairs_equal_full_query_over_many_steps() {
+        const COUNT: usize = 600;
+        const STEPS: usize = 150;
+        let mut rng = TestRng::new(17);
+        let world = (COUNT as f32 * 7.0).cbrt();
+        let body_count = COUNT + COUNT / 4;
+        let mut aabbs = vec![Aabb::default(); body_count];
+        let mut present = vec![false; body_count];
+        let mut broadphase = Broadphase::new();
+        for body in 0..COUNT {
+            present[body] = true;
+            aabbs[body] = rng.aabb(world);
+            broadphase.insert(body as u32, aabbs[body], rng.below(3) != 0);
+        }
+        let shift = |aabb: Aabb, offset: Vec3| Aabb::new(aabb.min + offset, aabb.max + offset);
+        let mut previous: Vec<u64> = Vec::new();
+        let (mut added, mut removed, mut moved_bodies, mut checks) = (0, 0, 0, 0);
+        for step in 0..STEPS {
+            match step {
+                50 => broadphase.fat_margin = 0.0,
+                65 => broadphase.fat_margin = 0.25,
+                _ => {}
+            }
+            let updates = if step % 7 == 3 { 2 } else { 1 };
+            for _ in 0..updates {
+                for body in 0..body_count {
+                    if !present[body] {
+                        continue;
+                    }
+                    let moving = broadphase.is_moving(body as u32) == Some(true);
+                    let offset = match rng.below(100) {
+                        // Fixed bodies are teleported now and then, and otherwise stay.
+                        0 => rng.vec3(-0.3 * world, 0.3 * world),
+                        _ if !moving => Vec3::ZERO,
+                        1..=20 => rng.vec3(-0.3, 0.3),
+                        _ => rng.vec3(-0.03, 0.03),
+                    };
+                    aabbs[body] = shift(aabbs[body], offset);
+                }
+                broadphase.update(&aabbs);
+            }
+            for _ in 0..rng.below(8) {
+                let body = rng.below(body_count);
+                if present[body] {
+                    broadphase.set_moving(body as u32, rng.below(2) == 0);
+                }
+            }
+            for _ in 0..rng.below(6) {
+                let body = rng.below(body_count);
+                match (present[body], rng.below(3)) {
+                    (true, 0) => {
+                        // Replaced where it is, possibly into the other tree.
+                        broadphase.insert(body as u32, aabbs[body], rng.below(2) == 0);
+                    }
+                    (true, 1) => {
+                        // Removed, and its index reused elsewhere in the same step.
+                        assert!(broadphase.remove(body as u32));
+                        aabbs[body] = rng.aabb(world);
+                        broadphase.insert(body as u32, aabbs[body], rng.below(3) != 0);
+                    }
+                    (true, _) => {
+                        assert!(broadphase.remove(body as u32));
+                        present[body] = false;
+                    }
+                    (false, _) => {
+                        aabbs[body] = rng.aabb(world);
+                        broadphase.insert(body as u32, aabbs[body], rng.below(3) != 0);
+                        present[body] = true;
+                    }
+                }
+            }
+            if step % 11 == 5 {
+                // No find_pairs this step: the next call sees two steps of changes.
+                continue;
+            }
+            moved_bodies += broadphase.move_buffer.len();
+            checks += 1;
+            let expected = full_query_pairs(&broadphase);
+            let pairs = find_pairs_with_threads(&mut broadphase, 1 + step % 3);
+            assert_eq!(pairs, expected, "step {step}");
+            assert_move_buffer_empty(&broadphase);
+            if step % 25 == 0 {
+                broadphase.moving.validate();
+                broadphase.fixed.validate();
+                assert_eq!(pairs, brute_force_pairs(&broadphase), "step {step}");
+            }
+            added += pairs
+                .iter()
+                .filter(|key| previous.binary_search(key).is_err())
+                .count();
+            removed += previous
+                .iter()
+                .filter(|key| pairs.binary_search(key).is_err())
+                .count();
+            previous = pairs;
+        }
+        // The scene must exercise both sides of the merge, and the incremental path must have
+        // queried far fewer bodies than the full query would.
+        assert!(
+            added > 100 && removed > 100,
+            "added {added}, removed {removed}"
+        );
+        assert!(
+            moved_bodies < checks * COUNT / 2,
+            "{moved_bodies} moved in {checks} calls"
+        );
+    }
+
+    #[test]
+    fn removed_replaced_and_swapped_bodies_update_kept_pairs() {
+        let mut broadphase = Broadphase::new();
+        let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+        let far = Aabb::new(Vec3::splat(10.0), Vec3::splat(11.0));
+        broadphase.insert(0, unit, true);
+        broadphase.insert(1, unit, true);
+        broadphase.insert(2, unit, false);
+        let all = [pair_key(0, 1), pair_key(0, 2), pair_key(1, 2)];
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), all);
+        // Nothing changed: the kept pairs alone are the answer.
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), all);
+        assert!(broadphase.remove(1));
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(0, 2)]);
+        // Index 1 comes back far away, then body 0 joins the fixed tree: no pair is left.
+        broadphase.insert(1, far, true);
+        assert!(broadphase.set_moving(0, false));
+        assert!(assert_find_pairs_exact(&mut broadphase).is_empty());
+        // Body 2 is replaced by a moving body at the same place: it pairs with 0 again.
+        broadphase.insert(2, unit, true);
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(0, 2)]);
+        // Removed and inserted again between two calls: the pair stays.
+        assert!(broadphase.remove(0));
+        broadphase.insert(0, unit, false);
+        assert_eq!(assert_find_pairs_exact(&mut broadphase), [pair_key(0, 2)]);
+    }
+
     #[test]
     fn two_bodies_pair_unless_both_fixed() {
         let mut broadphase = Broadphase::new();
@@ -386,11 +624,28 @@ mod tests {
         let capacities = |broadphase: &Broadphase, pairs: &Vec<u64>| {
             let mut capacities: Vec<usize> =
                 broadphase.task_pairs.iter().map(Vec::capacity).collect();
-            capacities.push(pairs.capacity());
+            capacities.extend([pairs, &broadphase.pairs, &broadphase.new_pairs].map(Vec::capacity));
+            capacities.push(broadphase.move_buffer.capacity());
             capacities
         };
+        // The first call queried every body; a second one, with every body moved again,
+        // needs no more room.
+        let aabbs: Vec<Aabb> = (0..500)
+            .map(|body| broadphase.fat_aabb(body).unwrap())
+            .collect();
+        let shifted: Vec<Aabb> = aabbs
+            .iter()
+            .map(|aabb| Aabb::new(aabb.min + Vec3::X, aabb.max + Vec3::X))
+            .collect();
+        broadphase.update(&shifted);
+        broadphase.find_pairs(&mut pairs);
         let warmed = capacities(&broadphase, &pairs);
         let first = pairs.clone();
+        // Nothing moved, then everything moved back and forth: same pairs, same buffers.
+        broadphase.find_pairs(&mut pairs);
+        assert_eq!(pairs, first);
+        broadphase.update(&aabbs);
+        broadphase.update(&shifted);
         broadphase.find_pairs(&mut pairs);
         assert_eq!(pairs, first);
         assert_eq!(capacities(&broadphase, &pairs), warmed);
