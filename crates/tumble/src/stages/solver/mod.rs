@@ -100,8 +100,19 @@ pub(crate) struct Sweep {
 
 /// CPU executor: the whole soft step; `bodies` come in with the step-start velocities and
 /// zero deltas and leave with the final velocities and the step's deltas.
+///
+/// # Panics
+///
+/// If a constraint names a body past `bodies` (other than [`STATIC_BODY`]).
 pub fn solve(bodies: &mut [SolverBody], batched: &mut Batched, settings: SolverSettings) {
     let body_count = bodies.len();
+    // Checked once here rather than at each body access in the sweeps (see `BodyAccess`).
+    let in_range = |body: u32| body == STATIC_BODY || (body as usize) < body_count;
+    assert!(
+        batched.contacts.iter().all(|c| in_range(c.body_a) && in_range(c.body_b))
+            && batched.joints.iter().all(|j| in_range(j.body_a) && in_range(j.body_b)),
+        "a constraint names a body that is not in the solver's body array"
+    );
     let step = Step {
         bodies: BodyAccess(bodies.as_mut_ptr(), body_count),
         contacts: Shared::new(batched.contacts),
@@ -415,15 +426,17 @@ impl BodyAccess {
         if index == STATIC_BODY {
             return SolverBody::STATIC;
         }
-        assert!((index as usize) < self.1);
-        // SAFETY: in bounds (checked above); no concurrent writer to this body (see the Sync impl).
+        // In bounds: `solve` checked every constraint's bodies on entry, and the sweeps reach
+        // bodies only through their constraints. (An assert here cost X of the solver.)
+        debug_assert!((index as usize) < self.1);
+        // SAFETY: in bounds (above); no concurrent writer to this body (see the Sync impl).
         unsafe { *self.0.add(index as usize) }
     }
 
     #[inline]
     pub(super) fn store(self, index: u32, body: &SolverBody) {
         if index != STATIC_BODY {
-            assert!((index as usize) < self.1);
+            debug_assert!((index as usize) < self.1);
             // SAFETY: as in `load`.
             unsafe { *self.0.add(index as usize) = *body }
         }
