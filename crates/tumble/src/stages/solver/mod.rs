@@ -96,6 +96,11 @@ pub(crate) struct Sweep {
     /// Remove position errors (solve) or not (relax).
     pub use_bias: bool,
     pub max_push_velocity: f32,
+    /// The bodies moved since the last sweep: recompute the contact separations (two
+    /// quaternion rotations per point) and keep them. Positions change only between the solve
+    /// and relax sweeps of a sub-step, so the solve sweeps after the first reuse the last
+    /// relax sweep's separations: 9 computations a step instead of 16. Saves X.
+    pub moved: bool,
 }
 
 /// CPU executor: the whole soft step; `bodies` come in with the step-start velocities and
@@ -163,20 +168,28 @@ impl Step<'_> {
             h,
             use_bias: true,
             max_push_velocity: settings.max_push_velocity,
+            moved: false,
         };
         let relax = Sweep {
             use_bias: false,
+            moved: true,
             ..solve
         };
         let access = self.bodies;
-        for _ in 0..settings.substeps {
+        for substep in 0..settings.substeps {
             self.for_each_body(worker, |body| integrate_velocity(body, settings.gravity, h));
             self.sweep(
                 worker,
                 |c| contact::warm_start(access, c),
                 |j| joint::warm_start(access, j, h),
             );
-            for _ in 0..settings.iterations {
+            for iteration in 0..settings.iterations {
+                // The constraints were built at the step-start positions; from then on the last
+                // relax sweep has the current separations.
+                let solve = Sweep {
+                    moved: substep == 0 && iteration == 0,
+                    ..solve
+                };
                 self.sweep(
                     worker,
                     |c| contact::solve_contact(access, c, solve),
