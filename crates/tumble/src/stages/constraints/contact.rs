@@ -59,6 +59,9 @@ pub struct ConstraintPoint {
     pub anchor_b: Vec3,
     /// s₀ − n·(r_a − r_b): with the body deltas, gives the current separation (m).
     pub adjusted_separation: f32,
+    /// Current separation (m): s₀ here; the solver recomputes it whenever the bodies have moved
+    /// and reuses it in the sweeps that see the same positions.
+    pub separation: f32,
     /// Normal velocity before the solve (m/s), for restitution.
     pub approach_velocity: f32,
     /// Largest normal impulse applied this step (N·s): restitution applies only to points
@@ -193,6 +196,7 @@ fn build_constraint(
             anchor_a: r_a,
             anchor_b: r_b,
             adjusted_separation: point.separation - normal.dot(r_a - r_b),
+            separation: point.separation,
             approach_velocity,
             max_normal_impulse: 0.0,
         };

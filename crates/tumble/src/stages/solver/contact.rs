@@ -68,9 +68,13 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep
     let displacement =
         |body: &SolverBody, anchor: Vec3| body.delta_position + body.delta_rotation * anchor;
     for point in &mut c.points[..count] {
-        // Current separation from the bodies' motion during the step (the Jacobian stays fixed).
-        let moved = displacement(&a, point.anchor_a) - displacement(&b, point.anchor_b);
-        let separation = n.dot(moved) + point.adjusted_separation;
+        // Current separation from the bodies' motion during the step (the Jacobian stays fixed),
+        // or the one kept from the last sweep when the bodies have not moved since.
+        if sweep.moved {
+            let moved = displacement(&a, point.anchor_a) - displacement(&b, point.anchor_b);
+            point.separation = n.dot(moved) + point.adjusted_separation;
+        }
+        let separation = point.separation;
         let (bias, mass_scale, impulse_scale) = bias_terms(separation, c.softness, sweep);
         // Non-penetration: normal velocity ≥ −bias, accumulated impulse ≥ 0.
         let row = &point.normal;

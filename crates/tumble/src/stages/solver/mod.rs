@@ -32,7 +32,7 @@ mod joint;
 use crate::math::{Quat, Vec3};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, STATIC_BODY};
 use crate::stages::integrate::{clamp_rotation, integrate_rotation};
-use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A body as the solver moves it during one step. 64 bytes, WGSL-aligned (repr(C), Pod).
 #[repr(C)]
@@ -62,10 +62,6 @@ impl SolverBody {
         delta_rotation: Quat::IDENTITY,
     };
 }
-
-/// Constraints per rayon task inside one batch.
-const MIN_CONSTRAINTS_PER_TASK: usize = 128;
-const MIN_BODIES_PER_TASK: usize = 512;
 
 /// Solver settings for one step.
 #[derive(Clone, Copy, Debug)]
@@ -100,95 +96,212 @@ pub(crate) struct Sweep {
     /// Remove position errors (solve) or not (relax).
     pub use_bias: bool,
     pub max_push_velocity: f32,
+    /// The bodies moved since the last sweep: recompute the contact separations (two
+    /// quaternion rotations per point) and keep them. Positions change only between the solve
+    /// and relax sweeps of a sub-step, so the solve sweeps after the first reuse the last
+    /// relax sweep's separations: 9 computations a step instead of 16. Saves X.
+    pub moved: bool,
 }
 
 /// CPU executor: the whole soft step; `bodies` come in with the step-start velocities and
 /// zero deltas and leave with the final velocities and the step's deltas.
+///
+/// # Panics
+///
+/// If a constraint names a body past `bodies` (other than [`STATIC_BODY`]).
 pub fn solve(bodies: &mut [SolverBody], batched: &mut Batched, settings: SolverSettings) {
-    let access = BodyAccess(bodies.as_mut_ptr(), bodies.len());
-    let h = settings.dt / settings.substeps as f32;
-    let solve = Sweep {
-        h,
-        use_bias: true,
-        max_push_velocity: settings.max_push_velocity,
+    let body_count = bodies.len();
+    // Checked once here rather than at each body access in the sweeps (see `BodyAccess`).
+    let in_range = |body: u32| body == STATIC_BODY || (body as usize) < body_count;
+    assert!(
+        batched.contacts.iter().all(|c| in_range(c.body_a) && in_range(c.body_b))
+            && batched.joints.iter().all(|j| in_range(j.body_a) && in_range(j.body_b)),
+        "a constraint names a body that is not in the solver's body array"
+    );
+    let step = Step {
+        bodies: BodyAccess(bodies.as_mut_ptr(), body_count),
+        contacts: Shared::new(batched.contacts),
+        contact_offsets: batched.contact_offsets,
+        joints: Shared::new(batched.joints),
+        joint_offsets: batched.joint_offsets,
+        has_overflow: batched.has_overflow,
+        restitution: batched.contacts.iter().any(|c| c.restitution > 0.0),
+        settings,
     };
-    let relax = Sweep {
-        use_bias: false,
-        ..solve
-    };
-    for _ in 0..settings.substeps {
-        integrate_velocities(bodies, settings.gravity, h);
-        for_each_batch(
-            batched,
-            |c| contact::warm_start(access, c),
-            |j| joint::warm_start(access, j, h),
-        );
-        for _ in 0..settings.iterations {
-            for_each_batch(
-                batched,
-                |c| contact::solve_contact(access, c, solve),
-                |j| joint::solve_joint(access, j, solve),
+    let threads = rayon::current_num_threads();
+    if threads == 1 {
+        step.run(&mut Worker::alone());
+        return;
+    }
+    // One rayon scope for the whole step: every worker walks the same schedule and claims
+    // blocks of each stage (see `Worker`). A parallel iterator per batch instead cost a
+    // fork-join with wake-ups for each of the ~500 stages of a step.
+    let team = Team::default();
+    rayon::scope(|scope| {
+        for _ in 1..threads {
+            scope.spawn(|_| step.run(&mut Worker::in_team(&team)));
+        }
+        step.run(&mut Worker::in_team(&team));
+    });
+}
+
+/// What every worker of a step shares: the bodies, the batched constraints (through raw
+/// pointers, see [`Shared`]) and the settings.
+struct Step<'a> {
+    bodies: BodyAccess,
+    contacts: Shared<ContactConstraint>,
+    contact_offsets: &'a [u32],
+    joints: Shared<JointConstraint>,
+    joint_offsets: &'a [u32],
+    has_overflow: bool,
+    restitution: bool,
+    settings: SolverSettings,
+}
+
+impl Step<'_> {
+    /// The soft step's schedule. Every worker runs it; `worker.stage` hands each block of a
+    /// stage to exactly one worker and starts a stage only when the one before it is done.
+    fn run(&self, worker: &mut Worker) {
+        let settings = self.settings;
+        let h = settings.dt / settings.substeps as f32;
+        let solve = Sweep {
+            h,
+            use_bias: true,
+            max_push_velocity: settings.max_push_velocity,
+            moved: false,
+        };
+        let relax = Sweep {
+            use_bias: false,
+            moved: true,
+            ..solve
+        };
+        let access = self.bodies;
+        for substep in 0..settings.substeps {
+            self.for_each_body(worker, |body| integrate_velocity(body, settings.gravity, h));
+            self.sweep(
+                worker,
+                |c| contact::warm_start(access, c),
+                |j| joint::warm_start(access, j, h),
+            );
+            for iteration in 0..settings.iterations {
+                // The constraints were built at the step-start positions; from then on the last
+                // relax sweep has the current separations.
+                let solve = Sweep {
+                    moved: substep == 0 && iteration == 0,
+                    ..solve
+                };
+                self.sweep(
+                    worker,
+                    |c| contact::solve_contact(access, c, solve),
+                    |j| joint::solve_joint(access, j, solve),
+                );
+            }
+            self.for_each_body(worker, |body| integrate_position(body, h));
+            self.sweep(
+                worker,
+                |c| contact::solve_contact(access, c, relax),
+                |j| joint::solve_joint(access, j, relax),
             );
         }
-        integrate_positions(bodies, h);
-        for_each_batch(
-            batched,
-            |c| contact::solve_contact(access, c, relax),
-            |j| joint::solve_joint(access, j, relax),
-        );
+        if self.restitution {
+            let threshold = settings.restitution_threshold;
+            self.sweep(
+                worker,
+                |c| contact::apply_restitution(access, c, threshold),
+                |_| {},
+            );
+        }
     }
-    if batched.contacts.iter().any(|c| c.restitution > 0.0) {
-        let threshold = settings.restitution_threshold;
-        for_each_batch(
-            batched,
-            |c| contact::apply_restitution(access, c, threshold),
-            |_| {},
-        );
+
+    /// One stage over the bodies, in blocks of [`BODIES_PER_BLOCK`].
+    fn for_each_body(&self, worker: &mut Worker, f: impl Fn(&mut SolverBody)) {
+        let count = self.bodies.1;
+        worker.stage(count.div_ceil(BODIES_PER_BLOCK), |block| {
+            let start = block * BODIES_PER_BLOCK;
+            let end = (start + BODIES_PER_BLOCK).min(count);
+            // SAFETY: the blocks of a stage are disjoint and no constraint runs in this stage.
+            unsafe { self.bodies.slice(start..end) }
+                .iter_mut()
+                .for_each(&f);
+        });
+    }
+
+    /// Runs `on_contact` and `on_joint` on every constraint, batch after batch. A batch large
+    /// enough to fill two blocks is one stage whose blocks run in parallel; runs of smaller
+    /// batches (the tail of the coloring) and the overflow batch are one stage of one block,
+    /// solved in order. Contacts and joints of one batch share no dynamic body, so their order
+    /// inside a batch does not change the result: any thread count gives the same bits.
+    fn sweep(
+        &self,
+        worker: &mut Worker,
+        on_contact: impl Fn(&mut ContactConstraint),
+        on_joint: impl Fn(&mut JointConstraint),
+    ) {
+        let batch_count = self.contact_offsets.len().saturating_sub(1);
+        let contacts_of = |batch| range(self.contact_offsets, batch);
+        let joints_of = |batch| range(self.joint_offsets, batch);
+        // SAFETY (both closures): a block's constraints are touched by no other block of its
+        // stage, and stages are ordered by `Worker::stage`.
+        let in_order = |batches: std::ops::Range<usize>| {
+            for batch in batches {
+                unsafe { self.contacts.slice(contacts_of(batch)) }
+                    .iter_mut()
+                    .for_each(&on_contact);
+                unsafe { self.joints.slice(joints_of(batch)) }
+                    .iter_mut()
+                    .for_each(&on_joint);
+            }
+        };
+        let mut small_from = 0;
+        for batch in 0..batch_count {
+            let (contacts, joints) = (contacts_of(batch), joints_of(batch));
+            let overflow = self.has_overflow && batch + 1 == batch_count;
+            if overflow || contacts.len() + joints.len() < 2 * CONTACTS_PER_BLOCK {
+                continue;
+            }
+            if small_from < batch {
+                worker.stage(1, |_| in_order(small_from..batch));
+            }
+            small_from = batch + 1;
+            let contact_blocks = contacts.len().div_ceil(CONTACTS_PER_BLOCK);
+            let joint_blocks = joints.len().div_ceil(JOINTS_PER_BLOCK);
+            worker.stage(contact_blocks + joint_blocks, |block| {
+                if block < contact_blocks {
+                    let start = contacts.start + block * CONTACTS_PER_BLOCK;
+                    let end = (start + CONTACTS_PER_BLOCK).min(contacts.end);
+                    unsafe { self.contacts.slice(start..end) }
+                        .iter_mut()
+                        .for_each(&on_contact);
+                } else {
+                    let start = joints.start + (block - contact_blocks) * JOINTS_PER_BLOCK;
+                    let end = (start + JOINTS_PER_BLOCK).min(joints.end);
+                    unsafe { self.joints.slice(start..end) }
+                        .iter_mut()
+                        .for_each(&on_joint);
+                }
+            });
+        }
+        if small_from < batch_count {
+            worker.stage(1, |_| in_order(small_from..batch_count));
+        }
     }
 }
 
-/// Gravity into the velocities of dynamic bodies.
-fn integrate_velocities(bodies: &mut [SolverBody], gravity: Vec3, h: f32) {
-    bodies
-        .par_iter_mut()
-        .with_min_len(MIN_BODIES_PER_TASK)
-        .for_each(|body| {
-            if body.inverse_mass > 0.0 {
-                body.linear_velocity += gravity * h;
-            }
-        });
+/// Gravity into the velocity of a dynamic body.
+#[inline]
+fn integrate_velocity(body: &mut SolverBody, gravity: Vec3, h: f32) {
+    if body.inverse_mass > 0.0 {
+        body.linear_velocity += gravity * h;
+    }
 }
 
-/// Velocities into the delta positions and rotations of dynamic bodies.
-fn integrate_positions(bodies: &mut [SolverBody], h: f32) {
-    bodies
-        .par_iter_mut()
-        .with_min_len(MIN_BODIES_PER_TASK)
-        .for_each(|body| {
-            if body.inverse_mass > 0.0 {
-                body.angular_velocity = clamp_rotation(body.angular_velocity, h);
-                body.delta_position += body.linear_velocity * h;
-                body.delta_rotation =
-                    integrate_rotation(body.delta_rotation, body.angular_velocity, h);
-            }
-        });
-}
-
-/// Runs `on_contact` and `on_joint` on every constraint, batch after batch; a batch in parallel
-/// unless it is the overflow batch or too small to be worth splitting. Contacts and joints of
-/// one batch share no dynamic body, so their order inside a batch does not change the result.
-fn for_each_batch(
-    batched: &mut Batched,
-    on_contact: impl Fn(&mut ContactConstraint) + Sync,
-    on_joint: impl Fn(&mut JointConstraint) + Sync,
-) {
-    let batch_count = batched.contact_offsets.len().saturating_sub(1);
-    for batch in 0..batch_count {
-        let overflow = batched.has_overflow && batch + 1 == batch_count;
-        let contacts = &mut batched.contacts[range(batched.contact_offsets, batch)];
-        run_batch(contacts, overflow, &on_contact);
-        let joints = &mut batched.joints[range(batched.joint_offsets, batch)];
-        run_batch(joints, overflow, &on_joint);
+/// The velocity of a dynamic body into its delta position and rotation.
+#[inline]
+fn integrate_position(body: &mut SolverBody, h: f32) {
+    if body.inverse_mass > 0.0 {
+        body.angular_velocity = clamp_rotation(body.angular_velocity, h);
+        body.delta_position += body.linear_velocity * h;
+        body.delta_rotation = integrate_rotation(body.delta_rotation, body.angular_velocity, h);
     }
 }
 
@@ -196,14 +309,117 @@ fn range(offsets: &[u32], batch: usize) -> std::ops::Range<usize> {
     offsets[batch] as usize..offsets[batch + 1] as usize
 }
 
-fn run_batch<T: Send>(items: &mut [T], overflow: bool, f: &(impl Fn(&mut T) + Sync)) {
-    if overflow || items.len() < 2 * MIN_CONSTRAINTS_PER_TASK {
-        items.iter_mut().for_each(f);
-    } else {
-        items
-            .par_iter_mut()
-            .with_min_len(MIN_CONSTRAINTS_PER_TASK)
-            .for_each(f);
+/// Contacts per block, the unit of work a worker claims. TODO measured
+const CONTACTS_PER_BLOCK: usize = 64;
+/// Joints per block: a joint costs about twice a 4-point contact.
+const JOINTS_PER_BLOCK: usize = 32;
+const BODIES_PER_BLOCK: usize = 1024;
+
+/// The counters a team of workers shares during one step. The stages of the step are numbered
+/// block after block, stage after stage (in the order of [`Step::run`]); a worker claims the
+/// next block number, waits until every block of the stages before that block's stage is done,
+/// runs it and counts it done. So the blocks of one stage run in parallel, a stage starts only
+/// after the previous one ended, and no worker waits for another that has nothing to do (a
+/// preempted or late worker just finds the stages it missed claimed); the counters are the
+/// only synchronization (Box2D v3's solver stages work the same way).
+///
+/// Deadlock-free: the lowest unfinished block was claimed by a worker whose wait is over, since
+/// all blocks before it are done.
+#[derive(Default)]
+struct Team {
+    next_block: CacheLine<AtomicUsize>,
+    done_blocks: CacheLine<AtomicUsize>,
+}
+
+/// Keeps its value alone on a cache line, so the two counters do not slow each other down.
+#[derive(Default)]
+#[repr(align(128))]
+struct CacheLine<T>(T);
+
+/// One worker's walk through the stages of a step.
+struct Worker<'a> {
+    team: Option<&'a Team>,
+    /// Number of the first block of the current stage.
+    stage_start: usize,
+    /// The block this worker claimed and has not run yet (≥ `stage_start`).
+    claimed: usize,
+}
+
+impl<'a> Worker<'a> {
+    /// The only worker: runs every block in order.
+    fn alone() -> Self {
+        Self {
+            team: None,
+            stage_start: 0,
+            claimed: 0,
+        }
+    }
+
+    fn in_team(team: &'a Team) -> Self {
+        Self {
+            team: Some(team),
+            stage_start: 0,
+            claimed: team.next_block.0.fetch_add(1, Ordering::Relaxed),
+        }
+    }
+
+    /// The next stage, of `blocks` blocks: runs `run(block)` for the blocks this worker claims,
+    /// each after the previous stages have ended.
+    fn stage(&mut self, blocks: usize, run: impl Fn(usize)) {
+        let Some(team) = self.team else {
+            (0..blocks).for_each(run);
+            return;
+        };
+        let end = self.stage_start + blocks;
+        while self.claimed < end {
+            wait_until(&team.done_blocks.0, self.stage_start);
+            run(self.claimed - self.stage_start);
+            // Release: the block's writes happen before any block of a later stage starts.
+            team.done_blocks.0.fetch_add(1, Ordering::Release);
+            self.claimed = team.next_block.0.fetch_add(1, Ordering::Relaxed);
+        }
+        self.stage_start = end;
+    }
+}
+
+/// Waits until `counter` ≥ `target`: spins a little (a block takes microseconds), then yields
+/// the core, which matters when there are more threads than free cores.
+fn wait_until(counter: &AtomicUsize, target: usize) {
+    let mut spins = 0;
+    // Acquire: pairs with the Release of `Worker::stage`.
+    while counter.load(Ordering::Acquire) < target {
+        if spins < SPINS_BEFORE_YIELD {
+            std::hint::spin_loop();
+            spins += 1;
+        } else {
+            std::thread::yield_now();
+        }
+    }
+}
+
+const SPINS_BEFORE_YIELD: u32 = 1000;
+
+/// A slice shared by the workers of a step, which touch disjoint parts of it in each stage.
+#[derive(Clone, Copy)]
+struct Shared<T>(*mut T, usize);
+
+// SAFETY: workers only reach disjoint ranges at a time (see `Shared::slice`).
+unsafe impl<T: Send> Send for Shared<T> {}
+unsafe impl<T: Send> Sync for Shared<T> {}
+
+impl<T> Shared<T> {
+    fn new(items: &mut [T]) -> Self {
+        Self(items.as_mut_ptr(), items.len())
+    }
+
+    /// # Safety
+    ///
+    /// No other reference into `range` may be alive while the result is.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn slice<'s>(self, range: std::ops::Range<usize>) -> &'s mut [T] {
+        assert!(range.start <= range.end && range.end <= self.1);
+        // SAFETY: in bounds (checked above); exclusive by the caller's promise.
+        unsafe { std::slice::from_raw_parts_mut(self.0.add(range.start), range.len()) }
     }
 }
 
@@ -223,18 +439,28 @@ impl BodyAccess {
         if index == STATIC_BODY {
             return SolverBody::STATIC;
         }
-        assert!((index as usize) < self.1);
-        // SAFETY: in bounds (checked above); no concurrent writer to this body (see the Sync impl).
+        // In bounds: `solve` checked every constraint's bodies on entry, and the sweeps reach
+        // bodies only through their constraints. (An assert here cost X of the solver.)
+        debug_assert!((index as usize) < self.1);
+        // SAFETY: in bounds (above); no concurrent writer to this body (see the Sync impl).
         unsafe { *self.0.add(index as usize) }
     }
 
     #[inline]
     pub(super) fn store(self, index: u32, body: &SolverBody) {
         if index != STATIC_BODY {
-            assert!((index as usize) < self.1);
+            debug_assert!((index as usize) < self.1);
             // SAFETY: as in `load`.
             unsafe { *self.0.add(index as usize) = *body }
         }
+    }
+
+    /// # Safety
+    ///
+    /// As [`Shared::slice`]: no constraint may be solved while the result is alive.
+    unsafe fn slice<'s>(self, range: std::ops::Range<usize>) -> &'s mut [SolverBody] {
+        // SAFETY: forwarded to the caller.
+        unsafe { Shared(self.0, self.1).slice(range) }
     }
 }
 
