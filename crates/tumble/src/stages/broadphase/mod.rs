@@ -215,7 +215,15 @@ impl Broadphase {
             let displacement = center - centers[body];
             centers[body] = center;
             let stored = tree.fat_aabb(proxy);
-            let fat = predicted_fat_aabb(&aabb, margin, lookahead * displacement);
+            // A fixed body does not keep moving: a teleported static body gets no look-ahead,
+            // which would stretch its box by four times the jump. (A teleported moving body
+            // does, for one step, until the shrink test below catches it.)
+            let ahead = if moving {
+                lookahead * displacement
+            } else {
+                Vec3::ZERO
+            };
+            let fat = predicted_fat_aabb(&aabb, margin, ahead);
             if stored.contains(&aabb)
                 && (lookahead == 0.0 || !is_oversized(&stored, &fat, SHRINK_MARGINS * margin))
             {
@@ -700,6 +708,18 @@ mod tests {
         );
         assert_eq!(broadphase.update(&[aabb]), 0);
         assert!(assert_find_pairs_exact(&mut broadphase).is_empty());
+    }
+
+    #[test]
+    fn teleported_fixed_bodies_get_no_lookahead() {
+        let mut broadphase = Broadphase::new();
+        broadphase.insert(0, Aabb::new(Vec3::ZERO, Vec3::ONE), false);
+        let jumped = Aabb::new(Vec3::splat(5.0), Vec3::splat(6.0));
+        assert_eq!(broadphase.update(&[jumped]), 1);
+        assert_eq!(
+            broadphase.fat_aabb(0),
+            Some(jumped.expanded(DEFAULT_FAT_MARGIN))
+        );
     }
 
     #[test]
