@@ -130,10 +130,18 @@ impl Dbvt {
         if self.leaf(proxy).aabb.contains(&tight) {
             return false;
         }
-        self.remove_leaf(proxy.0);
-        self.nodes[proxy.0 as usize].aabb = tight.expanded(margin);
-        self.insert_leaf(proxy.0);
+        self.reinsert(proxy, tight.expanded(margin));
         true
+    }
+
+    /// Re-inserts the leaf with the fat AABB `fat`, exactly as given (the caller decides when
+    /// and how large). The [`ProxyId`] stays the same. Panics if `proxy` is not a live leaf of
+    /// this tree.
+    pub fn reinsert(&mut self, proxy: ProxyId, fat: Aabb) {
+        self.leaf(proxy);
+        self.remove_leaf(proxy.0);
+        self.nodes[proxy.0 as usize].aabb = fat;
+        self.insert_leaf(proxy.0);
     }
 
     /// The leaf's fat AABB. Panics if `proxy` is not a live leaf of this tree.
