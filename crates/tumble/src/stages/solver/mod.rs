@@ -114,8 +114,14 @@ pub fn solve(bodies: &mut [SolverBody], batched: &mut Batched, settings: SolverS
     // Checked once here rather than at each body access in the sweeps (see `BodyAccess`).
     let in_range = |body: u32| body == STATIC_BODY || (body as usize) < body_count;
     assert!(
-        batched.contacts.iter().all(|c| in_range(c.body_a) && in_range(c.body_b))
-            && batched.joints.iter().all(|j| in_range(j.body_a) && in_range(j.body_b)),
+        batched
+            .contacts
+            .iter()
+            .all(|c| in_range(c.body_a) && in_range(c.body_b))
+            && batched
+                .joints
+                .iter()
+                .all(|j| in_range(j.body_a) && in_range(j.body_b)),
         "a constraint names a body that is not in the solver's body array"
     );
     let step = Step {
