@@ -105,29 +105,8 @@ fn pick_adapter(
     }
     candidates
         .into_iter()
-        .min_by_key(|adapter| {
-            let info = adapter.get_info();
-            (device_rank(info.device_type), backend_rank(info.backend))
-        })
+        .min_by_key(|adapter| tumble::gpu::context::adapter_rank(&adapter.get_info()))
         .ok_or_else(|| ViewError::NoAdapter {
             backends: format!("{backends:?}"),
         })
-}
-
-fn device_rank(device_type: wgpu::DeviceType) -> u8 {
-    match device_type {
-        wgpu::DeviceType::DiscreteGpu => 0,
-        wgpu::DeviceType::IntegratedGpu => 1,
-        wgpu::DeviceType::VirtualGpu => 2,
-        wgpu::DeviceType::Cpu => 3,
-        wgpu::DeviceType::Other => 4,
-    }
-}
-
-fn backend_rank(backend: wgpu::Backend) -> u8 {
-    match backend {
-        wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
-        wgpu::Backend::Gl => 1,
-        _ => 2,
-    }
 }

@@ -201,13 +201,16 @@ fn pick_adapter(
     }
     candidates
         .into_iter()
-        .min_by_key(|adapter| {
-            let info = adapter.get_info();
-            (device_rank(info.device_type), backend_rank(info.backend))
-        })
+        .min_by_key(|adapter| adapter_rank(&adapter.get_info()))
         .ok_or_else(|| GpuError::NoAdapter {
             backends: format!("{backends:?}"),
         })
+}
+
+/// Preference of an adapter, lower first: discrete > integrated > virtual > CPU, then
+/// Vulkan / Metal / DX12 > GL. The viewer ranks the adapters that can draw to its window with it.
+pub fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+    (device_rank(info.device_type), backend_rank(info.backend))
 }
 
 fn device_rank(device_type: wgpu::DeviceType) -> u8 {
