@@ -197,7 +197,13 @@ impl World {
             )
         });
 
-        self.stats = collect_stats(&scratch.pair_keys, &self.pairs, scratch);
+        // The histogram's buffer is kept from step to step (no allocation per step).
+        let mut histogram = std::mem::take(&mut self.stats.batch_histogram);
+        histogram.clone_from(&scratch.coloring.histogram);
+        self.stats = StepStats {
+            batch_histogram: histogram,
+            ..collect_stats(&scratch.pair_keys, &self.pairs, scratch)
+        };
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
             self.update_jointed_pairs();
@@ -276,6 +282,6 @@ fn collect_stats(
             .sum(),
         max_penetration,
         joints: scratch.joints.len(),
-        batch_histogram: scratch.coloring.histogram.clone(),
+        batch_histogram: Vec::new(),
     }
 }

@@ -107,23 +107,26 @@ pub fn group_by_batch<T: Copy>(
     offsets: &mut Vec<u32>,
 ) {
     debug_assert_eq!(items.len(), colors.len());
+    // Counting sort without scratch: `offsets[b + 1]` first counts batch b, then holds its
+    // start and serves as the write cursor, ending at its end = the start of batch b + 1.
     offsets.clear();
     offsets.resize(coloring.batch_count + 1, 0);
     for &color in colors {
         offsets[coloring.batch_of(color) + 1] += 1;
     }
+    let mut start = 0;
     for batch in 0..coloring.batch_count {
-        offsets[batch + 1] += offsets[batch];
+        let count = offsets[batch + 1];
+        offsets[batch + 1] = start;
+        start += count;
     }
     out.clear();
     if items.is_empty() {
         return;
     }
     out.resize(items.len(), items[0]);
-    // Write cursors start at each batch's offset; `offsets` itself stays intact.
-    let mut cursor: Vec<u32> = offsets[..coloring.batch_count].to_vec();
     for (item, &color) in items.iter().zip(colors) {
-        let slot = &mut cursor[coloring.batch_of(color)];
+        let slot = &mut offsets[coloring.batch_of(color) + 1];
         out[*slot as usize] = *item;
         *slot += 1;
     }
