@@ -162,3 +162,59 @@ fn particle_structs_match_rust() {
         );
     }
 }
+
+#[test]
+fn body_structs_match_rust() {
+    use tumble::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity, ColliderData};
+    check(
+        Source::new().snippet("body.wgsl", BODY_WGSL),
+        vec![
+            rust_layout!(BodyPose {
+                position,
+                _pad,
+                rotation
+            }),
+            rust_layout!(BodyVelocity {
+                linear,
+                _pad0,
+                angular,
+                _pad1
+            }),
+            rust_layout!(BodyMass {
+                inverse_inertia,
+                inverse_mass
+            }),
+            rust_layout!(ColliderData {
+                kind,
+                friction,
+                restitution,
+                bounding_radius,
+                params
+            }),
+        ],
+    );
+}
+
+#[test]
+fn pair_contact_structs_match_rust() {
+    use tumble::collision::manifold::{ContactPoint, Manifold};
+    use tumble::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact, PointImpulse};
+    check(
+        Source::new().snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL),
+        vec![
+            rust_layout!(ContactPoint {
+                position,
+                separation,
+                anchor,
+                id
+            }),
+            rust_layout!(Manifold {
+                normal,
+                count,
+                points
+            }),
+            rust_layout!(PointImpulse { normal, tangent }),
+            rust_layout!(PairContact { manifold, impulses }),
+        ],
+    );
+}

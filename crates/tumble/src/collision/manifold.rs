@@ -8,26 +8,46 @@ use crate::math::Vec3;
 /// Most points a manifold keeps: enough to hold a box flat on a face.
 pub const MAX_MANIFOLD_POINTS: usize = 4;
 
-/// One contact point, in world space.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// One contact point. 32 bytes, repr(C) + Pod with the WGSL layout: the GPU narrowphase
+/// writes the same array.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ContactPoint {
     /// World-space point midway between the two surfaces (m).
     pub position: Vec3,
     /// Signed distance of the surfaces along the normal (m): > 0 apart, < 0 overlapping.
     pub separation: f32,
+    /// The point in body A's frame (m), set by the narrowphase: last step's points are matched
+    /// to this step's by it when feature ids change. Zero as the collision functions leave it.
+    pub anchor: Vec3,
     /// Feature id: the same while the same features touch, so the solver's impulses carry over
     /// from one step to the next (warm starting). Unique within a manifold.
     pub id: u32,
 }
+const _: () = assert!(size_of::<ContactPoint>() == 32);
 
-/// Up to [`MAX_MANIFOLD_POINTS`] contact points sharing one normal.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+impl ContactPoint {
+    /// A point at `position` (world) with its separation and feature id; no anchor yet.
+    pub fn new(position: Vec3, separation: f32, id: u32) -> Self {
+        Self {
+            position,
+            separation,
+            anchor: Vec3::ZERO,
+            id,
+        }
+    }
+}
+
+/// Up to [`MAX_MANIFOLD_POINTS`] contact points sharing one normal. 144 bytes, WGSL layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Manifold {
     /// Unit normal, from body B to body A.
     pub normal: Vec3,
-    pub points: [ContactPoint; MAX_MANIFOLD_POINTS],
     pub count: u32,
+    pub points: [ContactPoint; MAX_MANIFOLD_POINTS],
 }
+const _: () = assert!(size_of::<Manifold>() == 144);
 
 impl Manifold {
     pub fn points(&self) -> &[ContactPoint] {
@@ -141,11 +161,7 @@ mod tests {
     use crate::math::vec3;
 
     fn point(x: f32, z: f32, separation: f32, id: u32) -> ContactPoint {
-        ContactPoint {
-            position: vec3(x, 0.0, z),
-            separation,
-            id,
-        }
+        ContactPoint::new(vec3(x, 0.0, z), separation, id)
     }
 
     #[test]
@@ -181,11 +197,7 @@ mod tests {
     fn spread_ignores_depth_along_the_normal() {
         // Far apart along the normal only: no spread at all in the contact plane.
         let candidates = [
-            ContactPoint {
-                position: vec3(0.0, 5.0, 0.0),
-                separation: -0.1,
-                id: 0,
-            },
+            ContactPoint::new(vec3(0.0, 5.0, 0.0), -0.1, 0),
             point(0.0, 0.0, 0.0, 1),
             point(0.5, 0.0, 0.0, 2),
             point(0.0, 0.5, 0.0, 3),

@@ -7,7 +7,7 @@
 //! reused by the next body added), so indices — and the broadphase pair keys built from them —
 //! stay valid while other bodies come and go.
 
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, Vec3, Vec4};
 use crate::shape::Shape;
 
 /// Names a body in a [`World`](crate::World). Carries the slot's generation, so a handle to a
@@ -92,6 +92,47 @@ pub struct Collider {
     /// Bounciness in [0, 1]; pairs combine as max(a, b), applied above 1 m/s of approach.
     pub restitution: f32,
 }
+
+impl Collider {
+    /// The collider as the GPU stages read it.
+    pub fn data(&self) -> ColliderData {
+        let params = match &self.shape {
+            Shape::Sphere(s) => Vec4::new(s.radius, 0.0, 0.0, 0.0),
+            Shape::Capsule(c) => Vec4::new(c.radius, c.half_height, 0.0, 0.0),
+            Shape::Cuboid(c) => c.half_extents.extend(0.0),
+            Shape::Plane(p) => p.normal.extend(p.offset),
+        };
+        ColliderData {
+            kind: self.shape.kind() as u32,
+            friction: self.friction,
+            restitution: self.restitution,
+            bounding_radius: self.shape.bounding_radius(),
+            params,
+        }
+    }
+}
+
+/// A [`Collider`] packed for the GPU: the shape as its [`ShapeKind`](crate::shape::ShapeKind)
+/// and up to four parameters, and the material. 32 bytes, repr(C) + Pod with the layout of
+/// `ColliderData` in `body.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct ColliderData {
+    /// `ShapeKind as u32`.
+    pub kind: u32,
+    pub friction: f32,
+    pub restitution: f32,
+    /// [`Shape::bounding_radius`] (m), for the narrowphase's closing-speed bound.
+    pub bounding_radius: f32,
+    /// Sphere: (radius, 0, 0, 0); capsule: (radius, half_height, 0, 0); cuboid: (half
+    /// extents, 0); plane: (unit normal, offset).
+    pub params: Vec4,
+}
+const _: () = assert!(size_of::<ColliderData>() == 32);
+
+/// WGSL twins of [`BodyPose`], [`BodyVelocity`], [`BodyMass`] and [`ColliderData`], with the
+/// shape kinds: the snippet every rigid-body kernel includes.
+pub const BODY_WGSL: &str = include_str!("body.wgsl");
 
 /// Everything needed to create a body. Build one with [`BodyDesc::dynamic`] or
 /// [`BodyDesc::fixed`] and the builder methods; [`World::add_body`](crate::World::add_body)

@@ -579,8 +579,9 @@ impl World {
             // into the other body's frame.
             contact.manifold = contact.manifold.flipped();
             let (from, to) = (self.poses[ia].transform(), self.poses[ib].transform());
-            for anchor in &mut contact.anchors {
-                *anchor = to.inverse_transform_point(from.transform_point(*anchor));
+            let count = contact.manifold.count as usize;
+            for point in &mut contact.manifold.points[..count] {
+                point.anchor = to.inverse_transform_point(from.transform_point(point.anchor));
             }
         }
         self.pairs.insert(key, contact);

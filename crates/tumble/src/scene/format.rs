@@ -411,14 +411,13 @@ impl Scene {
                 }
                 pair.manifold
                     .push(crate::collision::manifold::ContactPoint {
-                        id: point.id,
-                        ..Default::default()
+                        anchor: Vec3::from_array(point.anchor),
+                        ..crate::collision::manifold::ContactPoint::new(Vec3::ZERO, 0.0, point.id)
                     });
                 pair.impulses[j] = PointImpulse {
                     normal: point.normal_impulse,
                     tangent: point.tangent_impulse,
                 };
-                pair.anchors[j] = Vec3::from_array(point.anchor);
             }
             contacts.push((a, b, pair));
         }
@@ -560,10 +559,10 @@ impl Scene {
                         .manifold
                         .points()
                         .iter()
-                        .zip(contact.impulses.iter().zip(&contact.anchors))
-                        .map(|(point, (impulse, anchor))| ContactPointFile {
+                        .zip(&contact.impulses)
+                        .map(|(point, impulse)| ContactPointFile {
                             id: point.id,
-                            anchor: anchor.to_array(),
+                            anchor: point.anchor.to_array(),
                             normal_impulse: impulse.normal,
                             tangent_impulse: impulse.tangent,
                         })

@@ -292,13 +292,13 @@ fn edge_contact(
         return;
     }
     out.normal = world.rotation * normal;
-    out.push(ContactPoint {
-        position: world.translation + world.rotation * (0.5 * (point_a + point_b)),
+    out.push(ContactPoint::new(
+        world.translation + world.rotation * (0.5 * (point_a + point_b)),
         separation,
-        id: EDGE_CONTACT_BIT
+        EDGE_CONTACT_BIT
             | edge_index(edge.axis_of_b, corner_b)
             | (edge_index(edge.axis_of_a, corner_a) << 4),
-    });
+    ));
 }
 
 /// `4 * axis + (1 if corner is on the + side of (axis + 1) % 3) + (2 if of (axis + 2) % 3)`.
@@ -427,11 +427,11 @@ fn clip_incident_face(
         // Height of the clipped vertex above the reference face (m, < 0 below it).
         let separation = face.sign * vertex.position[face.axis] - reference_half[face.axis];
         if separation < margin {
-            candidates[count] = ContactPoint {
-                position: vertex.position - reference_normal * (0.5 * separation),
+            candidates[count] = ContactPoint::new(
+                vertex.position - reference_normal * (0.5 * separation),
                 separation,
-                id: id_base | u32::from(vertex.feature),
-            };
+                id_base | u32::from(vertex.feature),
+            );
             count += 1;
         }
     }

@@ -130,11 +130,11 @@ fn collide_ordered(
 /// `separation` (m) behind it along `normal`, so the midpoint is half that back.
 #[inline]
 fn push_contact(out: &mut Manifold, surface_a: Vec3, normal: Vec3, separation: f32, id: u32) {
-    out.push(ContactPoint {
-        position: surface_a - normal * (0.5 * separation),
+    out.push(ContactPoint::new(
+        surface_a - normal * (0.5 * separation),
         separation,
         id,
-    });
+    ));
 }
 
 /// A face of an axis-aligned box (in its own frame): its outward normal is

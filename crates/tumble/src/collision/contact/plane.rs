@@ -101,11 +101,11 @@ pub(super) fn box_plane(
         let separation = center_height + (signs * reach).element_sum();
         if separation < margin {
             let vertex = pose_a.position + rotation * (signs * a.half_extents);
-            candidates[count] = ContactPoint {
-                position: vertex - normal * (0.5 * separation),
+            candidates[count] = ContactPoint::new(
+                vertex - normal * (0.5 * separation),
                 separation,
-                id: index as u32,
-            };
+                index as u32,
+            );
             count += 1;
         }
     }

@@ -15,27 +15,34 @@
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
-use crate::math::Vec3;
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
 /// Impulses the solver accumulated on one contact point (N·s), kept for warm starting.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// 12 bytes, WGSL layout.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PointImpulse {
     pub normal: f32,
     /// Along the two friction directions of [`crate::math::tangent_basis`] of the normal.
     pub tangent: [f32; 2],
 }
 
-/// What a pair keeps from one step to the next.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// What a pair keeps from one step to the next. 192 bytes, repr(C) + Pod with the WGSL
+/// layout: the pair cache's values on the CPU and the GPU are the same array.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PairContact {
+    /// The points, with their anchors in body A's frame for matching by position.
     pub manifold: Manifold,
     /// Impulses of `manifold.points`, index for index.
     pub impulses: [PointImpulse; MAX_MANIFOLD_POINTS],
-    /// The points in body A's frame (m), for matching by position.
-    pub anchors: [Vec3; MAX_MANIFOLD_POINTS],
 }
+const _: () = assert!(size_of::<PairContact>() == 192);
+
+/// WGSL twins of [`ContactPoint`](crate::collision::manifold::ContactPoint), [`Manifold`],
+/// [`PointImpulse`] and [`PairContact`].
+pub const PAIR_CONTACT_WGSL: &str = include_str!("pair_contact.wgsl");
 
 /// Farthest a point may have moved on body A and still take over an old point's impulses (m).
 pub const MATCH_DISTANCE: f32 = 0.02;
@@ -94,11 +101,11 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
                 &mut manifold,
             );
             let pose_a = poses[a].transform();
-            let mut anchors = [Vec3::ZERO; MAX_MANIFOLD_POINTS];
-            for (anchor, point) in anchors.iter_mut().zip(manifold.points()) {
-                *anchor = pose_a.inverse_transform_point(point.position);
+            let count = manifold.count as usize;
+            for point in &mut manifold.points[..count] {
+                point.anchor = pose_a.inverse_transform_point(point.position);
             }
-            *contact = carry_impulses(manifold, anchors, contact);
+            *contact = carry_impulses(manifold, contact);
         });
 }
 
@@ -117,13 +124,9 @@ fn closing_speed_bound(
         + velocity_b.angular.length() * b.shape.bounding_radius()
 }
 
-/// The new manifold (with its points in A's frame) with the impulses of last step's points:
+/// The new manifold (its points' anchors set) with the impulses of last step's points:
 /// same feature id first, then the nearest unclaimed old point within [`MATCH_DISTANCE`].
-pub fn carry_impulses(
-    manifold: Manifold,
-    anchors: [Vec3; MAX_MANIFOLD_POINTS],
-    old: &PairContact,
-) -> PairContact {
+pub fn carry_impulses(manifold: Manifold, old: &PairContact) -> PairContact {
     let mut impulses = [PointImpulse::default(); MAX_MANIFOLD_POINTS];
     let count = manifold.count as usize;
     let old_count = old.manifold.count as usize;
@@ -143,7 +146,10 @@ pub fn carry_impulses(
         }
         let nearest = (0..old_count)
             .filter(|&j| !claimed[j])
-            .map(|j| (j, anchors[i].distance_squared(old.anchors[j])))
+            .map(|j| {
+                let anchor = manifold.points[i].anchor;
+                (j, anchor.distance_squared(old.manifold.points[j].anchor))
+            })
             .filter(|&(_, distance_squared)| distance_squared < MATCH_DISTANCE * MATCH_DISTANCE)
             .min_by(|x, y| x.1.total_cmp(&y.1));
         if let Some((j, _)) = nearest {
@@ -151,11 +157,7 @@ pub fn carry_impulses(
             claimed[j] = true;
         }
     }
-    PairContact {
-        manifold,
-        impulses,
-        anchors,
-    }
+    PairContact { manifold, impulses }
 }
 
 #[cfg(test)]
@@ -166,31 +168,25 @@ mod tests {
 
     #[test]
     fn impulses_follow_feature_ids_then_nearest_anchors() {
-        let point = |id| ContactPoint {
-            position: Vec3::ZERO,
-            separation: 0.0,
-            id,
+        let point = |id, anchor| ContactPoint {
+            anchor,
+            ..ContactPoint::new(Vec3::ZERO, 0.0, id)
         };
         let mut old = PairContact::default();
-        old.manifold.push(point(7));
-        old.manifold.push(point(3));
+        old.manifold.push(point(7, Vec3::new(0.0, 0.0, 0.0)));
+        old.manifold.push(point(3, Vec3::new(1.0, 0.0, 0.0)));
         old.impulses[0].normal = 1.0;
         old.impulses[1].normal = 2.0;
-        old.anchors[0] = Vec3::new(0.0, 0.0, 0.0);
-        old.anchors[1] = Vec3::new(1.0, 0.0, 0.0);
         let mut new = Manifold::default();
-        new.push(point(9)); // a renamed point 1 cm from old id 7: takes its impulse
-        new.push(point(3)); // same id
-        new.push(point(11)); // new and far from every old point
-        let anchors = [
-            Vec3::new(0.01, 0.0, 0.0),
-            Vec3::new(5.0, 0.0, 0.0),
-            Vec3::new(0.5, 0.0, 0.0),
-            Vec3::ZERO,
-        ];
-        let carried = carry_impulses(new, anchors, &old);
+        // A renamed point 1 cm from old id 7: takes its impulse.
+        new.push(point(9, Vec3::new(0.01, 0.0, 0.0)));
+        // Same id, though far.
+        new.push(point(3, Vec3::new(5.0, 0.0, 0.0)));
+        // New and far from every old point.
+        new.push(point(11, Vec3::new(0.5, 0.0, 0.0)));
+        let carried = carry_impulses(new, &old);
         let normals: Vec<f32> = carried.impulses[..3].iter().map(|i| i.normal).collect();
         assert_eq!(normals, [1.0, 2.0, 0.0]);
-        assert_eq!(carried.anchors, anchors);
+        assert_eq!(carried.manifold, new);
     }
 }
