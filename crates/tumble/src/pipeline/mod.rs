@@ -2,5 +2,6 @@
 //! stages in order.
 
 pub mod config;
+pub mod devices;
 mod step;
 pub mod world;
