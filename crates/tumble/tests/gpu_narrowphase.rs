@@ -334,3 +334,249 @@ fn random_pairs_match_the_cpu() {
         }
     }
 }
+
+/// Runs `frames` (the same pairs at successive poses) as successive steps on both executors,
+/// each carrying its own contacts from step to step, with the same impulses written into both
+/// after each step as a solver would; compares every step. Returns the CPU's contacts of each
+/// step, before the impulses were written.
+fn run_steps(context: &GpuContext, frames: &[World]) -> Vec<Vec<PairContact>> {
+    let mut narrowphase = GpuNarrowphase::new(context);
+    let pairs = frames[0].keys.len();
+    let mut cpu = vec![PairContact::default(); pairs];
+    let mut gpu = vec![PairContact::default(); pairs];
+    let mut steps = Vec::new();
+    for (step, world) in frames.iter().enumerate() {
+        update_contacts(&world.keys, &mut cpu, &world.inputs());
+        narrowphase
+            .update_contacts(context, &world.keys, &mut gpu, &world.inputs())
+            .unwrap();
+        assert_parity(&cpu, &gpu);
+        steps.push(cpu.clone());
+        for contacts in [&mut cpu, &mut gpu] {
+            for (pair, contact) in contacts.iter_mut().enumerate() {
+                for (point, impulse) in contact.impulses.iter_mut().enumerate() {
+                    impulse.normal = (1 + step * 100 + pair * 10 + point) as f32;
+                }
+            }
+        }
+    }
+    steps
+}
+
+/// One pair of two bodies per entry of `bodies`, body 2i and 2i + 1.
+fn pairs_world(bodies: &[[(Shape, Vec3, Quat); 2]]) -> World {
+    let mut world = World {
+        poses: Vec::new(),
+        velocities: Vec::new(),
+        colliders: Vec::new(),
+        keys: Vec::new(),
+        skipped: Vec::new(),
+    };
+    for pair in bodies {
+        let first = world.poses.len() as u32;
+        for &(shape, position, rotation) in pair {
+            world.poses.push(BodyPose::new(position, rotation));
+            world.velocities.push(BodyVelocity::default());
+            world.colliders.push(collider(shape));
+        }
+        world.keys.push(pair_key(first, first + 1));
+    }
+    world
+}
+
+/// Equal boxes stacked square put the upper box's corners exactly on the lower face's side
+/// planes, where rounding decides between "incident vertex" and "clipped edge" and the CPU's
+/// ids flip from step to step (mod.rs): the GPU must make the same choice each time, and then
+/// match the renamed points by anchor the same way.
+#[test]
+fn stacked_boxes_flip_ids_alike() {
+    let context = context();
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let slab = Shape::cuboid(vec3(0.5, 0.25, 0.5));
+    let offsets = [
+        vec3(0.0, 0.0, 0.0),
+        vec3(1e-7, -1e-6, 0.0),
+        vec3(-1e-7, 1e-6, 2e-7),
+        vec3(0.0, -2e-6, -1e-7),
+        vec3(3e-7, 0.0, 0.0),
+        vec3(0.0, 0.0, 0.0),
+    ];
+    let frames: Vec<World> = offsets
+        .iter()
+        .enumerate()
+        .map(|(step, &offset)| {
+            let yaw = Quat::from_rotation_y(step as f32 * 1e-6);
+            pairs_world(&[
+                // Upper box has the lower index: A on top.
+                [
+                    (cube, vec3(0.0, 1.0, 0.0) + offset, Quat::IDENTITY),
+                    (cube, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Lower box A: the normal points down.
+                [
+                    (cube, Vec3::ZERO, Quat::IDENTITY),
+                    (cube, vec3(0.0, 0.999, 0.0) + offset, yaw),
+                ],
+                // Different heights, faces of equal size: the reference goes to the larger face
+                // or, equal, to B.
+                [
+                    (slab, vec3(5.0, 0.75, 0.0) + offset, yaw),
+                    (cube, vec3(5.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // Half a box over the edge: edges exactly on side planes.
+                [
+                    (cube, vec3(10.5, 1.0, 0.0) + offset, Quat::IDENTITY),
+                    (cube, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // A quarter turn about y: the same square, vertices renumbered.
+                [
+                    (
+                        cube,
+                        vec3(15.0, 0.99, 0.0) + offset,
+                        Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+                    ),
+                    (cube, vec3(15.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    assert!(
+        steps
+            .iter()
+            .flatten()
+            .all(|contact| contact.manifold.count == 4)
+    );
+    // The premise: some point changed its id from one step to the next yet kept its impulse
+    // (matched by anchor).
+    let ids = |contact: &PairContact| {
+        contact
+            .manifold
+            .points()
+            .iter()
+            .map(|p| p.id)
+            .collect::<Vec<_>>()
+    };
+    let renamed_and_carried = steps.windows(2).any(|pair| {
+        pair[0].iter().zip(&pair[1]).any(|(before, after)| {
+            after
+                .manifold
+                .points()
+                .iter()
+                .zip(&after.impulses)
+                .any(|(point, impulse)| !ids(before).contains(&point.id) && impulse.normal > 0.0)
+        })
+    });
+    assert!(renamed_and_carried);
+}
+
+/// A box flat on a plane has four vertices exactly at zero separation, and a thin one within
+/// the margin has all eight, which `reduce` cuts to four on ties of equal distances and areas:
+/// ties must go to the same (lower) index on both sides.
+#[test]
+fn box_on_plane_matches_on_ties() {
+    let context = context();
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let thin = Shape::cuboid(vec3(0.5, 0.005, 0.5));
+    let ground = Shape::plane(Vec3::Y, 0.0);
+    let frames: Vec<World> = (0..4)
+        .map(|step| {
+            let lift = vec3(0.0, step as f32 * 1e-4, 0.0);
+            let yaw = Quat::from_rotation_y(step as f32 * 0.3);
+            pairs_world(&[
+                [
+                    (cube, vec3(0.0, 0.5, 0.0) + lift, Quat::IDENTITY),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                    (cube, vec3(3.0, 0.5, 0.0) + lift, yaw),
+                ],
+                [
+                    (thin, vec3(6.0, 0.005, 0.0) + lift, Quat::IDENTITY),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (thin, vec3(9.0, 0.005, 0.0) + lift, yaw),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Edge down, and a plane turned and moved with its body.
+                [
+                    (
+                        cube,
+                        vec3(12.0, std::f32::consts::FRAC_1_SQRT_2, 0.0),
+                        Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+                    ),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (cube, vec3(15.0, 1.749, 0.0), Quat::IDENTITY),
+                    (
+                        Shape::plane(Vec3::X, 0.25),
+                        vec3(15.0, 1.0, 0.0),
+                        Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+                    ),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    let last = steps.last().unwrap();
+    let counts: Vec<u32> = last.iter().map(|contact| contact.manifold.count).collect();
+    assert_eq!(counts, [4, 4, 4, 4, 2, 4]);
+}
+
+/// Parallel capsules, side by side and end to end, touch along a segment: two points at the
+/// ends of the overlap; a capsule lying on a box face or a plane likewise.
+#[test]
+fn parallel_capsules_match() {
+    let context = context();
+    let capsule = Shape::capsule(0.25, 0.5);
+    let long = Shape::capsule(0.25, 1.0);
+    let lying = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let frames: Vec<World> = (0..3)
+        .map(|step| {
+            let slide = vec3(step as f32 * 0.1, 0.0, 0.0);
+            pairs_world(&[
+                [
+                    (capsule, vec3(0.0, 0.49, 0.0) + slide, lying),
+                    (long, Vec3::ZERO, lying),
+                ],
+                [
+                    (long, vec3(5.0, 0.0, 0.0), lying),
+                    (capsule, vec3(5.3, 0.5, 0.0) + slide, lying),
+                ],
+                // Coincident parallel axes: the fallback normal.
+                [
+                    (capsule, vec3(10.0, 0.0, 0.0) + slide, Quat::IDENTITY),
+                    (long, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (capsule, vec3(15.0, 0.74, 0.0) + slide, lying),
+                    (
+                        Shape::cuboid(Vec3::splat(0.5)),
+                        vec3(15.0, 0.0, 0.0),
+                        Quat::IDENTITY,
+                    ),
+                ],
+                [
+                    (long, vec3(20.0, 0.25, 0.0) + slide, lying),
+                    (Shape::plane(Vec3::Y, 0.0), Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Crossing at right angles, touching: one point.
+                [
+                    (capsule, vec3(25.0, 0.5, 0.0), lying),
+                    (
+                        capsule,
+                        vec3(25.0, 0.0, 0.0) + slide,
+                        Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+                    ),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    let last = steps.last().unwrap();
+    let counts: Vec<u32> = last.iter().map(|contact| contact.manifold.count).collect();
+    assert_eq!(counts, [2, 2, 2, 2, 2, 1]);
+}
