@@ -50,6 +50,13 @@ impl Source {
         self
     }
 
+    /// Adds `const NAME: f32 = value;`, written in Rust's shortest round-trip form, so WGSL
+    /// reads back exactly `value`.
+    pub fn constant_f32(mut self, name: &str, value: f32) -> Self {
+        self.text += &format!("const {name}: f32 = {value:e}f;\n");
+        self
+    }
+
     /// Adds a named snippet; the name is written as a comment so compiler messages can be
     /// traced back to the file.
     pub fn snippet(mut self, name: &str, text: &str) -> Self {

@@ -48,16 +48,16 @@ use crate::shape::Cuboid;
 
 /// One box's face is the reference only if its separation beats the other box's best face by
 /// this fraction (see `clearly_greater`); within it, the larger face wins.
-const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
+pub(super) const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
 
 /// Most vertices of the clipped incident face: a quadrilateral cut by four half-planes.
 const MAX_CLIPPED_VERTICES: usize = 8;
 
 /// Bit 12 of a face contact id: the reference face is A's.
-const REFERENCE_IS_A_BIT: u32 = 1 << 12;
+pub(super) const REFERENCE_IS_A_BIT: u32 = 1 << 12;
 
 /// Bit 13 of an id: an edge–edge contact.
-const EDGE_CONTACT_BIT: u32 = 1 << 13;
+pub(super) const EDGE_CONTACT_BIT: u32 = 1 << 13;
 
 pub(super) fn box_box(
     a: &Cuboid,

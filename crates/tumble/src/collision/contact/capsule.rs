@@ -18,11 +18,11 @@ use crate::shape::{Capsule, Cuboid, Sphere};
 
 /// `sin²` of the angle under which two capsules count as parallel and get two points
 /// (sin ≈ 0.02, about 1.1°).
-const PARALLEL_CAPSULES_SINE_SQUARED: f32 = 4.0e-4;
+pub(super) const PARALLEL_CAPSULES_SINE_SQUARED: f32 = 4.0e-4;
 
 /// Overlap (m) of two parallel segments under which the two points would nearly coincide:
 /// one is enough.
-const MINIMUM_OVERLAP: f32 = 1.0e-3;
+pub(super) const MINIMUM_OVERLAP: f32 = 1.0e-3;
 
 /// The capsule's segment in world space: `(start, delta)`, from the `-half_height` end.
 #[inline]

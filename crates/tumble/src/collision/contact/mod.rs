@@ -42,6 +42,7 @@ mod segment;
 mod sphere;
 
 use crate::collision::manifold::{ContactPoint, Manifold};
+use crate::gpu::kernel::Source;
 use crate::math::{Transform, Vec3};
 use crate::shape::Shape;
 
@@ -64,6 +65,33 @@ const ABSOLUTE_TOLERANCE: f32 = 5.0e-4;
 /// `sin²` of the angle under which an edge is parallel to another edge or to a face: their
 /// cross product is then mostly rounding and is no axis to test.
 const PARALLEL_SINE_SQUARED: f32 = 1.0e-6;
+
+/// `source` with the tolerances of the pair functions as WGSL constants, for their GPU twins
+/// (stages/narrowphase/*.wgsl): each is written once, here.
+pub(crate) fn wgsl_constants(source: Source) -> Source {
+    source
+        .constant_f32("COINCIDENT_DISTANCE_SQUARED", COINCIDENT_DISTANCE_SQUARED)
+        .constant_f32("POINT_SEGMENT_HALF_HEIGHT", POINT_SEGMENT_HALF_HEIGHT)
+        .constant_f32("EDGE_RELATIVE_TOLERANCE", EDGE_RELATIVE_TOLERANCE)
+        .constant_f32("ABSOLUTE_TOLERANCE", ABSOLUTE_TOLERANCE)
+        .constant_f32("PARALLEL_SINE_SQUARED", PARALLEL_SINE_SQUARED)
+        .constant_f32("FACE_RELATIVE_TOLERANCE", box_box::FACE_RELATIVE_TOLERANCE)
+        .constant_f32(
+            "PARALLEL_CAPSULES_SINE_SQUARED",
+            capsule::PARALLEL_CAPSULES_SINE_SQUARED,
+        )
+        .constant_u32("REFERENCE_IS_A_BIT", box_box::REFERENCE_IS_A_BIT)
+        .constant_u32("EDGE_CONTACT_BIT", box_box::EDGE_CONTACT_BIT)
+        .constant_f32("MINIMUM_OVERLAP", capsule::MINIMUM_OVERLAP)
+        .constant_f32(
+            "DEGENERATE_LENGTH_SQUARED",
+            segment::DEGENERATE_LENGTH_SQUARED,
+        )
+        .constant_f32(
+            "SEGMENT_PARALLEL_SINE_SQUARED",
+            segment::PARALLEL_SINE_SQUARED,
+        )
+}
 
 /// Fills `out` with the contacts between shape `a` at `pose_a` and shape `b` at `pose_b` whose
 /// separation is below `margin` (m, ≥ 0). The normal points from `b` to `a`. `out` is reset

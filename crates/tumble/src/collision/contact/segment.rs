@@ -7,11 +7,11 @@
 use crate::math::Vec3;
 
 /// Squared length (m²) under which a segment is a point: its direction means nothing.
-const DEGENERATE_LENGTH_SQUARED: f32 = 1.0e-12;
+pub(super) const DEGENERATE_LENGTH_SQUARED: f32 = 1.0e-12;
 
 /// `sin²` of the angle under which two segments are parallel: the closest points are then a
 /// whole interval and one of them is picked without dividing by the vanishing determinant.
-const PARALLEL_SINE_SQUARED: f32 = 1.0e-10;
+pub(super) const PARALLEL_SINE_SQUARED: f32 = 1.0e-10;
 
 /// Parameter of the point of the segment closest to `point`.
 #[inline]

@@ -12,6 +12,10 @@
 //! Guarantees: `contacts[i]` belongs to `keys[i]` = (a, b) with a < b, body A = a, normal from
 //! b to a; the result depends only on the poses and last step's manifold, never on thread count.
 
+pub mod gpu;
+
+pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams};
+
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};

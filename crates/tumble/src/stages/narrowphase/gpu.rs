@@ -1,0 +1,269 @@
+//! Stage 4 on the GPU: `narrowphase.wgsl`, one thread per pair, the twin of
+//! [`update_contacts`](super::update_contacts) (same pair functions, same feature ids, same
+//! warm-start matching; the WGSL files say how they keep the CPU's decisions).
+//!
+//! [`GpuNarrowphase::encode`] works on device-resident arrays: this step's sorted pair keys,
+//! the map from each pair to its index in last step's contacts (or [`NEW_PAIR`]), last step's
+//! contacts and the bodies; it writes this step's contacts, parallel to the keys, in a second
+//! array (a buffer cannot be read and written by one dispatch, so the pipeline alternates two).
+//! [`GpuNarrowphase::update_contacts`] has the CPU function's signature, for parity tests and
+//! for running this stage on the GPU between CPU stages.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{MATCH_DISTANCE, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact};
+use crate::collision::contact::wgsl_constants;
+use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, ColliderData};
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
+};
+
+/// `old_index` of a pair that did not exist last step: it starts with no impulses.
+pub const NEW_PAIR: u32 = u32::MAX;
+
+const BINDINGS: [Binding; 9] = [
+    Binding::Uniform,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+];
+
+/// Mirrors `NarrowphaseParams` in `narrowphase.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct NarrowphaseParams {
+    pub pair_count: u32,
+    pub skipped_count: u32,
+    /// Speculative distance at rest (m).
+    pub margin: f32,
+    /// Step length (s).
+    pub dt: f32,
+}
+const _: () = assert!(size_of::<NarrowphaseParams>() == 16);
+
+/// The kernel's source: body and contact structs, the pair functions, the stage.
+pub fn wgsl() -> Source {
+    wgsl_constants(Source::new())
+        .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
+        .snippet("contact_common.wgsl", include_str!("contact_common.wgsl"))
+        .snippet("contact_round.wgsl", include_str!("contact_round.wgsl"))
+        .snippet("contact_box_box.wgsl", include_str!("contact_box_box.wgsl"))
+        .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
+}
+
+/// The stage's device-resident inputs.
+pub struct GpuNarrowphaseInputs<'a> {
+    /// This step's sorted pair keys ([`pair_key`](crate::stages::pairs::pair_key)).
+    pub keys: &'a GpuVec<u64>,
+    /// Per pair, its index in `old_contacts`, or [`NEW_PAIR`].
+    pub old_index: &'a GpuVec<u32>,
+    /// Last step's contacts, with the impulses the solver wrote into them.
+    pub old_contacts: &'a GpuVec<PairContact>,
+    pub poses: &'a GpuVec<BodyPose>,
+    pub velocities: &'a GpuVec<BodyVelocity>,
+    pub colliders: &'a GpuVec<ColliderData>,
+    /// Sorted keys of pairs that get no contacts (bodies joined by a joint).
+    pub skipped: &'a GpuVec<u64>,
+    /// Speculative distance at rest (m).
+    pub margin: f32,
+    /// Step length (s).
+    pub dt: f32,
+}
+
+/// What a recorded dispatch was built for: the buffers it binds and its parameters.
+type DispatchKey = ([wgpu::Buffer; 8], NarrowphaseParams);
+
+/// Host copies of [`GpuNarrowphase::update_contacts`]'s inputs, kept between calls.
+struct HostBuffers {
+    keys: GpuVec<u64>,
+    old_index: GpuVec<u32>,
+    old_contacts: GpuVec<PairContact>,
+    poses: GpuVec<BodyPose>,
+    velocities: GpuVec<BodyVelocity>,
+    colliders: GpuVec<ColliderData>,
+    skipped: GpuVec<u64>,
+    contacts: GpuVec<PairContact>,
+}
+
+/// The GPU narrowphase: its kernel, the dispatch recorded for the current buffers, and the
+/// buffers of [`update_contacts`](Self::update_contacts).
+pub struct GpuNarrowphase {
+    kernel: Kernel,
+    /// The uniform slots live as long as the dispatch whose bind group points into them.
+    cached: Option<(DispatchKey, Dispatch, UniformSlots)>,
+    host: Option<HostBuffers>,
+}
+
+impl GpuNarrowphase {
+    pub fn new(context: &GpuContext) -> Self {
+        Self {
+            kernel: Kernel::new(
+                context,
+                "narrowphase",
+                &wgsl(),
+                "update_contacts",
+                &BINDINGS,
+            ),
+            cached: None,
+            host: None,
+        }
+    }
+
+    /// Records the stage into `pass`: `contacts` (resized to the pair count) gets this step's
+    /// contacts, parallel to `inputs.keys`. `contacts` must not be `inputs.old_contacts`.
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        inputs: &GpuNarrowphaseInputs,
+        contacts: &mut GpuVec<PairContact>,
+    ) -> Result<(), GpuError> {
+        encode_with(
+            &mut self.cached,
+            &self.kernel,
+            context,
+            pass,
+            inputs,
+            contacts,
+        )
+    }
+
+    /// [`update_contacts`](super::update_contacts) on the GPU: uploads the inputs (`contacts`
+    /// holds last step's contacts of the same keys), runs the kernel and downloads the result
+    /// into `contacts`.
+    pub fn update_contacts(
+        &mut self,
+        context: &GpuContext,
+        keys: &[u64],
+        contacts: &mut [PairContact],
+        inputs: &NarrowphaseInputs,
+    ) -> Result<(), GpuError> {
+        assert_eq!(keys.len(), contacts.len(), "one contact per key");
+        let host = match &mut self.host {
+            Some(host) => host,
+            empty => empty.insert(HostBuffers {
+                keys: GpuVec::with_capacity(context, "narrowphase keys", 0)?,
+                old_index: GpuVec::with_capacity(context, "narrowphase old index", 0)?,
+                old_contacts: GpuVec::with_capacity(context, "narrowphase old contacts", 0)?,
+                poses: GpuVec::with_capacity(context, "narrowphase poses", 0)?,
+                velocities: GpuVec::with_capacity(context, "narrowphase velocities", 0)?,
+                colliders: GpuVec::with_capacity(context, "narrowphase colliders", 0)?,
+                skipped: GpuVec::with_capacity(context, "narrowphase skipped", 0)?,
+                contacts: GpuVec::with_capacity(context, "narrowphase contacts", 0)?,
+            }),
+        };
+        host.keys.upload(context, keys)?;
+        // `contacts[i]` is last step's contact of `keys[i]`: the identity map.
+        let identity: Vec<u32> =
+            (0..u32::try_from(keys.len()).expect("pair count fits in u32")).collect();
+        host.old_index.upload(context, &identity)?;
+        host.old_contacts.upload(context, contacts)?;
+        host.poses.upload(context, inputs.poses)?;
+        host.velocities.upload(context, inputs.velocities)?;
+        let colliders: Vec<ColliderData> = inputs.colliders.iter().map(|c| c.data()).collect();
+        host.colliders.upload(context, &colliders)?;
+        host.skipped.upload(context, inputs.skipped)?;
+
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("narrowphase"),
+            });
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("narrowphase"),
+                timestamp_writes: None,
+            });
+            let device_inputs = GpuNarrowphaseInputs {
+                keys: &host.keys,
+                old_index: &host.old_index,
+                old_contacts: &host.old_contacts,
+                poses: &host.poses,
+                velocities: &host.velocities,
+                colliders: &host.colliders,
+                skipped: &host.skipped,
+                margin: inputs.margin,
+                dt: inputs.dt,
+            };
+            encode_with(
+                &mut self.cached,
+                &self.kernel,
+                context,
+                &mut pass,
+                &device_inputs,
+                &mut host.contacts,
+            )?;
+        }
+        context.queue.submit([encoder.finish()]);
+        let result = host.contacts.download(context)?;
+        contacts.copy_from_slice(&result);
+        Ok(())
+    }
+}
+
+/// [`GpuNarrowphase::encode`] on its parts, so that `update_contacts` can lend its own buffers.
+fn encode_with(
+    cached_dispatch: &mut Option<(DispatchKey, Dispatch, UniformSlots)>,
+    kernel: &Kernel,
+    context: &GpuContext,
+    pass: &mut wgpu::ComputePass<'_>,
+    inputs: &GpuNarrowphaseInputs,
+    contacts: &mut GpuVec<PairContact>,
+) -> Result<(), GpuError> {
+    debug_assert_eq!(inputs.keys.len(), inputs.old_index.len());
+    contacts.resize(context, inputs.keys.len())?;
+    let params = NarrowphaseParams {
+        pair_count: u32::try_from(inputs.keys.len()).expect("pair count fits in u32"),
+        skipped_count: u32::try_from(inputs.skipped.len()).expect("skipped count fits"),
+        margin: inputs.margin,
+        dt: inputs.dt,
+    };
+    let key = (
+        [
+            inputs.keys.buffer().clone(),
+            inputs.old_index.buffer().clone(),
+            inputs.old_contacts.buffer().clone(),
+            inputs.poses.buffer().clone(),
+            inputs.velocities.buffer().clone(),
+            inputs.colliders.buffer().clone(),
+            inputs.skipped.buffer().clone(),
+            contacts.buffer().clone(),
+        ],
+        params,
+    );
+    let dispatch = match cached_dispatch {
+        Some((cached_key, dispatch, _)) if *cached_key == key => dispatch,
+        cached => {
+            let slots = UniformSlots::new(context, "narrowphase params", &[params]);
+            let bind_group = kernel.bind(
+                context,
+                &[
+                    slots.binding(0),
+                    inputs.keys.whole(),
+                    inputs.old_index.whole(),
+                    inputs.old_contacts.whole(),
+                    inputs.poses.whole(),
+                    inputs.velocities.whole(),
+                    inputs.colliders.whole(),
+                    inputs.skipped.whole(),
+                    contacts.whole(),
+                ],
+            );
+            let groups = workgroups_for(inputs.keys.len(), WORKGROUP_SIZE);
+            &mut cached
+                .insert((key, kernel.dispatch(bind_group, groups), slots))
+                .1
+        }
+    };
+    dispatch.encode(pass);
+    Ok(())
+}

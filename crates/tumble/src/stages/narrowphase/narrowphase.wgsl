@@ -1,0 +1,160 @@
+// Stage 4 on the GPU, one thread per pair: the twin of `update_contacts` in mod.rs. Reads the
+// pair keys (u64 as two words, low word first: the higher body index, then the lower), the
+// bodies, last step's contacts through the old-index map, and writes this step's contacts.
+// The pair functions are in contact_round.wgsl and contact_box_box.wgsl; a new pair type is
+// one more function and one more arm of `collide_ordered`.
+
+struct NarrowphaseParams {
+    pair_count: u32,
+    skipped_count: u32,
+    // Speculative distance at rest (m).
+    margin: f32,
+    // Step length (s).
+    dt: f32,
+}
+
+@group(0) @binding(0) var<uniform> params: NarrowphaseParams;
+@group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
+// Index of each pair in last step's contacts, or NEW_PAIR.
+@group(0) @binding(2) var<storage, read> old_index: array<u32>;
+@group(0) @binding(3) var<storage, read> old_contacts: array<PairContact>;
+@group(0) @binding(4) var<storage, read> poses: array<BodyPose>;
+@group(0) @binding(5) var<storage, read> velocities: array<BodyVelocity>;
+@group(0) @binding(6) var<storage, read> colliders: array<ColliderData>;
+// Sorted keys of pairs that get no contacts (jointed bodies).
+@group(0) @binding(7) var<storage, read> skipped: array<vec2<u32>>;
+@group(0) @binding(8) var<storage, read_write> contacts: array<PairContact>;
+
+const NEW_PAIR: u32 = 0xffffffffu;
+// No old point chosen yet.
+const NO_POINT: u32 = 0xffffffffu;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn update_contacts(
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) local: u32,
+) {
+    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    if index >= params.pair_count {
+        return;
+    }
+    let key = keys[index];
+    if is_skipped(key) {
+        contacts[index] = PairContact();
+        return;
+    }
+    let a = key.y;
+    let b = key.x;
+    let margin = params.margin + params.dt * closing_speed_bound(a, b);
+    collide(colliders[a], poses[a], colliders[b], poses[b], margin);
+    let pose_a = poses[a];
+    for (var point = 0u; point < out.count; point++) {
+        out.points[point].anchor = to_local(pose_a, out.points[point].position);
+    }
+    var old = PairContact();
+    if old_index[index] != NEW_PAIR {
+        old = old_contacts[old_index[index]];
+    }
+    contacts[index] = carry_impulses(old);
+}
+
+// Binary search of `skipped`, comparing keys as u64 (high word, the lower body, first).
+fn is_skipped(key: vec2<u32>) -> bool {
+    var low = 0u;
+    var high = params.skipped_count;
+    while low < high {
+        let middle = low + (high - low) / 2u;
+        let probe = skipped[middle];
+        if probe.y < key.y || (probe.y == key.y && probe.x < key.x) {
+            low = middle + 1u;
+        } else {
+            high = middle;
+        }
+    }
+    return low < params.skipped_count && all(skipped[low] == key);
+}
+
+// mod.rs `closing_speed_bound`: relative speed of the centres plus each spin times its
+// shape's bounding radius (m/s).
+fn closing_speed_bound(a: u32, b: u32) -> f32 {
+    let velocity_a = velocities[a];
+    let velocity_b = velocities[b];
+    let relative = velocity_a.linear - velocity_b.linear;
+    return sqrt(dot3(relative, relative))
+        + sqrt(dot3(velocity_a.angular, velocity_a.angular)) * colliders[a].bounding_radius
+        + sqrt(dot3(velocity_b.angular, velocity_b.angular)) * colliders[b].bounding_radius;
+}
+
+// collision/contact/mod.rs `collide`: each pair function exists for kind(a) <= kind(b); the
+// other order is the same contact with the normal flipped.
+fn collide(a: ColliderData, pose_a: BodyPose, b: ColliderData, pose_b: BodyPose, margin: f32) {
+    out = Manifold();
+    if a.kind <= b.kind {
+        collide_ordered(a, pose_a, b, pose_b, margin);
+    } else {
+        collide_ordered(b, pose_b, a, pose_a, margin);
+        out.normal = -out.normal;
+    }
+}
+
+fn collide_ordered(a: ColliderData, pose_a: BodyPose, b: ColliderData, pose_b: BodyPose, margin: f32) {
+    let pair = a.kind * 4u + b.kind;
+    switch pair {
+        case 0u: { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
+        case 1u: { sphere_capsule(a.params, pose_a, b.params, pose_b, margin); }
+        case 2u: { sphere_box(a.params, pose_a, b.params, pose_b, margin); }
+        case 3u: { sphere_plane(a.params, pose_a, b.params, pose_b, margin); }
+        case 5u: { capsule_capsule(a.params, pose_a, b.params, pose_b, margin); }
+        case 6u: { capsule_box(a.params, pose_a, b.params, pose_b, margin); }
+        case 7u: { capsule_plane(a.params, pose_a, b.params, pose_b, margin); }
+        case 10u: { box_box(a.params, pose_a, b.params, pose_b, margin); }
+        case 11u: { box_plane(a.params, pose_a, b.params, pose_b, margin); }
+        // Plane–plane: two static half-spaces need no contact.
+        default: {}
+    }
+}
+
+// mod.rs `carry_impulses`: `out` with the impulses of `old`'s points, by feature id first,
+// then the nearest unclaimed old anchor within MATCH_DISTANCE (first on ties).
+fn carry_impulses(old: PairContact) -> PairContact {
+    var result = PairContact();
+    result.manifold = out;
+    let old_count = old.manifold.count;
+    var claimed = array<bool, 4>(false, false, false, false);
+    var matched = array<bool, 4>(false, false, false, false);
+    for (var i = 0u; i < out.count; i++) {
+        for (var j = 0u; j < old_count; j++) {
+            if !claimed[j] && old.manifold.points[j].id == out.points[i].id {
+                result.impulses[i] = old.impulses[j];
+                claimed[j] = true;
+                matched[i] = true;
+                break;
+            }
+        }
+    }
+    for (var i = 0u; i < out.count; i++) {
+        if matched[i] {
+            continue;
+        }
+        var nearest = NO_POINT;
+        var nearest_distance_squared = 0.0;
+        for (var j = 0u; j < old_count; j++) {
+            if claimed[j] {
+                continue;
+            }
+            let offset = out.points[i].anchor - old.manifold.points[j].anchor;
+            let distance_squared = dot3(offset, offset);
+            if distance_squared < MATCH_DISTANCE * MATCH_DISTANCE
+                && (nearest == NO_POINT || distance_squared < nearest_distance_squared) {
+                nearest = j;
+                nearest_distance_squared = distance_squared;
+            }
+        }
+        if nearest != NO_POINT {
+            result.impulses[i] = old.impulses[nearest];
+            claimed[nearest] = true;
+        }
+    }
+    return result;
+}

@@ -1,0 +1,582 @@
+//! Parity of the GPU narrowphase with the CPU's `update_contacts`: random pairs of every
+//! shape combination, near touching and overlapping, with last step's contacts reached
+//! through an old-index map; plus the ties the CPU resolves by rule (boxes stacked square, a
+//! box flat on a plane, parallel capsules), and two GPU runs compared bitwise.
+//!
+//! Counts, feature ids and carried impulses must be equal exactly. Positions, separations,
+//! normals and anchors must agree within `TOLERANCE` = 1e-4 (m, or unit vector components):
+//! both sides compute the same expressions in the same order, but WGSL lets the driver fuse a
+//! multiply and an add (one rounding less) and gives division and square root a few ulps of
+//! slack; over the chain of a box–box contact (two rotations, a relative frame, clipping,
+//! back to the world) that is some tens of ulps of values up to ~10 m, ~1e-5 m — the bound
+//! leaves a factor of ten above that and is still far below any geometric feature.
+
+mod gpu_common;
+
+use gpu_common::{Random, context};
+use tumble::Shape;
+use tumble::collision::manifold::Manifold;
+use tumble::dynamics::body::{BodyPose, BodyVelocity, Collider, ColliderData};
+use tumble::gpu::{GpuContext, GpuVec};
+use tumble::math::{Quat, Vec3, vec3};
+use tumble::stages::narrowphase::{
+    GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseInputs, PairContact, update_contacts,
+};
+use tumble::stages::pairs::pair_key;
+
+const TOLERANCE: f32 = 1e-4;
+const MARGIN: f32 = 0.02;
+const DT: f32 = 1.0 / 60.0;
+
+impl Random {
+    fn unit(&mut self) -> f32 {
+        (self.next_u32() >> 8) as f32 / (1u32 << 24) as f32
+    }
+
+    fn range(&mut self, low: f32, high: f32) -> f32 {
+        low + (high - low) * self.unit()
+    }
+
+    fn direction(&mut self) -> Vec3 {
+        loop {
+            let v = vec3(
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+                self.range(-1.0, 1.0),
+            );
+            let length = v.length();
+            if length > 0.1 && length <= 1.0 {
+                return v / length;
+            }
+        }
+    }
+
+    fn rotation(&mut self) -> Quat {
+        Quat::from_axis_angle(self.direction(), self.range(0.0, std::f32::consts::TAU))
+    }
+
+    /// One of the four shape kinds, of random size.
+    fn shape(&mut self) -> Shape {
+        match self.below(4) {
+            0 => Shape::sphere(self.range(0.1, 1.0)),
+            1 => Shape::capsule(self.range(0.1, 0.6), self.range(0.1, 1.0)),
+            2 => Shape::cuboid(vec3(
+                self.range(0.1, 1.0),
+                self.range(0.1, 1.0),
+                self.range(0.1, 1.0),
+            )),
+            _ => Shape::plane(self.direction(), self.range(-0.5, 0.5)),
+        }
+    }
+}
+
+/// Bodies, pairs and last step's contacts of a test.
+struct World {
+    poses: Vec<BodyPose>,
+    velocities: Vec<BodyVelocity>,
+    colliders: Vec<Collider>,
+    keys: Vec<u64>,
+    skipped: Vec<u64>,
+}
+
+impl World {
+    fn inputs(&self) -> NarrowphaseInputs<'_> {
+        NarrowphaseInputs {
+            poses: &self.poses,
+            velocities: &self.velocities,
+            colliders: &self.colliders,
+            margin: MARGIN,
+            dt: DT,
+            skipped: &self.skipped,
+        }
+    }
+}
+
+fn collider(shape: Shape) -> Collider {
+    Collider {
+        shape,
+        friction: 0.5,
+        restitution: 0.0,
+    }
+}
+
+/// `pairs` pairs of two fresh bodies each, of random kinds (either index order), placed so
+/// that about half touch: B at random, A at a random distance from it up to the sum of their
+/// bounding radii (along a plane's normal, for a plane).
+fn random_world(random: &mut Random, pairs: usize) -> World {
+    let mut world = World {
+        poses: Vec::new(),
+        velocities: Vec::new(),
+        colliders: Vec::new(),
+        keys: Vec::new(),
+        skipped: Vec::new(),
+    };
+    for pair in 0..pairs {
+        let shape_a = random.shape();
+        let shape_b = random.shape();
+        let pose_b = BodyPose::new(
+            vec3(
+                random.range(-10.0, 10.0),
+                random.range(-10.0, 10.0),
+                random.range(-10.0, 10.0),
+            ),
+            random.rotation(),
+        );
+        let reach = shape_a.bounding_radius() + shape_b.bounding_radius();
+        let position_a = if let Shape::Plane(plane) = shape_b {
+            let normal = pose_b.rotation * plane.normal;
+            // The plane's surface point nearest the world origin.
+            let surface = normal * (plane.offset + normal.dot(pose_b.position));
+            surface + normal * random.range(-0.3, 1.0) * shape_a.bounding_radius().max(0.5)
+        } else {
+            pose_b.position + random.direction() * random.range(0.1, 1.05) * reach
+        };
+        let pose_a = BodyPose::new(position_a, random.rotation());
+        let first = world.poses.len() as u32;
+        // Either body may get the lower index (and so be body A of the pair).
+        let swap = random.below(2) == 1;
+        for (shape, pose) in if swap {
+            [(shape_b, pose_b), (shape_a, pose_a)]
+        } else {
+            [(shape_a, pose_a), (shape_b, pose_b)]
+        } {
+            world.poses.push(pose);
+            world.colliders.push(collider(shape));
+            // Slow bodies mostly, some fast: the margin grows with the closing speed.
+            let speed = if random.below(8) == 0 { 5.0 } else { 0.2 };
+            world.velocities.push(BodyVelocity::new(
+                random.direction() * random.range(0.0, speed),
+                random.direction() * random.range(0.0, speed),
+            ));
+        }
+        let key = pair_key(first, first + 1);
+        world.keys.push(key);
+        if pair % 17 == 5 {
+            world.skipped.push(key);
+        }
+    }
+    world
+}
+
+/// Moves every body a little (up to 5 mm, 0.01 rad): the next step, so that some contacts
+/// keep their ids, some change them and are matched by anchor, some appear or vanish.
+fn nudge(random: &mut Random, poses: &mut [BodyPose]) {
+    for pose in poses {
+        pose.position += random.direction() * random.range(0.0, 0.005);
+        pose.rotation = (Quat::from_axis_angle(random.direction(), random.range(0.0, 0.01))
+            * pose.rotation)
+            .normalize();
+    }
+}
+
+/// Impulses on every point of `contacts`, distinct per point, as a solver would leave them.
+fn give_impulses(random: &mut Random, contacts: &mut [PairContact]) {
+    for contact in contacts {
+        for impulse in &mut contact.impulses[..contact.manifold.count as usize] {
+            impulse.normal = random.range(0.0, 10.0);
+            impulse.tangent = [random.range(-1.0, 1.0), random.range(-1.0, 1.0)];
+        }
+    }
+}
+
+fn assert_close(what: &str, pair: usize, cpu: Vec3, gpu: Vec3) {
+    assert!(
+        (cpu - gpu).abs().max_element() <= TOLERANCE,
+        "pair {pair}: {what} {cpu} (CPU) vs {gpu} (GPU)"
+    );
+}
+
+/// Same count, ids and impulses (exactly), the rest within TOLERANCE.
+fn assert_parity(cpu: &[PairContact], gpu: &[PairContact]) {
+    assert_eq!(cpu.len(), gpu.len());
+    for (pair, (cpu, gpu)) in cpu.iter().zip(gpu).enumerate() {
+        let (m_cpu, m_gpu): (&Manifold, &Manifold) = (&cpu.manifold, &gpu.manifold);
+        assert_eq!(
+            m_cpu.count, m_gpu.count,
+            "pair {pair}: {m_cpu:?} vs {m_gpu:?}"
+        );
+        if m_cpu.count == 0 {
+            continue;
+        }
+        assert_close("normal", pair, m_cpu.normal, m_gpu.normal);
+        for (p_cpu, p_gpu) in m_cpu.points().iter().zip(m_gpu.points()) {
+            assert_eq!(p_cpu.id, p_gpu.id, "pair {pair}: {m_cpu:?} vs {m_gpu:?}");
+            assert_close("position", pair, p_cpu.position, p_gpu.position);
+            assert_close("anchor", pair, p_cpu.anchor, p_gpu.anchor);
+            assert!(
+                (p_cpu.separation - p_gpu.separation).abs() <= TOLERANCE,
+                "pair {pair}: separation {} vs {}",
+                p_cpu.separation,
+                p_gpu.separation
+            );
+        }
+        assert_eq!(cpu.impulses, gpu.impulses, "pair {pair}: impulses");
+    }
+}
+
+/// Runs the GPU stage through `encode`, on device buffers, with last step's contacts reached
+/// through `old_index`.
+fn gpu_step(
+    context: &GpuContext,
+    narrowphase: &mut GpuNarrowphase,
+    world: &World,
+    old_index: &[u32],
+    old_contacts: &[PairContact],
+) -> Vec<PairContact> {
+    let colliders: Vec<ColliderData> = world.colliders.iter().map(|c| c.data()).collect();
+    let keys = GpuVec::from_slice(context, "keys", &world.keys).unwrap();
+    let old_index = GpuVec::from_slice(context, "old index", old_index).unwrap();
+    let old_contacts = GpuVec::from_slice(context, "old contacts", old_contacts).unwrap();
+    let poses = GpuVec::from_slice(context, "poses", &world.poses).unwrap();
+    let velocities = GpuVec::from_slice(context, "velocities", &world.velocities).unwrap();
+    let colliders = GpuVec::from_slice(context, "colliders", &colliders).unwrap();
+    let skipped = GpuVec::from_slice(context, "skipped", &world.skipped).unwrap();
+    let mut contacts = GpuVec::with_capacity(context, "contacts", 0).unwrap();
+    let mut encoder = context
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+        let inputs = GpuNarrowphaseInputs {
+            keys: &keys,
+            old_index: &old_index,
+            old_contacts: &old_contacts,
+            poses: &poses,
+            velocities: &velocities,
+            colliders: &colliders,
+            skipped: &skipped,
+            margin: MARGIN,
+            dt: DT,
+        };
+        narrowphase
+            .encode(context, &mut pass, &inputs, &mut contacts)
+            .unwrap();
+    }
+    context.queue.submit([encoder.finish()]);
+    contacts.download(context).unwrap()
+}
+
+/// Random pairs of every combination, with a previous step whose pair list differs (pairs
+/// dropped and pairs added), compared with the CPU on contacts carried by key.
+#[test]
+fn random_pairs_match_the_cpu() {
+    let context = context();
+    let mut narrowphase = GpuNarrowphase::new(&context);
+    for (seed, pairs) in [0usize, 1, 2, 100, 10_000].into_iter().enumerate() {
+        let mut random = Random::new(seed as u64 + 1);
+        let mut world = random_world(&mut random, pairs);
+
+        // Last step: the pairs but every fifth (new this step), in a sorted array of their
+        // own, with contacts computed at slightly different poses and impulses set.
+        let old_keys: Vec<u64> = world
+            .keys
+            .iter()
+            .enumerate()
+            .filter(|(index, _)| index % 5 != 3)
+            .map(|(_, &key)| key)
+            .collect();
+        let mut old_contacts = vec![PairContact::default(); old_keys.len()];
+        let old_world = World {
+            keys: old_keys.clone(),
+            skipped: Vec::new(),
+            poses: world.poses.clone(),
+            velocities: world.velocities.clone(),
+            colliders: world.colliders.clone(),
+        };
+        update_contacts(&old_keys, &mut old_contacts, &old_world.inputs());
+        give_impulses(&mut random, &mut old_contacts);
+        nudge(&mut random, &mut world.poses);
+
+        let old_index: Vec<u32> = world
+            .keys
+            .iter()
+            .map(|key| {
+                old_keys
+                    .binary_search(key)
+                    .map_or(NEW_PAIR, |index| index as u32)
+            })
+            .collect();
+        let mut cpu: Vec<PairContact> = old_index
+            .iter()
+            .map(|&index| {
+                if index == NEW_PAIR {
+                    PairContact::default()
+                } else {
+                    old_contacts[index as usize]
+                }
+            })
+            .collect();
+        update_contacts(&world.keys, &mut cpu, &world.inputs());
+        let gpu = gpu_step(
+            &context,
+            &mut narrowphase,
+            &world,
+            &old_index,
+            &old_contacts,
+        );
+        assert_parity(&cpu, &gpu);
+
+        if pairs == 10_000 {
+            // The test means something: contacts of every kind, and carried impulses.
+            let touching = cpu.iter().filter(|c| c.manifold.count > 0).count();
+            let carried = cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count();
+            assert!(touching > pairs / 4, "{touching} pairs touch");
+            assert!(carried > pairs / 10, "{carried} pairs carry impulses");
+            // Deterministic: a second run is bitwise the same.
+            let again = gpu_step(
+                &context,
+                &mut narrowphase,
+                &world,
+                &old_index,
+                &old_contacts,
+            );
+            assert!(bytemuck::cast_slice::<_, u8>(&gpu) == bytemuck::cast_slice::<_, u8>(&again));
+        }
+    }
+}
+
+/// Runs `frames` (the same pairs at successive poses) as successive steps on both executors,
+/// each carrying its own contacts from step to step, with the same impulses written into both
+/// after each step as a solver would; compares every step. Returns the CPU's contacts of each
+/// step, before the impulses were written.
+fn run_steps(context: &GpuContext, frames: &[World]) -> Vec<Vec<PairContact>> {
+    let mut narrowphase = GpuNarrowphase::new(context);
+    let pairs = frames[0].keys.len();
+    let mut cpu = vec![PairContact::default(); pairs];
+    let mut gpu = vec![PairContact::default(); pairs];
+    let mut steps = Vec::new();
+    for (step, world) in frames.iter().enumerate() {
+        update_contacts(&world.keys, &mut cpu, &world.inputs());
+        narrowphase
+            .update_contacts(context, &world.keys, &mut gpu, &world.inputs())
+            .unwrap();
+        assert_parity(&cpu, &gpu);
+        steps.push(cpu.clone());
+        for contacts in [&mut cpu, &mut gpu] {
+            for (pair, contact) in contacts.iter_mut().enumerate() {
+                for (point, impulse) in contact.impulses.iter_mut().enumerate() {
+                    impulse.normal = (1 + step * 100 + pair * 10 + point) as f32;
+                }
+            }
+        }
+    }
+    steps
+}
+
+/// One pair of two bodies per entry of `bodies`, body 2i and 2i + 1.
+fn pairs_world(bodies: &[[(Shape, Vec3, Quat); 2]]) -> World {
+    let mut world = World {
+        poses: Vec::new(),
+        velocities: Vec::new(),
+        colliders: Vec::new(),
+        keys: Vec::new(),
+        skipped: Vec::new(),
+    };
+    for pair in bodies {
+        let first = world.poses.len() as u32;
+        for &(shape, position, rotation) in pair {
+            world.poses.push(BodyPose::new(position, rotation));
+            world.velocities.push(BodyVelocity::default());
+            world.colliders.push(collider(shape));
+        }
+        world.keys.push(pair_key(first, first + 1));
+    }
+    world
+}
+
+/// Equal boxes stacked square put the upper box's corners exactly on the lower face's side
+/// planes, where rounding decides between "incident vertex" and "clipped edge" and the CPU's
+/// ids flip from step to step (mod.rs): the GPU must make the same choice each time, and then
+/// match the renamed points by anchor the same way.
+#[test]
+fn stacked_boxes_flip_ids_alike() {
+    let context = context();
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let slab = Shape::cuboid(vec3(0.5, 0.25, 0.5));
+    let offsets = [
+        vec3(0.0, 0.0, 0.0),
+        vec3(1e-7, -1e-6, 0.0),
+        vec3(-1e-7, 1e-6, 2e-7),
+        vec3(0.0, -2e-6, -1e-7),
+        vec3(3e-7, 0.0, 0.0),
+        vec3(0.0, 0.0, 0.0),
+    ];
+    let frames: Vec<World> = offsets
+        .iter()
+        .enumerate()
+        .map(|(step, &offset)| {
+            let yaw = Quat::from_rotation_y(step as f32 * 1e-6);
+            pairs_world(&[
+                // Upper box has the lower index: A on top.
+                [
+                    (cube, vec3(0.0, 1.0, 0.0) + offset, Quat::IDENTITY),
+                    (cube, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Lower box A: the normal points down.
+                [
+                    (cube, Vec3::ZERO, Quat::IDENTITY),
+                    (cube, vec3(0.0, 0.999, 0.0) + offset, yaw),
+                ],
+                // Different heights, faces of equal size: the reference goes to the larger face
+                // or, equal, to B.
+                [
+                    (slab, vec3(5.0, 0.75, 0.0) + offset, yaw),
+                    (cube, vec3(5.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // Half a box over the edge: edges exactly on side planes.
+                [
+                    (cube, vec3(10.5, 1.0, 0.0) + offset, Quat::IDENTITY),
+                    (cube, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // A quarter turn about y: the same square, vertices renumbered.
+                [
+                    (
+                        cube,
+                        vec3(15.0, 0.99, 0.0) + offset,
+                        Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+                    ),
+                    (cube, vec3(15.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    assert!(
+        steps
+            .iter()
+            .flatten()
+            .all(|contact| contact.manifold.count == 4)
+    );
+    // The premise: some point changed its id from one step to the next yet kept its impulse
+    // (matched by anchor).
+    let ids = |contact: &PairContact| {
+        contact
+            .manifold
+            .points()
+            .iter()
+            .map(|p| p.id)
+            .collect::<Vec<_>>()
+    };
+    let renamed_and_carried = steps.windows(2).any(|pair| {
+        pair[0].iter().zip(&pair[1]).any(|(before, after)| {
+            after
+                .manifold
+                .points()
+                .iter()
+                .zip(&after.impulses)
+                .any(|(point, impulse)| !ids(before).contains(&point.id) && impulse.normal > 0.0)
+        })
+    });
+    assert!(renamed_and_carried);
+}
+
+/// A box flat on a plane has four vertices exactly at zero separation, and a thin one within
+/// the margin has all eight, which `reduce` cuts to four on ties of equal distances and areas:
+/// ties must go to the same (lower) index on both sides.
+#[test]
+fn box_on_plane_matches_on_ties() {
+    let context = context();
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let thin = Shape::cuboid(vec3(0.5, 0.005, 0.5));
+    let ground = Shape::plane(Vec3::Y, 0.0);
+    let frames: Vec<World> = (0..4)
+        .map(|step| {
+            let lift = vec3(0.0, step as f32 * 1e-4, 0.0);
+            let yaw = Quat::from_rotation_y(step as f32 * 0.3);
+            pairs_world(&[
+                [
+                    (cube, vec3(0.0, 0.5, 0.0) + lift, Quat::IDENTITY),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                    (cube, vec3(3.0, 0.5, 0.0) + lift, yaw),
+                ],
+                [
+                    (thin, vec3(6.0, 0.005, 0.0) + lift, Quat::IDENTITY),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (thin, vec3(9.0, 0.005, 0.0) + lift, yaw),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Edge down, and a plane turned and moved with its body.
+                [
+                    (
+                        cube,
+                        vec3(12.0, std::f32::consts::FRAC_1_SQRT_2, 0.0),
+                        Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+                    ),
+                    (ground, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (cube, vec3(15.0, 1.749, 0.0), Quat::IDENTITY),
+                    (
+                        Shape::plane(Vec3::X, 0.25),
+                        vec3(15.0, 1.0, 0.0),
+                        Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+                    ),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    let last = steps.last().unwrap();
+    let counts: Vec<u32> = last.iter().map(|contact| contact.manifold.count).collect();
+    assert_eq!(counts, [4, 4, 4, 4, 2, 4]);
+}
+
+/// Parallel capsules, side by side and end to end, touch along a segment: two points at the
+/// ends of the overlap; a capsule lying on a box face or a plane likewise.
+#[test]
+fn parallel_capsules_match() {
+    let context = context();
+    let capsule = Shape::capsule(0.25, 0.5);
+    let long = Shape::capsule(0.25, 1.0);
+    let lying = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let frames: Vec<World> = (0..3)
+        .map(|step| {
+            let slide = vec3(step as f32 * 0.1, 0.0, 0.0);
+            pairs_world(&[
+                [
+                    (capsule, vec3(0.0, 0.49, 0.0) + slide, lying),
+                    (long, Vec3::ZERO, lying),
+                ],
+                [
+                    (long, vec3(5.0, 0.0, 0.0), lying),
+                    (capsule, vec3(5.3, 0.5, 0.0) + slide, lying),
+                ],
+                // Coincident parallel axes: the fallback normal.
+                [
+                    (capsule, vec3(10.0, 0.0, 0.0) + slide, Quat::IDENTITY),
+                    (long, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (capsule, vec3(15.0, 0.74, 0.0) + slide, lying),
+                    (
+                        Shape::cuboid(Vec3::splat(0.5)),
+                        vec3(15.0, 0.0, 0.0),
+                        Quat::IDENTITY,
+                    ),
+                ],
+                [
+                    (long, vec3(20.0, 0.25, 0.0) + slide, lying),
+                    (Shape::plane(Vec3::Y, 0.0), Vec3::ZERO, Quat::IDENTITY),
+                ],
+                // Crossing at right angles, touching: one point.
+                [
+                    (capsule, vec3(25.0, 0.5, 0.0), lying),
+                    (
+                        capsule,
+                        vec3(25.0, 0.0, 0.0) + slide,
+                        Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+                    ),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    let last = steps.last().unwrap();
+    let counts: Vec<u32> = last.iter().map(|contact| contact.manifold.count).collect();
+    assert_eq!(counts, [2, 2, 2, 2, 2, 1]);
+}
