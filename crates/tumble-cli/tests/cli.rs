@@ -58,12 +58,8 @@ fn bad_input_is_a_one_line_error_with_non_zero_exit() {
     assert_user_error(&["run", "no-such-scene"], "unknown scene");
     assert_user_error(&["run", "falling-boxes", "--scale", "-1"], "scale");
     assert_user_error(
-        &["run", "falling-boxes", "--device", "gpu"],
-        "GPU step is not implemented yet",
-    );
-    assert_user_error(
         &["run", "falling-boxes", "--stages", "solver=gpu"],
-        "GPU step is not implemented yet",
+        "the solver stage has no GPU executor yet",
     );
     assert_user_error(
         &["run", "falling-boxes", "--stages", "warp=cpu"],

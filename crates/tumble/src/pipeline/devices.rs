@@ -68,6 +68,15 @@ pub enum StageDevicesError {
     UnknownDevice { stage: String, device: String },
 }
 
+/// Why stages could not be put where they were asked to run.
+#[derive(Debug, thiserror::Error)]
+pub enum StageError {
+    #[error("the {0} stage has no GPU executor yet; run it with {0}=cpu")]
+    NotOnGpu(&'static str),
+    #[error(transparent)]
+    Gpu(#[from] crate::gpu::context::GpuError),
+}
+
 impl StageDevices {
     /// Every stage on `executor`.
     pub fn all(executor: Executor) -> Self {

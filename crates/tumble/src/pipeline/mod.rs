@@ -3,5 +3,6 @@
 
 pub mod config;
 pub mod devices;
+mod gpu_stages;
 mod step;
 pub mod world;

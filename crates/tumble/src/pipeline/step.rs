@@ -1,7 +1,9 @@
 //! The step, stage by stage, in the order of DESIGN.md. Read top to bottom.
 
+use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
+use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
@@ -32,7 +34,7 @@ pub(crate) struct StepScratch {
 
 impl World {
     /// One step of `config.dt`: collision once, then the solver's sub-steps.
-    pub(crate) fn step_stages(&mut self) {
+    pub(crate) fn step_stages(&mut self) -> Result<(), GpuError> {
         let config = self.config;
         let dt = config.dt;
         let scratch = &mut self.scratch;
@@ -62,18 +64,25 @@ impl World {
         profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
 
         // 4. Narrowphase: fresh manifolds, impulses carried over from matching points.
-        profiler.scope("narrowphase", || {
-            let (keys, contacts) = self.pairs.keys_and_values_mut();
-            let inputs = narrowphase::NarrowphaseInputs {
-                poses: &self.poses,
-                velocities: &self.velocities,
-                colliders: &self.colliders,
-                margin: config.contact_margin,
-                dt,
-                skipped: &self.jointed_pairs,
-            };
-            narrowphase::update_contacts(keys, contacts, &inputs)
-        });
+        profiler.begin("narrowphase");
+        let (keys, contacts) = self.pairs.keys_and_values_mut();
+        let inputs = narrowphase::NarrowphaseInputs {
+            poses: &self.poses,
+            velocities: &self.velocities,
+            colliders: &self.colliders,
+            margin: config.contact_margin,
+            dt,
+            skipped: &self.jointed_pairs,
+        };
+        let narrowphase = match (self.devices.get(Stage::Narrowphase), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) => gpu.update_contacts(profiler, keys, contacts, &inputs),
+            _ => {
+                narrowphase::update_contacts(keys, contacts, &inputs);
+                Ok(())
+            }
+        };
+        profiler.end();
+        narrowphase?;
 
         // 5. Constraint rows: contacts, then joints. Stiffness is capped by the sub-step rate
         //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
@@ -208,6 +217,7 @@ impl World {
             // The bodies of a broken joint collide again from the next step.
             self.update_jointed_pairs();
         }
+        Ok(())
     }
 }
 

@@ -26,8 +26,11 @@ use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
 use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
+use crate::gpu::context::GpuError;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
+use crate::pipeline::devices::{Executor, Stage, StageDevices, StageError};
+use crate::pipeline::gpu_stages::GpuStages;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
 use crate::stages::broadphase::Broadphase;
@@ -101,6 +104,9 @@ pub struct World {
     pub(crate) pair_batches: Vec<u32>,
     pub(crate) profiler: Profiler,
     pub(crate) steps: u64,
+    /// The executor of each stage, and the GPU side when a stage runs there.
+    pub(crate) devices: StageDevices,
+    pub(crate) gpu: Option<GpuStages>,
 }
 
 impl World {
@@ -128,6 +134,8 @@ impl World {
             pair_batches: Vec::new(),
             profiler: Profiler::new("step"),
             steps: 0,
+            devices: StageDevices::default(),
+            gpu: None,
         })
     }
 
@@ -205,6 +213,9 @@ impl World {
             .aabb(&pose.transform())
             .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
+        if let Some(gpu) = &mut self.gpu {
+            gpu.colliders_changed();
+        }
         Ok(BodyHandle {
             index,
             generation: self.slots[index as usize].generation,
@@ -406,11 +417,67 @@ impl World {
     }
 
     /// Advances the world by `config.dt`.
+    ///
+    /// # Panics
+    ///
+    /// If a stage on the GPU fails (see [`try_step`](Self::try_step)); with every stage on the
+    /// CPU (the default) a step cannot fail.
     pub fn step(&mut self) {
+        if let Err(error) = self.try_step() {
+            panic!("a GPU stage failed: {error}");
+        }
+    }
+
+    /// One step, reporting a failure of a GPU stage (a buffer past the adapter's limits, a
+    /// lost device) instead of panicking. A failed step leaves the bodies as they were before it.
+    pub fn try_step(&mut self) -> Result<(), GpuError> {
+        let snapshot = self
+            .devices
+            .any_gpu()
+            .then(|| (self.poses.clone(), self.velocities.clone()));
         self.profiler.begin_frame();
-        self.step_stages();
+        let result = self.step_stages();
         self.profiler.end_frame();
-        self.steps += 1;
+        match result {
+            Ok(()) => {
+                self.steps += 1;
+                Ok(())
+            }
+            Err(error) => {
+                if let Some((poses, velocities)) = snapshot {
+                    self.poses = poses;
+                    self.velocities = velocities;
+                }
+                Err(error)
+            }
+        }
+    }
+
+    /// Which executor runs each stage.
+    pub fn stage_devices(&self) -> StageDevices {
+        self.devices
+    }
+
+    /// Puts stages on the CPU or the GPU from the next step on (the talk's mixing of stages);
+    /// the first GPU stage opens the adapter
+    /// ([`GpuContext::shared`](crate::gpu::context::GpuContext::shared)). Results agree between
+    /// executors within the parity tests' tolerances, not bitwise.
+    pub fn set_stage_devices(&mut self, devices: StageDevices) -> Result<(), StageError> {
+        for stage in Stage::ALL {
+            if devices.get(stage) == Executor::Gpu && !GpuStages::runs(stage) {
+                return Err(StageError::NotOnGpu(stage.name()));
+            }
+        }
+        if devices.any_gpu() && self.gpu.is_none() {
+            self.gpu = Some(GpuStages::new()?);
+        }
+        self.devices = devices;
+        Ok(())
+    }
+
+    /// The adapter the GPU stages run on, when any does.
+    pub fn gpu_adapter(&self) -> Option<String> {
+        self.gpu.as_ref().map(GpuStages::describe)
     }
 
     /// Number of live bodies.
