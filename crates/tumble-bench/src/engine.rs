@@ -72,7 +72,14 @@ impl EngineKind {
     pub fn build(self, scene: &Scene) -> Result<Box<dyn Simulation>, String> {
         match self {
             EngineKind::TumbleCpu => {
-                let world = scene.build().map_err(|e| e.to_string())?;
+                let mut world = scene.build().map_err(|e| e.to_string())?;
+                // Sleeping is off in benchmarks, as on the peers: a settled pile is timed
+                // solving, not asleep.
+                let config = tumble::StepConfig {
+                    sleeping: false,
+                    ..*world.config()
+                };
+                world.set_config(config).map_err(|e| e.to_string())?;
                 Ok(Box::new(TumbleSimulation { world }))
             }
             EngineKind::TumbleGpu => Err("the GPU step is not implemented yet".into()),

@@ -181,8 +181,9 @@ fn run(args: &RunArgs) -> Result<(), String> {
     if args.profile {
         print!("{report}");
         println!(
-            "# bodies = {}  # pairs = {} (+{} -{})  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",
+            "# bodies = {} ({} asleep)  # pairs = {} (+{} -{})  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",
             world.body_count(),
+            stats.sleeping,
             stats.pairs,
             stats.pairs_added,
             stats.pairs_removed,
@@ -220,6 +221,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "stage_ms": stage_ms,
             "pairs": stats.pairs,
             "contacts": stats.contacts,
+            "sleeping": stats.sleeping,
             "max_penetration": stats.max_penetration,
             "kinetic_energy": world.kinetic_energy(),
             "batches": stats.batch_histogram.len(),

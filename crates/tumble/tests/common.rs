@@ -6,9 +6,18 @@ use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
 
 pub const G: f32 = 9.81;
 
-/// A world with a ground plane y <= 0 of the given friction and restitution.
+/// The default settings without sleeping: the scenario tests measure the solver, and a
+/// sleeping stack would hide a slow sag.
+pub fn awake_config() -> StepConfig {
+    StepConfig {
+        sleeping: false,
+        ..StepConfig::default()
+    }
+}
+
+/// A world with a ground plane y <= 0 of the given friction and restitution (no sleeping).
 pub fn world_with_ground(friction: f32, restitution: f32) -> World {
-    let mut world = World::new(StepConfig::default()).unwrap();
+    let mut world = World::new(awake_config()).unwrap();
     world
         .add_body(
             BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0))

@@ -3,14 +3,14 @@
 mod common;
 use common::*;
 use tumble::math::{Quat, Vec3};
-use tumble::{BodyDesc, Shape, StepConfig, World};
+use tumble::{BodyDesc, Shape, World};
 
 /// A 20° incline (a plane through the origin) with a box resting on it; returns the distance
 /// the box travelled down the slope after `seconds`, and the acceleration measured on the way.
 fn incline(friction: f32, seconds: f32) -> (f32, f32) {
     let angle = 20f32.to_radians();
     let tilt = Quat::from_rotation_z(angle);
-    let mut world = World::new(StepConfig::default()).unwrap();
+    let mut world = World::new(awake_config()).unwrap();
     world
         .add_body(
             BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0))

@@ -88,6 +88,7 @@ impl World {
             margin: MARGIN,
             dt: DT,
             skipped: &self.skipped,
+            keep_resting: None,
         }
     }
 }

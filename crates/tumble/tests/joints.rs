@@ -8,8 +8,10 @@ use tumble::math::{Quat, Vec3};
 use tumble::{BodyDesc, BodyHandle, JointDesc, JointHandle, JointKind, Motor, Shape, World};
 
 fn world(gravity: Vec3) -> World {
+    // No sleeping: a hanging chain or a pendulum at rest is what these tests look at.
     World::new(tumble::StepConfig {
         gravity,
+        sleeping: false,
         ..Default::default()
     })
     .unwrap()

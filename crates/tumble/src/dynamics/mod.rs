@@ -1,4 +1,5 @@
 //! Body data: what the solver and integrator read and write each step.
 
 pub mod body;
+pub mod island;
 pub mod joint;

@@ -39,6 +39,9 @@ pub struct StepConfig {
     /// Extra margin of the broadphase's fat AABBs (m): larger re-inserts less often but finds
     /// more candidate pairs. Default 0.1.
     pub aabb_margin: f32,
+    /// Whether resting islands go to sleep (see [`crate::dynamics::island`]). Default true;
+    /// benchmarks turn it off to time the whole scene.
+    pub sleeping: bool,
 }
 
 impl Default for StepConfig {
@@ -56,6 +59,7 @@ impl Default for StepConfig {
             joint_damping_ratio: 2.0,
             restitution_threshold: 1.0,
             aabb_margin: 0.1,
+            sleeping: true,
         }
     }
 }

@@ -56,7 +56,11 @@ impl World {
         profiler.begin("broadphase");
         profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
         profiler.scope("find pairs", || {
-            self.broadphase.find_pairs(&mut scratch.pair_keys)
+            self.broadphase.find_pairs(&mut scratch.pair_keys);
+            // Sleeping bodies' pairs are in no tree's result: keep them with theirs.
+            if !self.resting_pairs.is_empty() {
+                merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
+            }
         });
         profiler.end();
 
@@ -73,7 +77,9 @@ impl World {
             margin: config.contact_margin,
             dt,
             skipped: &self.jointed_pairs,
+            keep_resting: (!self.refresh_resting).then_some(&self.masses[..]),
         };
+        self.refresh_resting = false;
         let narrowphase = match (self.devices.get(Stage::Narrowphase), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) => gpu.update_contacts(profiler, keys, contacts, &inputs),
             _ => {
@@ -83,6 +89,15 @@ impl World {
         };
         profiler.end();
         narrowphase?;
+
+        // Islands touched by an awake body, or joined to one, wake before their rows are built.
+        if self.islands.sleeping_count() > 0 {
+            self.profiler.begin("wake");
+            self.wake_touched();
+            self.profiler.end();
+        }
+        let scratch = &mut self.scratch;
+        let profiler = &mut self.profiler;
 
         // 5. Constraint rows: contacts, then joints. Stiffness is capped by the sub-step rate
         //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
@@ -217,7 +232,82 @@ impl World {
             // The bodies of a broken joint collide again from the next step.
             self.update_jointed_pairs();
         }
+        if config.sleeping {
+            self.profiler.begin("sleep");
+            self.fall_asleep();
+            self.profiler.end();
+        }
+        self.stats.sleeping = self.islands.sleeping_count();
         Ok(())
+    }
+
+    /// Wakes every sleeping island that an awake dynamic body touches (a manifold with points)
+    /// or is joined to, until none is left: a woken island may touch another.
+    fn wake_touched(&mut self) {
+        let mut touched = Vec::new();
+        loop {
+            let awake = |i: u32| self.masses[i as usize].inverse_mass > 0.0;
+            let asleep = |i: u32| self.islands.state(i).is_asleep();
+            let mut edge = |a: u32, b: u32| {
+                if awake(a) && asleep(b) {
+                    touched.push(b);
+                } else if awake(b) && asleep(a) {
+                    touched.push(a);
+                }
+            };
+            for (&key, contact) in self.pairs.keys().iter().zip(self.pairs.values()) {
+                if contact.manifold.count > 0 {
+                    let (a, b) = crate::stages::pairs::pair_bodies(key);
+                    edge(a, b);
+                }
+            }
+            for joint in self.joints.iter().flatten().filter(|j| !j.broken) {
+                edge(joint.body_a, joint.body_b);
+            }
+            if touched.is_empty() {
+                return;
+            }
+            self.wake(&touched);
+            touched.clear();
+        }
+    }
+
+    /// Rest times from this step's velocities; islands that rested long enough go to sleep
+    /// and into the broadphase's fixed tree.
+    fn fall_asleep(&mut self) {
+        let colliders = &self.colliders;
+        self.islands.update_timers(
+            &self.velocities,
+            &self.masses,
+            |i| colliders[i].shape.bounding_radius(),
+            self.config.dt,
+        );
+        let contacts = self.pairs.keys().iter().zip(self.pairs.values());
+        let contact_edges = contacts
+            .filter(|(_, contact)| contact.manifold.count > 0)
+            .map(|(&key, _)| crate::stages::pairs::pair_bodies(key));
+        let joint_edges = self
+            .joints
+            .iter()
+            .flatten()
+            .filter(|j| !j.broken)
+            .map(|j| (j.body_a, j.body_b));
+        self.changed_bodies.clear();
+        self.islands.fall_asleep(
+            contact_edges.chain(joint_edges),
+            &mut self.masses,
+            &mut self.velocities,
+            self.drag.map(|drag| drag.body),
+            &mut self.changed_bodies,
+        );
+        if self.changed_bodies.is_empty() {
+            return;
+        }
+        for &body in &self.changed_bodies {
+            self.broadphase.set_moving(body, false);
+        }
+        self.update_resting_pairs();
+        self.refresh_resting = true;
     }
 }
 
@@ -270,6 +360,14 @@ fn store_joint_impulses(
     any_broke
 }
 
+/// Merges the sorted, disjoint `extra` keys into the sorted `keys`.
+fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
+    keys.extend_from_slice(extra);
+    // Two sorted runs: the standard library's stable sort finds them and merges in O(n).
+    keys.sort();
+    debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "pair sets overlap");
+}
+
 fn collect_stats(
     pair_keys: &[u64],
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
@@ -292,6 +390,7 @@ fn collect_stats(
             .sum(),
         max_penetration,
         joints: scratch.joints.len(),
+        sleeping: 0,
         batch_histogram: Vec::new(),
     }
 }

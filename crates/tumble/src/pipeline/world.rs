@@ -25,6 +25,7 @@ pub const DRAG_DAMPING_RATIO: f32 = 1.0;
 use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
+use crate::dynamics::island::Islands;
 use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
 use crate::gpu::context::GpuError;
 use crate::math::{Mat3, Transform, Vec3};
@@ -57,6 +58,8 @@ pub struct StepStats {
     pub max_penetration: f32,
     /// Joints solved this step (unbroken ones, and the drag of `set_drag_target`).
     pub joints: usize,
+    /// Bodies asleep after the step.
+    pub sleeping: usize,
     /// Constraints (contact manifolds and joints) per batch: the talk's batch histogram.
     pub batch_histogram: Vec<u32>,
 }
@@ -107,6 +110,17 @@ pub struct World {
     /// The executor of each stage, and the GPU side when a stage runs there.
     pub(crate) devices: StageDevices,
     pub(crate) gpu: Option<GpuStages>,
+    /// Sleep state of every body and the sleeping islands.
+    pub(crate) islands: Islands,
+    /// Sorted keys of the pairs between sleeping bodies, or a sleeping and a static one: the
+    /// broadphase no longer looks for them (both are in its fixed tree), so they are merged
+    /// into its result to keep their manifolds for when the island wakes.
+    pub(crate) resting_pairs: Vec<u64>,
+    /// The next narrowphase recomputes the resting pairs too (an island just fell asleep, or a
+    /// dumped state was loaded): their manifolds then hold the poses they rest at.
+    pub(crate) refresh_resting: bool,
+    /// Scratch: bodies woken or put to sleep by a call.
+    pub(crate) changed_bodies: Vec<u32>,
 }
 
 impl World {
@@ -136,6 +150,10 @@ impl World {
             steps: 0,
             devices: StageDevices::default(),
             gpu: None,
+            islands: Islands::default(),
+            resting_pairs: Vec::new(),
+            refresh_resting: false,
+            changed_bodies: Vec::new(),
         })
     }
 
@@ -148,6 +166,12 @@ impl World {
         config.validate()?;
         self.broadphase.fat_margin = config.aabb_margin;
         self.config = config;
+        if !config.sleeping {
+            self.changed_bodies.clear();
+            self.islands
+                .wake_all(&mut self.masses, &mut self.changed_bodies);
+            self.after_waking();
+        }
         Ok(())
     }
 
@@ -216,6 +240,8 @@ impl World {
         if let Some(gpu) = &mut self.gpu {
             gpu.colliders_changed();
         }
+        self.islands.resize(self.slots.len());
+        self.islands.reset_timer(index);
         Ok(BodyHandle {
             index,
             generation: self.slots[index as usize].generation,
@@ -225,6 +251,20 @@ impl World {
     /// Removes a body; its contacts go with it at the next step, its joints at once.
     pub fn remove_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
         let i = self.check(handle)?;
+        // Whatever rests on the body, or sleeps with it, must feel it go.
+        let touching: Vec<u32> = self
+            .pairs
+            .keys()
+            .iter()
+            .map(|&key| crate::stages::pairs::pair_bodies(key))
+            .filter_map(|(a, b)| match (a == handle.index, b == handle.index) {
+                (true, _) => Some(b),
+                (_, true) => Some(a),
+                _ => None,
+            })
+            .chain([handle.index])
+            .collect();
+        self.wake(&touching);
         let attached: Vec<u32> = (0..self.joints.len() as u32)
             .filter(|&j| {
                 self.joints[j as usize].is_some_and(|joint| {
@@ -247,7 +287,83 @@ impl World {
         self.masses[i] = BodyMass::default();
         self.velocities[i] = BodyVelocity::default();
         self.free_slots.push(handle.index);
+        self.update_resting_pairs();
         Ok(())
+    }
+
+    /// Restores dumped sleep states: (body, rest time, sleeping island number). Bodies with the
+    /// same number are put to sleep as one island; the contacts must be restored first, so
+    /// that the island keeps its pairs.
+    pub fn restore_sleep(&mut self, states: &[(BodyHandle, f32, Option<u32>)]) {
+        let mut islands: Vec<(u32, u32)> = Vec::new();
+        for &(handle, timer, island) in states {
+            let Ok(i) = self.check(handle) else { continue };
+            self.islands.set_timer(i as u32, timer);
+            if let Some(island) = island
+                && self.masses[i].inverse_mass > 0.0
+            {
+                islands.push((island, i as u32));
+            }
+        }
+        islands.sort_unstable();
+        for group in islands.chunk_by(|a, b| a.0 == b.0) {
+            let bodies: Vec<u32> = group.iter().map(|&(_, body)| body).collect();
+            self.islands
+                .restore_island(&bodies, &mut self.masses, &mut self.velocities);
+            for &body in &bodies {
+                self.broadphase.set_moving(body, false);
+            }
+        }
+        self.update_resting_pairs();
+        self.refresh_resting = true;
+    }
+
+    /// Whether the body sleeps (see [`crate::dynamics::island`]).
+    pub fn is_sleeping(&self, handle: BodyHandle) -> Result<bool, BodyError> {
+        let i = self.check(handle)?;
+        Ok(self.islands.state(i as u32).is_asleep())
+    }
+
+    /// Wakes the body's island, if it sleeps, and starts its rest time afresh.
+    pub fn wake_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
+        self.check(handle)?;
+        self.wake(&[handle.index]);
+        self.islands.reset_timer(handle.index);
+        Ok(())
+    }
+
+    /// Wakes the islands of `bodies` (those asleep).
+    pub(crate) fn wake(&mut self, bodies: &[u32]) {
+        self.changed_bodies.clear();
+        for &body in bodies {
+            self.islands
+                .wake(body, &mut self.masses, &mut self.changed_bodies);
+        }
+        self.after_waking();
+    }
+
+    /// The bodies in `changed_bodies` just woke: back into the moving tree, and their pairs
+    /// are found by the broadphase again.
+    fn after_waking(&mut self) {
+        if self.changed_bodies.is_empty() {
+            return;
+        }
+        for &body in &self.changed_bodies {
+            self.broadphase.set_moving(body, true);
+        }
+        self.update_resting_pairs();
+    }
+
+    /// The pairs of the cache with no awake dynamic body and no removed one.
+    pub(crate) fn update_resting_pairs(&mut self) {
+        let live = |i: u32| self.slots[i as usize].state != SlotState::Free;
+        let resting = |i: u32| self.masses[i as usize].inverse_mass == 0.0;
+        self.resting_pairs.clear();
+        self.resting_pairs
+            .extend(self.pairs.keys().iter().copied().filter(|&key| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                live(a) && live(b) && resting(a) && resting(b)
+            }));
     }
 
     /// Adds a joint between two bodies at their current poses.
@@ -257,6 +373,8 @@ impl World {
             self.check(desc.body_a).map_err(|_| JointError::StaleBody)?,
             self.check(desc.body_b).map_err(|_| JointError::StaleBody)?,
         );
+        // Sleeping bodies have no mass until they wake: wake them before asking.
+        self.wake(&[a as u32, b as u32]);
         if self.masses[a].inverse_mass == 0.0 && self.masses[b].inverse_mass == 0.0 {
             return Err(JointError::BothStatic);
         }
@@ -390,6 +508,7 @@ impl World {
         if !(local_anchor.is_finite() && target.is_finite()) {
             return Err(BodyError::NotFinite { field: "drag" });
         }
+        self.wake(&[index]);
         if !(max_force.is_finite() && max_force >= 0.0) {
             return Err(BodyError::Negative {
                 field: "max_force",
@@ -532,6 +651,8 @@ impl World {
             return Err(BodyError::NotFinite { field: "velocity" });
         }
         if self.slots[i].state == SlotState::Dynamic {
+            self.wake(&[handle.index]);
+            self.islands.reset_timer(handle.index);
             self.velocities[i] = BodyVelocity::new(linear, angular);
         }
         Ok(())

@@ -82,6 +82,17 @@ pub struct BodyFile {
     pub friction: f32,
     #[serde(default)]
     pub restitution: f32,
+    /// Dumped state: seconds the body has rested (see `dynamics::island`).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub sleep_timer: f32,
+    /// Dumped state: the sleeping island the body belongs to; bodies with the same number
+    /// sleep (and wake) together. Absent for awake bodies.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub island: Option<u32>,
+}
+
+fn is_zero(value: &f32) -> bool {
+    *value == 0.0
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -267,9 +278,19 @@ fn default_friction() -> f32 {
 pub struct Scene {
     pub config: StepConfig,
     pub bodies: Vec<BodyDesc>,
+    /// Sleep state of each body, index for index with `bodies`; empty when all are awake and
+    /// have not rested (a scene that starts afresh).
+    pub sleep: Vec<BodySleep>,
     pub joints: Vec<SceneJoint>,
     /// (body index, body index, impulses by feature id).
     pub contacts: Vec<(usize, usize, PairContact)>,
+}
+
+/// A body's sleep state in a scene: its rest time (s) and, asleep, its island's number.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BodySleep {
+    pub timer: f32,
+    pub island: Option<u32>,
 }
 
 /// A joint of a scene: a [`JointDesc`] whose bodies are indices into [`Scene::bodies`].
@@ -304,6 +325,7 @@ impl Scene {
         Self {
             config,
             bodies: Vec::new(),
+            sleep: Vec::new(),
             joints: Vec::new(),
             contacts: Vec::new(),
         }
@@ -356,9 +378,29 @@ impl Scene {
             .map_err(|e| invalid("scene".into(), e.to_string()))?;
         let mut names = std::collections::HashSet::new();
         let mut bodies = Vec::with_capacity(file.bodies.len());
+        let mut sleep = Vec::new();
         for (i, body) in file.bodies.iter().enumerate() {
             let desc = body_desc(body)
                 .map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
+            if !(body.sleep_timer.is_finite() && body.sleep_timer >= 0.0) {
+                return Err(invalid(
+                    format!("bodies[{i}].sleep_timer"),
+                    format!("must be finite and >= 0, got {}", body.sleep_timer),
+                ));
+            }
+            if body.island.is_some() && desc.is_static() {
+                return Err(invalid(
+                    format!("bodies[{i}].island"),
+                    "a static body never sleeps; only dynamic bodies belong to islands".into(),
+                ));
+            }
+            if body.sleep_timer != 0.0 || body.island.is_some() {
+                sleep.resize(i, BodySleep::default());
+                sleep.push(BodySleep {
+                    timer: body.sleep_timer,
+                    island: body.island,
+                });
+            }
             if let Some(name) = &desc.name
                 && !names.insert(name.clone())
             {
@@ -368,6 +410,9 @@ impl Scene {
                 ));
             }
             bodies.push(desc);
+        }
+        if !sleep.is_empty() {
+            sleep.resize(bodies.len(), BodySleep::default());
         }
         let mut joints = Vec::with_capacity(file.joints.len());
         for (i, joint) in file.joints.iter().enumerate() {
@@ -424,6 +469,7 @@ impl Scene {
         Ok(Scene {
             config,
             bodies,
+            sleep,
             joints,
             contacts,
         })
@@ -473,6 +519,14 @@ impl Scene {
                     field: format!("contacts[{i}]"),
                     message: e.to_string(),
                 })?;
+        }
+        if !self.sleep.is_empty() {
+            let states: Vec<_> = handles
+                .iter()
+                .zip(&self.sleep)
+                .map(|(&handle, state)| (handle, state.timer, state.island))
+                .collect();
+            world.restore_sleep(&states);
         }
         Ok(world)
     }
@@ -529,9 +583,23 @@ impl Scene {
             .contacts()
             .filter_map(|(a, b, contact)| Some((*index_of.get(&a)?, *index_of.get(&b)?, *contact)))
             .collect();
+        let mut sleep: Vec<BodySleep> = handles
+            .iter()
+            .map(|&handle| {
+                let state = world.islands.state(handle.index());
+                BodySleep {
+                    timer: state.timer,
+                    island: state.is_asleep().then_some(state.island),
+                }
+            })
+            .collect();
+        if sleep.iter().all(|state| *state == BodySleep::default()) {
+            sleep.clear();
+        }
         Scene {
             config: *world.config(),
             bodies,
+            sleep,
             joints,
             contacts,
         }
@@ -544,7 +612,16 @@ impl Scene {
             dt: self.config.dt,
             substeps: self.config.substeps,
             solver_iterations: self.config.solver_iterations,
-            bodies: self.bodies.iter().map(body_file).collect(),
+            bodies: self
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(i, desc)| BodyFile {
+                    sleep_timer: self.sleep.get(i).map_or(0.0, |s| s.timer),
+                    island: self.sleep.get(i).and_then(|s| s.island),
+                    ..body_file(desc)
+                })
+                .collect(),
             joints: self
                 .joints
                 .iter()
@@ -664,6 +741,8 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         angular_velocity: desc.angular_velocity.to_array(),
         friction: desc.friction,
         restitution: desc.restitution,
+        sleep_timer: 0.0,
+        island: None,
     }
 }
 

@@ -124,7 +124,10 @@ pub fn build_constraints(
 ) {
     out.clear();
     for (pair, (contact, &key)) in contacts.iter().zip(keys).enumerate() {
-        if contact.manifold.count == 0 {
+        let (a, b) = pair_bodies(key);
+        let resting = |body: u32| inputs.masses[body as usize].inverse_mass == 0.0;
+        // No points, or two sleeping bodies (or one asleep on a static one): nothing to solve.
+        if contact.manifold.count == 0 || (resting(a) && resting(b)) {
             continue;
         }
         out.push(build_constraint(pair as u32, key, contact, inputs));

@@ -161,6 +161,11 @@ pub fn build_joint_constraints(
         };
         let (ia, ib) = (joint.body_a as usize, joint.body_b as usize);
         let (mass_a, mass_b) = (masses[ia].inverse_mass, masses[ib].inverse_mass);
+        if mass_a == 0.0 && mass_b == 0.0 {
+            // Both bodies asleep (or one asleep on the static world): nothing to solve; the
+            // joint keeps its impulses for when they wake.
+            continue;
+        }
         out.push(JointConstraint {
             body_a: if mass_a > 0.0 {
                 joint.body_a

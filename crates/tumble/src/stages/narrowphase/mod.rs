@@ -18,7 +18,7 @@ pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams}
 
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
-use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
+use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
@@ -65,6 +65,9 @@ pub struct NarrowphaseInputs<'a> {
     pub dt: f32,
     /// Sorted keys of pairs that get no contacts (bodies joined by a joint).
     pub skipped: &'a [u64],
+    /// When set, the bodies' masses: a pair of two bodies with no inverse mass (asleep, or
+    /// asleep on a static body) keeps its manifold, since neither moved.
+    pub keep_resting: Option<&'a [BodyMass]>,
 }
 
 /// CPU executor: refresh the manifold of every pair.
@@ -76,6 +79,7 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
         margin,
         dt,
         skipped,
+        keep_resting,
     } = *inputs;
     debug_assert_eq!(keys.len(), contacts.len());
     contacts
@@ -89,6 +93,12 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
             }
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
+            if let Some(masses) = keep_resting
+                && masses[a].inverse_mass == 0.0
+                && masses[b].inverse_mass == 0.0
+            {
+                return;
+            }
             let mut manifold = Manifold::default();
             collide(
                 &colliders[a].shape,

@@ -1,0 +1,327 @@
+//! Islands and sleeping. A body resting for [`TIME_TO_SLEEP`] goes to sleep with everything it
+//! touches: the *island*, the connected set of awake dynamic bodies joined by contacts with
+//! points or by joints (static bodies join nothing: a pile on the ground is one island, two
+//! piles are two). A sleeping island costs nothing in the solver and its bodies move to the
+//! broadphase's fixed tree — the talk's "objects can move from one tree to the other".
+//!
+//! While asleep, a body is static to the step: its inverse mass and inertia are zero (kept
+//! here and given back on waking), its velocity is zero, so every stage treats it as it treats
+//! the ground with no special case. An island wakes as a whole when an awake body touches one
+//! of its bodies or is joined to one, or when the user moves, drags or removes one of them.
+//!
+//! Islands are found afresh at the end of every step by union-find over that step's
+//! contacts (Box2D v2 builds them each step too; v3 keeps them persistent, which saves the
+//! rebuild at the price of splitting logic). Deterministic: the union-find links the higher
+//! index under the lower and visits edges in pair-key order, so the islands and the ids they
+//! get do not depend on threads.
+
+use crate::dynamics::body::{BodyMass, BodyVelocity};
+
+/// A body whose fastest point moves slower than this (m/s) is resting (Box2D's 5 cm/s).
+pub const SLEEP_SPEED: f32 = 0.05;
+
+/// Resting time after which an island may sleep (s): Box2D's half second.
+pub const TIME_TO_SLEEP: f32 = 0.5;
+
+/// [`SleepState::island`] of an awake body.
+pub const AWAKE: u32 = u32::MAX;
+
+/// Per body: how long it has rested, and its sleeping island.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SleepState {
+    /// Seconds the body has moved slower than [`SLEEP_SPEED`] without a break.
+    pub timer: f32,
+    /// The sleeping island it belongs to, or [`AWAKE`].
+    pub island: u32,
+}
+
+impl Default for SleepState {
+    fn default() -> Self {
+        Self {
+            timer: 0.0,
+            island: AWAKE,
+        }
+    }
+}
+
+impl SleepState {
+    pub fn is_asleep(&self) -> bool {
+        self.island != AWAKE
+    }
+}
+
+/// The sleep state of every body slot and the members of every sleeping island.
+#[derive(Clone, Debug, Default)]
+pub struct Islands {
+    states: Vec<SleepState>,
+    /// Members of each sleeping island with the masses they had awake; an empty list is a
+    /// free island id.
+    sleeping: Vec<Vec<(u32, BodyMass)>>,
+    free_ids: Vec<u32>,
+    // Scratch of [`Islands::fall_asleep`], by body: union-find parents, the rest time of the
+    // island each root stands for, the sleeping island each root's bodies go to.
+    parent: Vec<u32>,
+    rest: Vec<f32>,
+    island_of_root: Vec<u32>,
+}
+
+impl Islands {
+    /// Makes room for `count` body slots; new slots are awake with no rest time.
+    pub fn resize(&mut self, count: usize) {
+        self.states.resize(count, SleepState::default());
+    }
+
+    pub fn state(&self, body: u32) -> SleepState {
+        self.states[body as usize]
+    }
+
+    /// Bodies asleep now.
+    pub fn sleeping_count(&self) -> usize {
+        self.sleeping.iter().map(Vec::len).sum()
+    }
+
+    /// Sets the rest time of `body` (s), as a dumped state had it.
+    pub fn set_timer(&mut self, body: u32, timer: f32) {
+        self.states[body as usize].timer = timer;
+    }
+
+    /// The body starts resting afresh (it was moved, dragged or added).
+    pub fn reset_timer(&mut self, body: u32) {
+        self.states[body as usize].timer = 0.0;
+    }
+
+    /// Adds `dt` to the rest time of each awake dynamic body slower than [`SLEEP_SPEED`] at
+    /// every point within `bounding_radius(body)` of its centre, and resets the others.
+    pub fn update_timers(
+        &mut self,
+        velocities: &[BodyVelocity],
+        masses: &[BodyMass],
+        bounding_radius: impl Fn(usize) -> f32,
+        dt: f32,
+    ) {
+        for (i, state) in self.states.iter_mut().enumerate() {
+            if state.is_asleep() || masses[i].inverse_mass == 0.0 {
+                continue;
+            }
+            let velocity = &velocities[i];
+            let speed = velocity.linear.length() + bounding_radius(i) * velocity.angular.length();
+            state.timer = if speed < SLEEP_SPEED {
+                state.timer + dt
+            } else {
+                0.0
+            };
+        }
+    }
+
+    /// Finds the islands of the awake dynamic bodies joined by `edges` (body pairs of contacts
+    /// with points and of joints; pairs with a static body are ignored) and puts to sleep each
+    /// island whose bodies have all rested [`TIME_TO_SLEEP`], unless it holds `keep_awake`:
+    /// their masses and velocities become zero. Appends the bodies put to sleep to `asleep`.
+    pub fn fall_asleep(
+        &mut self,
+        edges: impl Iterator<Item = (u32, u32)>,
+        masses: &mut [BodyMass],
+        velocities: &mut [BodyVelocity],
+        keep_awake: Option<u32>,
+        asleep: &mut Vec<u32>,
+    ) {
+        let count = self.states.len();
+        let awake = |i: usize| masses[i].inverse_mass > 0.0;
+        self.parent.clear();
+        self.parent.extend(0..count as u32);
+        for (a, b) in edges {
+            if awake(a as usize) && awake(b as usize) {
+                let (ra, rb) = (find(&mut self.parent, a), find(&mut self.parent, b));
+                // The lower index is the root: islands do not depend on edge order.
+                let (low, high) = (ra.min(rb), ra.max(rb));
+                self.parent[high as usize] = low;
+            }
+        }
+        // The longest any island has rested is its least rested body's time.
+        let rest = &mut self.rest;
+        rest.clear();
+        rest.resize(count, f32::INFINITY);
+        for i in 0..count {
+            if awake(i) {
+                let root = find(&mut self.parent, i as u32) as usize;
+                rest[root] = rest[root].min(self.states[i].timer);
+            }
+        }
+        if let Some(body) = keep_awake {
+            let root = find(&mut self.parent, body) as usize;
+            rest[root] = 0.0;
+        }
+        // Island ids in the order of their lowest body, members in index order.
+        let first_new = asleep.len();
+        let island_of_root = &mut self.island_of_root;
+        island_of_root.clear();
+        island_of_root.resize(count, AWAKE);
+        for (i, &mass) in masses.iter().enumerate() {
+            if mass.inverse_mass == 0.0 {
+                continue;
+            }
+            let root = find(&mut self.parent, i as u32) as usize;
+            if rest[root] < TIME_TO_SLEEP {
+                continue;
+            }
+            if island_of_root[root] == AWAKE {
+                island_of_root[root] = new_island(&mut self.sleeping, &mut self.free_ids);
+            }
+            let island = island_of_root[root];
+            self.sleeping[island as usize].push((i as u32, mass));
+            self.states[i].island = island;
+            asleep.push(i as u32);
+        }
+        for &body in &asleep[first_new..] {
+            masses[body as usize] = BodyMass::default();
+            velocities[body as usize] = BodyVelocity::default();
+        }
+    }
+
+    /// Puts `bodies` to sleep as one island (a dumped state being loaded); the bodies must be
+    /// awake and dynamic.
+    pub fn restore_island(
+        &mut self,
+        bodies: &[u32],
+        masses: &mut [BodyMass],
+        velocities: &mut [BodyVelocity],
+    ) {
+        let island = new_island(&mut self.sleeping, &mut self.free_ids);
+        for &body in bodies {
+            let i = body as usize;
+            self.sleeping[island as usize].push((body, masses[i]));
+            self.states[i].island = island;
+            masses[i] = BodyMass::default();
+            velocities[i] = BodyVelocity::default();
+        }
+    }
+
+    /// Wakes the island of `body` if it sleeps: its bodies get their masses back (velocities
+    /// stay zero) and keep their rest times. Appends the woken bodies to `woken`.
+    pub fn wake(&mut self, body: u32, masses: &mut [BodyMass], woken: &mut Vec<u32>) {
+        let island = self.states[body as usize].island;
+        if island == AWAKE {
+            return;
+        }
+        for (member, mass) in self.sleeping[island as usize].drain(..) {
+            masses[member as usize] = mass;
+            self.states[member as usize].island = AWAKE;
+            woken.push(member);
+        }
+        self.free_ids.push(island);
+    }
+
+    /// Wakes every sleeping island.
+    pub fn wake_all(&mut self, masses: &mut [BodyMass], woken: &mut Vec<u32>) {
+        for island in 0..self.sleeping.len() {
+            if let Some(&(body, _)) = self.sleeping[island].first() {
+                self.wake(body, masses, woken);
+            }
+        }
+    }
+}
+
+/// A free sleeping-island id: a reused one, or a new empty member list.
+fn new_island(sleeping: &mut Vec<Vec<(u32, BodyMass)>>, free_ids: &mut Vec<u32>) -> u32 {
+    free_ids.pop().unwrap_or_else(|| {
+        sleeping.push(Vec::new());
+        (sleeping.len() - 1) as u32
+    })
+}
+
+/// Root of `body` in the union-find forest, halving paths on the way.
+fn find(parent: &mut [u32], mut body: u32) -> u32 {
+    while parent[body as usize] != body {
+        let grandparent = parent[parent[body as usize] as usize];
+        parent[body as usize] = grandparent;
+        body = grandparent;
+    }
+    body
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+
+    fn dynamic() -> BodyMass {
+        BodyMass {
+            inverse_inertia: Vec3::ONE,
+            inverse_mass: 1.0,
+        }
+    }
+
+    #[test]
+    fn touching_bodies_sleep_together_once_all_rested() {
+        // Bodies 0-1-2 touch, 3 is alone, 4 is static.
+        let mut masses = vec![
+            dynamic(),
+            dynamic(),
+            dynamic(),
+            dynamic(),
+            BodyMass::default(),
+        ];
+        let mut velocities = vec![BodyVelocity::default(); 5];
+        velocities[2].linear = Vec3::X; // still moving: its island stays awake
+        let mut islands = Islands::default();
+        islands.resize(5);
+        let edges = [(1, 2), (0, 1), (3, 4)];
+        let mut asleep = Vec::new();
+        for _ in 0..40 {
+            islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
+            islands.fall_asleep(
+                edges.iter().copied(),
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
+        }
+        // Body 3 rested 0.5 s after 30 steps and slept alone (the static body joins nothing).
+        assert_eq!(asleep, [3]);
+        assert!(islands.state(3).is_asleep() && masses[3] == BodyMass::default());
+        // Body 2 stops: the chain sleeps half a second later, as one island.
+        velocities[2].linear = Vec3::ZERO;
+        for _ in 0..31 {
+            islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
+            islands.fall_asleep(
+                edges.iter().copied(),
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
+        }
+        assert_eq!(asleep, [3, 0, 1, 2]);
+        let island = islands.state(0).island;
+        assert!(islands.state(1).island == island && islands.state(2).island == island);
+        assert_ne!(islands.state(3).island, island);
+        // Waking one wakes the island, with its masses back, and not the other island.
+        let mut woken = Vec::new();
+        islands.wake(2, &mut masses, &mut woken);
+        assert_eq!(woken, [0, 1, 2]);
+        assert!(masses[..3].iter().all(|m| *m == dynamic()));
+        assert!(islands.state(3).is_asleep());
+        assert_eq!(islands.sleeping_count(), 1);
+    }
+
+    #[test]
+    fn the_dragged_body_keeps_its_island_awake() {
+        let mut masses = vec![dynamic(), dynamic()];
+        let mut velocities = vec![BodyVelocity::default(); 2];
+        let mut islands = Islands::default();
+        islands.resize(2);
+        let mut asleep = Vec::new();
+        for _ in 0..60 {
+            islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
+            islands.fall_asleep(
+                [(0, 1)].into_iter(),
+                &mut masses,
+                &mut velocities,
+                Some(1),
+                &mut asleep,
+            );
+        }
+        assert!(asleep.is_empty());
+    }
+}
