@@ -383,22 +383,25 @@ fn closest_parameter_segment_box(start: vec3<f32>, delta: vec3<f32>, half: vec3<
     }
     breaks[count] = 1.0;
     count += 1u;
-    // Insertion sort: the same ascending order as the CPU's sort (no NaN, no -0 here).
-    for (var index = 1u; index < count; index++) {
-        let value = breaks[index];
-        var slot = index;
-        while slot > 0u && breaks[slot - 1u] > value {
-            breaks[slot] = breaks[slot - 1u];
-            slot -= 1u;
+    // Ascending, as the CPU sorts them: each value goes to its rank (equal values by index).
+    // Not an in-place sort: llvmpipe's GL compiler miscompiled an insertion sort of this local
+    // array (a shifted element was written where the saved one belonged).
+    var sorted: array<f32, 8>;
+    for (var index = 0u; index < count; index++) {
+        var rank = 0u;
+        for (var other = 0u; other < count; other++) {
+            if breaks[other] < breaks[index] || (breaks[other] == breaks[index] && other < index) {
+                rank += 1u;
+            }
         }
-        breaks[slot] = value;
+        sorted[rank] = breaks[index];
     }
 
     var best = 0.0;
     var best_distance_squared = segment_box_distance_squared(start, delta, half, 0.0);
     for (var piece = 0u; piece + 1u < count; piece++) {
-        let low = breaks[piece];
-        let high = breaks[piece + 1u];
+        let low = sorted[piece];
+        let high = sorted[piece + 1u];
         let middle = start + delta * (0.5 * (low + high));
         var offset_times_slope = 0.0;
         var slope_squared = 0.0;

@@ -13,6 +13,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::{MATCH_DISTANCE, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact};
 use crate::collision::contact::wgsl_constants;
+use crate::collision::manifold::{REDUCE_TIE_DEPTH, REDUCE_TIE_RELATIVE};
 use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
@@ -52,6 +53,8 @@ const _: () = assert!(size_of::<NarrowphaseParams>() == 16);
 pub fn wgsl() -> Source {
     wgsl_constants(Source::new())
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
+        .constant_f32("REDUCE_TIE_RELATIVE", REDUCE_TIE_RELATIVE)
+        .constant_f32("REDUCE_TIE_DEPTH", REDUCE_TIE_DEPTH)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("contact_common.wgsl", include_str!("contact_common.wgsl"))
