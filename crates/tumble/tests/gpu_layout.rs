@@ -49,7 +49,19 @@ macro_rules! rust_layout {
 type Layout = (String, (Vec<(String, u32)>, u32));
 
 fn check(source: Source, rust: Vec<Layout>) {
+    check_with_gpu_only(source, rust, &[]);
+}
+
+/// [`check`] for a source that also defines structs only its kernels use (`gpu_only`), which
+/// have no Rust twin.
+fn check_with_gpu_only(source: Source, rust: Vec<Layout>, gpu_only: &[&str]) {
     let mut wgsl = wgsl_structs(&source);
+    for name in gpu_only {
+        assert!(
+            wgsl.remove(*name).is_some(),
+            "struct {name} is not in the WGSL"
+        );
+    }
     for (name, layout) in rust {
         let found = wgsl
             .remove(&name)
@@ -216,5 +228,61 @@ fn pair_contact_structs_match_rust() {
             rust_layout!(PointImpulse { normal, tangent }),
             rust_layout!(PairContact { manifold, impulses }),
         ],
+    );
+}
+
+#[test]
+fn narrowphase_structs_match_rust() {
+    use tumble::collision::manifold::{ContactPoint, Manifold};
+    use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
+    use tumble::stages::narrowphase::gpu::wgsl;
+    use tumble::stages::narrowphase::{NarrowphaseParams, PairContact, PointImpulse};
+    check_with_gpu_only(
+        wgsl(),
+        vec![
+            rust_layout!(NarrowphaseParams {
+                pair_count,
+                skipped_count,
+                margin,
+                dt
+            }),
+            rust_layout!(BodyPose {
+                position,
+                _pad,
+                rotation
+            }),
+            rust_layout!(BodyVelocity {
+                linear,
+                _pad0,
+                angular,
+                _pad1
+            }),
+            rust_layout!(BodyMass {
+                inverse_inertia,
+                inverse_mass
+            }),
+            rust_layout!(ColliderData {
+                kind,
+                friction,
+                restitution,
+                bounding_radius,
+                params
+            }),
+            rust_layout!(ContactPoint {
+                position,
+                separation,
+                anchor,
+                id
+            }),
+            rust_layout!(Manifold {
+                normal,
+                count,
+                points
+            }),
+            rust_layout!(PointImpulse { normal, tangent }),
+            rust_layout!(PairContact { manifold, impulses }),
+        ],
+        // The polygon vertex of box-box clipping lives in one thread's private memory.
+        &["ClipVertex"],
     );
 }

@@ -6,10 +6,10 @@
 //! Counts, feature ids and carried impulses must be equal exactly. Positions, separations,
 //! normals and anchors must agree within `TOLERANCE` = 1e-4 (m, or unit vector components):
 //! both sides compute the same expressions in the same order, but WGSL lets the driver fuse a
-//! multiply and an add (one rounding less) and gives division and square root a few ulps of
-//! slack; over the chain of a box–box contact (two rotations, a relative frame, clipping,
-//! back to the world) that is some tens of ulps of values up to ~10 m, ~1e-5 m — the bound
-//! leaves a factor of ten above that and is still far below any geometric feature.
+//! multiply and an add and gives division, square root and the builtins a few ulps of slack.
+//! Measured on lavapipe and llvmpipe over 100 000 random pairs, the largest difference was
+//! 1e-6 m, one ulp of coordinates near 10 m; the bound leaves a hundred times that for
+//! drivers that round differently and is still far below any geometric feature.
 
 mod gpu_common;
 
@@ -154,6 +154,10 @@ fn random_world(random: &mut Random, pairs: usize) -> World {
         world.keys.push(key);
         if pair % 17 == 5 {
             world.skipped.push(key);
+        }
+        if pair % 13 == 7 {
+            // A jointed pair the broadphase did not report: must not match a neighbour.
+            world.skipped.push(pair_key(first + 1, first + 2));
         }
     }
     world
@@ -429,6 +433,16 @@ fn stacked_boxes_flip_ids_alike() {
                     (cube, vec3(10.5, 1.0, 0.0) + offset, Quat::IDENTITY),
                     (cube, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
                 ],
+                // Edge down at 45°: the two faces at the edge are equally anti-parallel to the
+                // lower face, and the incident one is chosen on a tie.
+                [
+                    (
+                        cube,
+                        vec3(20.0, 0.5 + std::f32::consts::FRAC_1_SQRT_2 - 0.001, 0.0) + offset,
+                        Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+                    ),
+                    (cube, vec3(20.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
                 // A quarter turn about y: the same square, vertices renumbered.
                 [
                     (
@@ -442,12 +456,13 @@ fn stacked_boxes_flip_ids_alike() {
         })
         .collect();
     let steps = run_steps(&context, &frames);
-    assert!(
-        steps
+    for contacts in &steps {
+        let counts: Vec<u32> = contacts
             .iter()
-            .flatten()
-            .all(|contact| contact.manifold.count == 4)
-    );
+            .map(|contact| contact.manifold.count)
+            .collect();
+        assert_eq!(counts, [4, 4, 4, 4, 2, 4]);
+    }
     // The premise: some point changed its id from one step to the next yet kept its impulse
     // (matched by anchor).
     let ids = |contact: &PairContact| {
@@ -580,4 +595,67 @@ fn parallel_capsules_match() {
     let last = steps.last().unwrap();
     let counts: Vec<u32> = last.iter().map(|contact| contact.manifold.count).collect();
     assert_eq!(counts, [2, 2, 2, 2, 2, 1]);
+}
+
+/// The stage as a GPU step uses it: contacts stay on the device, this step's output is next
+/// step's input (two arrays in turn), only the poses are uploaded; each step agrees with the
+/// CPU carrying its contacts in place.
+#[test]
+fn device_resident_steps_match_the_cpu() {
+    let context = context();
+    let mut narrowphase = GpuNarrowphase::new(&context);
+    let mut random = Random::new(99);
+    let mut world = random_world(&mut random, 1000);
+    let mut cpu = vec![PairContact::default(); world.keys.len()];
+    update_contacts(&world.keys, &mut cpu, &world.inputs());
+    give_impulses(&mut random, &mut cpu);
+
+    let identity: Vec<u32> = (0..world.keys.len() as u32).collect();
+    let colliders: Vec<ColliderData> = world.colliders.iter().map(|c| c.data()).collect();
+    let keys = GpuVec::from_slice(&context, "keys", &world.keys).unwrap();
+    let old_index = GpuVec::from_slice(&context, "old index", &identity).unwrap();
+    let mut poses = GpuVec::from_slice(&context, "poses", &world.poses).unwrap();
+    let velocities = GpuVec::from_slice(&context, "velocities", &world.velocities).unwrap();
+    let colliders = GpuVec::from_slice(&context, "colliders", &colliders).unwrap();
+    let skipped = GpuVec::from_slice(&context, "skipped", &world.skipped).unwrap();
+    let mut contacts = [
+        GpuVec::from_slice(&context, "contacts 0", &cpu).unwrap(),
+        GpuVec::with_capacity(&context, "contacts 1", 0).unwrap(),
+    ];
+    for step in 0..4 {
+        nudge(&mut random, &mut world.poses);
+        update_contacts(&world.keys, &mut cpu, &world.inputs());
+        poses.upload(&context, &world.poses).unwrap();
+        let (old, new) = if step % 2 == 0 {
+            let [old, new] = &mut contacts;
+            (&*old, new)
+        } else {
+            let [new, old] = &mut contacts;
+            (&*old, new)
+        };
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor::default());
+            let inputs = GpuNarrowphaseInputs {
+                keys: &keys,
+                old_index: &old_index,
+                old_contacts: old,
+                poses: &poses,
+                velocities: &velocities,
+                colliders: &colliders,
+                skipped: &skipped,
+                margin: MARGIN,
+                dt: DT,
+            };
+            narrowphase
+                .encode(&context, &mut pass, &inputs, new)
+                .unwrap();
+        }
+        context.queue.submit([encoder.finish()]);
+        assert_parity(&cpu, &new.download(&context).unwrap());
+    }
+    // Impulses made it through four steps of matching.
+    assert!(cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count() > 100);
 }

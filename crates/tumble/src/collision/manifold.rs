@@ -72,13 +72,25 @@ impl Manifold {
     }
 }
 
+/// Scores of [`reduce`] (squared distances, areas) within this fraction of the best so far
+/// count as equal to it, and the lower index wins. Symmetric candidates (the corners of a box
+/// face) have scores equal in exact arithmetic that rounding tells apart, and rounding differs
+/// between executors (a GPU may fuse a multiply and an add): with this slack the CPU and the
+/// GPU narrowphase keep the same points in the same order.
+pub const REDUCE_TIE_RELATIVE: f32 = 1.0e-4;
+
+/// Depths (m) within this of the deepest so far count as equally deep, for the same reason:
+/// the corners of a box lying flat differ in depth only by rounding.
+pub const REDUCE_TIE_DEPTH: f32 = 1.0e-5;
+
 /// Keeps at most [`MAX_MANIFOLD_POINTS`] of `candidates`, chosen to hold the body as a larger
 /// set would: the deepest point (it carries the largest impulse), then the point farthest from
 /// it, then the one making the largest triangle with those two, then the one making the
 /// largest quadrilateral with the triangle. Distances and areas are measured in the contact
 /// plane (perpendicular to the unit `normal`), so depth differences do not count as spread.
 ///
-/// Deterministic: ties go to the lower index; the kept points are listed in the order chosen.
+/// Deterministic: ties (within [`REDUCE_TIE_RELATIVE`] and [`REDUCE_TIE_DEPTH`]) go to the
+/// lower index; the kept points are listed in the order chosen.
 /// The result's normal is `normal`. With four candidates or fewer, all are kept in order.
 pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
     let mut manifold = Manifold {
@@ -94,7 +106,7 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
 
     let mut deepest = 0;
     for (index, candidate) in candidates.iter().enumerate() {
-        if candidate.separation < candidates[deepest].separation {
+        if candidate.separation < candidates[deepest].separation - REDUCE_TIE_DEPTH {
             deepest = index;
         }
     }
@@ -138,7 +150,7 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
 }
 
 /// Index of the candidate not in `taken` with the largest `score` of its position; the lower
-/// index on ties. `candidates` has more entries than `taken`, so there is always one.
+/// index on ties (within [`REDUCE_TIE_RELATIVE`]). `candidates` has more entries than `taken`, so there is always one.
 fn best_index(candidates: &[ContactPoint], taken: &[usize], score: impl Fn(Vec3) -> f32) -> usize {
     let mut best = usize::MAX;
     let mut best_score = f32::NEG_INFINITY;
@@ -147,7 +159,9 @@ fn best_index(candidates: &[ContactPoint], taken: &[usize], score: impl Fn(Vec3)
             continue;
         }
         let candidate_score = score(candidate.position);
-        if best == usize::MAX || candidate_score > best_score {
+        if best == usize::MAX
+            || candidate_score > best_score + REDUCE_TIE_RELATIVE * best_score.abs()
+        {
             best = index;
             best_score = candidate_score;
         }
@@ -185,12 +199,10 @@ mod tests {
         candidates.push(point(0.0, 0.0, -0.015, 8));
         candidates.push(point(0.9, 0.3, -0.015, 9));
         let manifold = reduce(&candidates, Vec3::Y);
-        let mut ids: Vec<u32> = manifold.points().iter().map(|point| point.id).collect();
-        // Deepest 3, its opposite 7, then the two vertices a quarter turn off (1 and 5, equal
-        // up to rounding): the largest square.
-        assert_eq!(ids[..2], [3, 7]);
-        ids[2..].sort();
-        assert_eq!(ids[2..], [1, 5]);
+        let ids: Vec<u32> = manifold.points().iter().map(|point| point.id).collect();
+        // Deepest 3, its opposite 7, then the two vertices a quarter turn off: the largest
+        // square. 1 and 5 make triangles equal up to rounding: a tie, so 1 comes first.
+        assert_eq!(ids, [3, 7, 1, 5]);
     }
 
     #[test]

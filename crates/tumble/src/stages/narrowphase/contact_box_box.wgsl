@@ -87,7 +87,18 @@ fn box_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margi
 
     let face_separation = max(separation_a, separation_b);
     if edge_found && clearly_greater(edge_separation, face_separation, EDGE_RELATIVE_TOLERANCE) {
-        edge_contact(edge_normal, edge_axis_of_b, edge_axis_of_a, half_a, half_b, rotation, translation, rotation_b, pose_b.position, margin);
+        edge_contact(
+            edge_normal,
+            edge_axis_of_b,
+            edge_axis_of_a,
+            half_a,
+            half_b,
+            rotation,
+            translation,
+            rotation_b,
+            pose_b.position,
+            margin,
+        );
         return;
     }
 
@@ -128,10 +139,19 @@ fn box_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margi
         reference_rotation = rotation_b;
         reference_position = pose_b.position;
     }
-    let count = clip_incident_face(reference_half, face_axis, face_sign, incident_half, incident_rotation, incident_translation, margin);
+    let count = clip_incident_face(
+        reference_half,
+        face_axis,
+        face_sign,
+        incident_half,
+        incident_rotation,
+        incident_translation,
+        margin,
+    );
     let id_flag = select(0u, REFERENCE_IS_A_BIT, reference_is_a);
     for (var index = 0u; index < count; index++) {
-        candidates[index].position = reference_position + mat_vec(reference_rotation, candidates[index].position);
+        candidates[index].position = reference_position
+            + mat_vec(reference_rotation, candidates[index].position);
         candidates[index].id |= id_flag;
     }
     // The reference normal points from the reference box to the incident one; the manifold's
@@ -192,7 +212,8 @@ fn edge_contact(
     push_point(contact_point(
         world_position + mat_vec(world_rotation, 0.5 * (point_a + point_b)),
         separation,
-        EDGE_CONTACT_BIT | edge_index(axis_of_b, corner_b) | (edge_index(axis_of_a, corner_a) << 4u),
+        EDGE_CONTACT_BIT | edge_index(axis_of_b, corner_b)
+            | (edge_index(axis_of_a, corner_a) << 4u),
     ));
 }
 
@@ -283,7 +304,8 @@ fn clip_incident_face(
     clip_polygon(side_v, 1.0, reference_half[side_v], 2u);
     clip_polygon(side_v, -1.0, reference_half[side_v], 3u);
 
-    let id_base = (face_index(face_axis, face_sign) << 6u) | (face_index(incident_axis, incident_sign) << 9u);
+    let id_base = (face_index(face_axis, face_sign) << 6u)
+        | (face_index(incident_axis, incident_sign) << 9u);
     var count = 0u;
     for (var index = 0u; index < polygon_count; index++) {
         let vertex = polygon[index];

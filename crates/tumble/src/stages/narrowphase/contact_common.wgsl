@@ -127,11 +127,12 @@ fn emit_candidates(count: u32, normal: vec3<f32>) {
 }
 
 // collision/manifold.rs `reduce` for count > 4: deepest, farthest from it, widest triangle,
-// largest quadrilateral, measured in the contact plane; ties to the lower index.
+// largest quadrilateral, measured in the contact plane; ties (within REDUCE_TIE_DEPTH and
+// REDUCE_TIE_RELATIVE, which absorb rounding differences) to the lower index.
 fn reduce(count: u32, normal: vec3<f32>) {
     var deepest = 0u;
     for (var index = 0u; index < count; index++) {
-        if candidates[index].separation < candidates[deepest].separation {
+        if candidates[index].separation < candidates[deepest].separation - REDUCE_TIE_DEPTH {
             deepest = index;
         }
     }
@@ -146,7 +147,7 @@ fn reduce(count: u32, normal: vec3<f32>) {
         let offset = candidates[index].position - first;
         let along_normal = dot3(offset, normal);
         let score = dot3(offset, offset) - along_normal * along_normal;
-        if farthest == 0xffffffffu || score > best {
+        if farthest == 0xffffffffu || beats(score, best) {
             farthest = index;
             best = score;
         }
@@ -159,7 +160,7 @@ fn reduce(count: u32, normal: vec3<f32>) {
             continue;
         }
         let score = abs(triangle_area(first, second, candidates[index].position, normal));
-        if widest == 0xffffffffu || score > best {
+        if widest == 0xffffffffu || beats(score, best) {
             widest = index;
             best = score;
         }
@@ -180,7 +181,7 @@ fn reduce(count: u32, normal: vec3<f32>) {
             ),
             quadrilateral_area(first, second, third, p, normal, winding),
         );
-        if fourth == 0xffffffffu || score > best {
+        if fourth == 0xffffffffu || beats(score, best) {
             fourth = index;
             best = score;
         }
@@ -191,6 +192,11 @@ fn reduce(count: u32, normal: vec3<f32>) {
     push_point(candidates[farthest]);
     push_point(candidates[widest]);
     push_point(candidates[fourth]);
+}
+
+// A score of `reduce` clearly above the best so far.
+fn beats(score: f32, best: f32) -> bool {
+    return score > best + REDUCE_TIE_RELATIVE * abs(best);
 }
 
 // Twice the area of triangle (first, second, p) projected on the contact plane, signed.

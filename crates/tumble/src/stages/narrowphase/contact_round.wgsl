@@ -116,7 +116,8 @@ fn capsule_plane(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose,
 
 // Signs of box vertex `index` along the local axes: bit 0, 1, 2 set → + side of x, y, z.
 fn vertex_signs(index: u32) -> vec3<f32> {
-    return select(vec3<f32>(-1.0), vec3<f32>(1.0), (vec3<u32>(index) & vec3<u32>(1u, 2u, 4u)) != vec3<u32>(0u));
+    let bits = vec3<u32>(index) & vec3<u32>(1u, 2u, 4u);
+    return select(vec3<f32>(-1.0), vec3<f32>(1.0), bits != vec3<u32>(0u));
 }
 
 // Every vertex below the margin is a candidate, id the vertex index; more than four reduced.
@@ -136,7 +137,8 @@ fn box_plane(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, mar
         let separation = center_height + element_sum(signs * reach);
         if separation < margin {
             let vertex = pose_a.position + mat_vec(rotation, signs * half);
-            candidates[count] = contact_point(vertex - normal * (0.5 * separation), separation, index);
+            let position = vertex - normal * (0.5 * separation);
+            candidates[count] = contact_point(position, separation, index);
             count += 1u;
         }
     }
@@ -168,7 +170,8 @@ fn capsule_capsule(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPos
     if distance_squared > COINCIDENT_DISTANCE_SQUARED {
         normal = offset / sqrt(distance_squared);
     } else if cross_length_squared
-        > PARALLEL_SINE_SQUARED * length_a_squared * length_b_squared + COINCIDENT_DISTANCE_SQUARED {
+        > PARALLEL_SINE_SQUARED * length_a_squared * length_b_squared
+            + COINCIDENT_DISTANCE_SQUARED {
         // Crossing axes: along their common normal, towards A.
         let across = axes_cross / sqrt(cross_length_squared);
         normal = across * sign_or_positive(dot3(across, pose_a.position - pose_b.position));
@@ -234,14 +237,16 @@ fn capsule_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, m
         if u32(outside.x) + u32(outside.y) + u32(outside.z) == 1u {
             // Over one face: the part of the segment over it rests on it.
             let axis = select(select(2u, 1u, outside.y), 0u, outside.x);
-            capsule_on_face(start, delta, radius, half, axis, sign_or_positive(point[axis]), t, margin, pose_b);
+            let face_sign = sign_or_positive(point[axis]);
+            capsule_on_face(start, delta, radius, half, axis, face_sign, t, margin, pose_b);
         } else {
             // Beside an edge or a corner: one point.
             let distance = sqrt(distance_squared);
             let normal_local = offset / distance;
             let normal = rotate(pose_b.rotation, normal_local);
             out.normal = normal;
-            let surface_a = pose_b.position + rotate(pose_b.rotation, point - normal_local * radius);
+            let surface_a = pose_b.position
+                + rotate(pose_b.rotation, point - normal_local * radius);
             push_contact(surface_a, normal, distance - radius, 0u);
         }
         return;
@@ -315,7 +320,8 @@ fn capsule_in_box(
     if face_separation - radius >= margin {
         return;
     }
-    capsule_on_face(start, delta, radius, half, face_axis, sign_or_positive(center[face_axis]), parameter, margin, pose_b);
+    let face_sign = sign_or_positive(center[face_axis]);
+    capsule_on_face(start, delta, radius, half, face_axis, face_sign, parameter, margin, pose_b);
 }
 
 // The part of the segment over box face (axis, sign): its two ends (ids 0, 1), or the point
@@ -356,7 +362,8 @@ fn capsule_on_face(
         let point = start + delta * parameters[id];
         let separation = face_sign * point[face_axis] - half[face_axis] - radius;
         if separation < margin {
-            let surface_a = pose_b.position + rotate(pose_b.rotation, point - normal_local * radius);
+            let surface_a = pose_b.position
+                + rotate(pose_b.rotation, point - normal_local * radius);
             push_contact(surface_a, normal, separation, id);
         }
     }
@@ -383,22 +390,25 @@ fn closest_parameter_segment_box(start: vec3<f32>, delta: vec3<f32>, half: vec3<
     }
     breaks[count] = 1.0;
     count += 1u;
-    // Insertion sort: the same ascending order as the CPU's sort (no NaN, no -0 here).
-    for (var index = 1u; index < count; index++) {
-        let value = breaks[index];
-        var slot = index;
-        while slot > 0u && breaks[slot - 1u] > value {
-            breaks[slot] = breaks[slot - 1u];
-            slot -= 1u;
+    // Ascending, as the CPU sorts them: each value goes to its rank (equal values by index).
+    // Not an in-place sort: llvmpipe's GL compiler miscompiled an insertion sort of this local
+    // array (a shifted element was written where the saved one belonged).
+    var sorted: array<f32, 8>;
+    for (var index = 0u; index < count; index++) {
+        var rank = 0u;
+        for (var other = 0u; other < count; other++) {
+            if breaks[other] < breaks[index] || (breaks[other] == breaks[index] && other < index) {
+                rank += 1u;
+            }
         }
-        breaks[slot] = value;
+        sorted[rank] = breaks[index];
     }
 
     var best = 0.0;
     var best_distance_squared = segment_box_distance_squared(start, delta, half, 0.0);
     for (var piece = 0u; piece + 1u < count; piece++) {
-        let low = breaks[piece];
-        let high = breaks[piece + 1u];
+        let low = sorted[piece];
+        let high = sorted[piece + 1u];
         let middle = start + delta * (0.5 * (low + high));
         var offset_times_slope = 0.0;
         var slope_squared = 0.0;
@@ -430,7 +440,12 @@ fn closest_parameter_segment_box(start: vec3<f32>, delta: vec3<f32>, half: vec3<
     return best;
 }
 
-fn segment_box_distance_squared(start: vec3<f32>, delta: vec3<f32>, half: vec3<f32>, t: f32) -> f32 {
+fn segment_box_distance_squared(
+    start: vec3<f32>,
+    delta: vec3<f32>,
+    half: vec3<f32>,
+    t: f32,
+) -> f32 {
     let point = start + delta * t;
     let offset = point - clamp(point, -half, half);
     return dot3(offset, offset);

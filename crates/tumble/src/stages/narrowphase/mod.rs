@@ -11,6 +11,9 @@
 //!
 //! Guarantees: `contacts[i]` belongs to `keys[i]` = (a, b) with a < b, body A = a, normal from
 //! b to a; the result depends only on the poses and last step's manifold, never on thread count.
+//!
+//! [`GpuNarrowphase`] (`gpu.rs`, `narrowphase.wgsl` and the `contact_*.wgsl` pair functions) is
+//! the same stage on the GPU, one thread per pair, with the same points, ids and impulses.
 
 pub mod gpu;
 

@@ -98,7 +98,13 @@ fn collide(a: ColliderData, pose_a: BodyPose, b: ColliderData, pose_b: BodyPose,
     }
 }
 
-fn collide_ordered(a: ColliderData, pose_a: BodyPose, b: ColliderData, pose_b: BodyPose, margin: f32) {
+fn collide_ordered(
+    a: ColliderData,
+    pose_a: BodyPose,
+    b: ColliderData,
+    pose_b: BodyPose,
+    margin: f32,
+) {
     let pair = a.kind * 4u + b.kind;
     switch pair {
         case 0u: { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
