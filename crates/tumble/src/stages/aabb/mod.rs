@@ -6,6 +6,8 @@
 //! by `linear_velocity · dt`, expanded by `margin`; slots of removed bodies are left as they are
 //! (the broadphase no longer holds them).
 
+pub mod gpu;
+
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
 use crate::math::Aabb;
 use rayon::prelude::*;

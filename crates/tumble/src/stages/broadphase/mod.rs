@@ -44,6 +44,7 @@
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
 mod cpu;
+pub mod gpu;
 
 use crate::collision::dbvt::{Dbvt, ProxyId};
 use crate::math::{Aabb, Vec3};

@@ -1,0 +1,226 @@
+// Pair finding: one thread per leaf of the dynamic tree (a dynamic body) walks the dynamic
+// tree, keeping pairs whose other body has the higher index (so each pair is found once), and
+// the static tree, keeping every overlap. Two stackless walks, picked by entry point:
+//
+// - `traverse_history`: the talk's history flags. 2 bits per tree level record which
+//   children of the node on the current path were entered; climbing resets the level's bits,
+//   and a node whose both bits are set is left for its parent. A vec2<u32> holds 32 levels; an
+//   internal node deeper than that (degenerate trees can be deeper: a run of equal codes
+//   below 30 levels of code bits) has its subtree walked by escapes instead, after which the
+//   walk climbs on.
+// - `traverse_ropes`: escape indices: overlap → first child, else (or after a leaf) → escape.
+//
+// Pairs are appended with an atomic counter; the order is fixed afterwards by sorting the keys.
+// A pair past `capacity` is counted but not written: the host sees count > capacity, grows the
+// buffer and runs the stage again.
+
+struct TraverseParams {
+    dynamic_leaves: u32,
+    static_leaves: u32,
+    capacity: u32,
+    padding: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: TraverseParams;
+@group(0) @binding(1) var<storage, read> dynamic_nodes: array<u32>;
+@group(0) @binding(2) var<storage, read> dynamic_bounds: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> static_nodes: array<u32>;
+@group(0) @binding(4) var<storage, read> static_bounds: array<vec4<f32>>;
+// u64 keys as (low word, high word) = (higher body, lower body).
+@group(0) @binding(5) var<storage, read_write> keys: array<u32>;
+@group(0) @binding(6) var<storage, read_write> count: array<atomic<u32>>;
+
+const NONE: u32 = 0xffffffffu;
+const DYNAMIC: u32 = 0u;
+const STATIC: u32 = 1u;
+// Levels the history flags cover: 2 bits each in 64 bits.
+const HISTORY_LEVELS: u32 = 32u;
+
+struct Query {
+    low: vec3<f32>,
+    high: vec3<f32>,
+    body: u32,
+}
+
+fn node_word(tree: u32, index: u32) -> u32 {
+    if tree == DYNAMIC {
+        return dynamic_nodes[index];
+    }
+    return static_nodes[index];
+}
+
+fn left_child(tree: u32, node: u32) -> u32 {
+    return node_word(tree, 4u * node);
+}
+
+fn right_child(tree: u32, node: u32) -> u32 {
+    return node_word(tree, 4u * node + 1u);
+}
+
+fn parent(tree: u32, node: u32) -> u32 {
+    return node_word(tree, 4u * node + 2u);
+}
+
+fn escape(tree: u32, node: u32) -> u32 {
+    return node_word(tree, 4u * node + 3u);
+}
+
+// Overlap or touch, as Aabb::overlaps.
+fn overlaps(tree: u32, node: u32, query: Query) -> bool {
+    var low: vec3<f32>;
+    var high: vec3<f32>;
+    if tree == DYNAMIC {
+        low = dynamic_bounds[2u * node].xyz;
+        high = dynamic_bounds[2u * node + 1u].xyz;
+    } else {
+        low = static_bounds[2u * node].xyz;
+        high = static_bounds[2u * node + 1u].xyz;
+    }
+    return all(low <= query.high) && all(query.low <= high);
+}
+
+// A leaf that overlaps the query: its pair, unless the dynamic tree finds it from the other
+// body (or it is the query itself).
+fn report(tree: u32, node: u32, query: Query) {
+    let other = left_child(tree, node);
+    if tree == DYNAMIC && other <= query.body {
+        return;
+    }
+    let slot = atomicAdd(&count[0], 1u);
+    if slot < params.capacity {
+        keys[2u * slot] = max(other, query.body);
+        keys[2u * slot + 1u] = min(other, query.body);
+    }
+}
+
+fn leaf_count(tree: u32) -> u32 {
+    return select(params.static_leaves, params.dynamic_leaves, tree == DYNAMIC);
+}
+
+// The escape walk of the nodes from `start` until `stop` (exclusive).
+fn walk_ropes(tree: u32, start: u32, stop: u32, query: Query) {
+    let first_leaf = leaf_count(tree) - 1u;
+    var node = start;
+    while node != stop {
+        if overlaps(tree, node, query) {
+            if node >= first_leaf {
+                report(tree, node, query);
+                node = escape(tree, node);
+            } else {
+                node = left_child(tree, node);
+            }
+        } else {
+            node = escape(tree, node);
+        }
+    }
+}
+
+fn history_bits(history: vec2<u32>, level: u32) -> u32 {
+    return (history[level / 16u] >> (2u * (level % 16u))) & 3u;
+}
+
+fn with_history_bit(history: vec2<u32>, level: u32, bit: u32) -> vec2<u32> {
+    var updated = history;
+    updated[level / 16u] |= bit << (2u * (level % 16u));
+    return updated;
+}
+
+fn without_history_bits(history: vec2<u32>, level: u32) -> vec2<u32> {
+    var updated = history;
+    updated[level / 16u] &= ~(3u << (2u * (level % 16u)));
+    return updated;
+}
+
+fn walk_history(tree: u32, query: Query) {
+    let first_leaf = leaf_count(tree) - 1u;
+    var node = 0u;
+    var level = 0u;
+    var history = vec2<u32>(0u);
+    loop {
+        // A node at HISTORY_LEVELS is never descended from, so it has no bits (and the
+        // vector no word for them).
+        var bits = 0u;
+        if level < HISTORY_LEVELS {
+            bits = history_bits(history, level);
+        }
+        var descend = NONE;
+        if bits == 0u {
+            // Arrived from the parent.
+            if overlaps(tree, node, query) {
+                if node >= first_leaf {
+                    report(tree, node, query);
+                } else if level == HISTORY_LEVELS {
+                    // No bits left for this node's children: walk its subtree by escapes.
+                    walk_ropes(tree, left_child(tree, node), escape(tree, node), query);
+                } else {
+                    history = with_history_bit(history, level, 1u);
+                    descend = left_child(tree, node);
+                }
+            }
+        } else if bits == 1u {
+            history = with_history_bit(history, level, 2u);
+            descend = right_child(tree, node);
+        }
+        if descend != NONE {
+            node = descend;
+            level += 1u;
+            continue;
+        }
+        // Both children done (or none to enter): reset this level and climb.
+        if level < HISTORY_LEVELS {
+            history = without_history_bits(history, level);
+        }
+        if level == 0u {
+            return;
+        }
+        node = parent(tree, node);
+        level -= 1u;
+    }
+}
+
+fn query_of(leaf: u32) -> Query {
+    let node = params.dynamic_leaves - 1u + leaf;
+    return Query(
+        dynamic_bounds[2u * node].xyz,
+        dynamic_bounds[2u * node + 1u].xyz,
+        dynamic_nodes[4u * node],
+    );
+}
+
+fn query_index(workgroup: vec3<u32>, groups: vec3<u32>, local: u32) -> u32 {
+    return flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn traverse_history(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let leaf = query_index(workgroup, groups, local);
+    if leaf >= params.dynamic_leaves {
+        return;
+    }
+    let query = query_of(leaf);
+    walk_history(DYNAMIC, query);
+    if params.static_leaves > 0u {
+        walk_history(STATIC, query);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn traverse_ropes(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let leaf = query_index(workgroup, groups, local);
+    if leaf >= params.dynamic_leaves {
+        return;
+    }
+    let query = query_of(leaf);
+    walk_ropes(DYNAMIC, 0u, NONE, query);
+    if params.static_leaves > 0u {
+        walk_ropes(STATIC, 0u, NONE, query);
+    }
+}
