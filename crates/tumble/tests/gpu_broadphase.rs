@@ -1,6 +1,7 @@
 //! GPU collision front half against the CPU: world AABBs (within a stated tolerance), the LBVH
 //! broadphase (exactly the brute-force overlap pairs, both traversals, bitwise repeatable, no
-//! pair lost when the key buffer starts far too small, deep degenerate trees).
+//! pair lost when the key buffer starts far too small, deep degenerate trees), and the pair
+//! cache's diff (the CPU `PairCache`'s added, removed and kept pairs exactly).
 
 mod gpu_common;
 
@@ -13,7 +14,8 @@ use tumble::shape::Shape;
 use tumble::stages::aabb::compute_aabbs;
 use tumble::stages::aabb::gpu::GpuAabbs;
 use tumble::stages::broadphase::gpu::{GpuBroadphase, Traversal};
-use tumble::stages::pairs::pair_key;
+use tumble::stages::pairs::gpu::{GpuPairDiff, NEW_PAIR, PairDiff};
+use tumble::stages::pairs::{PairCache, pair_key};
 
 fn unit(random: &mut Random) -> f32 {
     (random.next_u32() >> 8) as f32 / (1u32 << 24) as f32
@@ -331,4 +333,127 @@ fn time_traversals_at_10k() {
             context.describe()
         );
     }
+}
+
+/// The CPU pair cache's view of old → new: each kept pair carries its old position (stored
+/// + 1, so that the default 0 marks an added pair).
+fn cpu_diff(old: &[u64], new: &[u64]) -> PairDiff {
+    let mut cache = PairCache::<u32>::new();
+    cache.update(old);
+    for (position, value) in cache.values_mut().iter_mut().enumerate() {
+        *value = position as u32 + 1;
+    }
+    cache.update(new);
+    PairDiff {
+        old_index: cache
+            .values()
+            .iter()
+            .map(|&value| value.checked_sub(1).unwrap_or(NEW_PAIR))
+            .collect(),
+        added: cache.added().to_vec(),
+        removed: cache.removed().to_vec(),
+    }
+}
+
+/// `count` distinct sorted keys among the pairs of `bodies` bodies.
+fn random_keys(random: &mut Random, count: usize, bodies: u32) -> Vec<u64> {
+    let mut keys = std::collections::BTreeSet::new();
+    while keys.len() < count {
+        let a = random.below(bodies);
+        let b = random.below(bodies);
+        if a != b {
+            keys.insert(pair_key(a, b));
+        }
+    }
+    keys.into_iter().collect()
+}
+
+#[test]
+fn pair_diff_matches_pair_cache() {
+    let context = context();
+    let mut random = Random::new(5);
+    let mut diff = GpuPairDiff::new(&context).expect("pair diff");
+    let shared = random_keys(&mut random, 300, 40);
+    let cases: Vec<(Vec<u64>, Vec<u64>)> = vec![
+        (Vec::new(), Vec::new()),
+        (Vec::new(), shared.clone()),
+        (shared.clone(), Vec::new()),
+        (shared.clone(), shared.clone()),
+        (
+            random_keys(&mut random, 1, 3),
+            random_keys(&mut random, 1, 3),
+        ),
+        (
+            random_keys(&mut random, 200, 30),
+            random_keys(&mut random, 250, 30),
+        ),
+        (
+            random_keys(&mut random, 40_000, 1000),
+            random_keys(&mut random, 45_000, 1000),
+        ),
+    ];
+    for (case, (old, new)) in cases.iter().enumerate() {
+        let expected = cpu_diff(old, new);
+        if case >= 5 {
+            assert!(
+                !expected.added.is_empty()
+                    && !expected.removed.is_empty()
+                    && expected.old_index.iter().any(|&index| index != NEW_PAIR),
+                "case {case} has adds, removals and kept pairs"
+            );
+        }
+        let found = diff.run(&context, old, new).expect("gpu pair diff");
+        assert_eq!(
+            found,
+            expected,
+            "case {case}: {} → {} keys",
+            old.len(),
+            new.len()
+        );
+    }
+}
+
+/// The diff straight on two broadphases' device buffers, capacity-long with u64::MAX padding.
+#[test]
+fn pair_diff_on_broadphase_keys() {
+    let context = context();
+    let (aabbs, is_static) = scene(3000, 51);
+    let shift = Vec3::new(0.3, 0.2, -0.1);
+    let moved: Vec<Aabb> = aabbs
+        .iter()
+        .zip(&is_static)
+        .map(|(aabb, &fixed)| {
+            if fixed {
+                *aabb
+            } else {
+                Aabb::new(aabb.min + shift, aabb.max + shift)
+            }
+        })
+        .collect();
+    let mut before = GpuBroadphase::new(&context).expect("broadphase");
+    let mut after = GpuBroadphase::new(&context).expect("broadphase");
+    let old = before
+        .find_pairs(&context, &aabbs, &is_static)
+        .expect("gpu broadphase");
+    let new = after
+        .find_pairs(&context, &moved, &is_static)
+        .expect("gpu broadphase");
+    assert!(before.capacity() > old.len() && after.capacity() > new.len());
+    let mut diff = GpuPairDiff::new(&context).expect("pair diff");
+    context
+        .submit_pass("pair diff", |pass| {
+            diff.encode(&context, pass, before.keys(), after.keys())
+        })
+        .expect("encode");
+    let mut found = diff.read_back(&context, &old, &new).expect("read back");
+    assert_eq!(found.old_index.len(), after.capacity());
+    assert!(
+        found.old_index[new.len()..]
+            .iter()
+            .all(|&index| index == NEW_PAIR)
+    );
+    found.old_index.truncate(new.len());
+    let expected = cpu_diff(&old, &new);
+    assert!(!expected.added.is_empty() && !expected.removed.is_empty());
+    assert_eq!(found, expected);
 }

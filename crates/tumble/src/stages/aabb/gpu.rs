@@ -107,6 +107,7 @@ impl GpuAabbs {
 
     /// Upload, encode, submit, download: the CPU executor's signature, for parity tests and
     /// for a step that runs this stage alone on the GPU.
+    #[allow(clippy::too_many_arguments)] // the CPU executor's arguments and the context
     pub fn run(
         &mut self,
         context: &GpuContext,

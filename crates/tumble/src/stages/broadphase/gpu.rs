@@ -344,8 +344,8 @@ pub struct GpuBroadphase {
     static_aabbs: Vec<Aabb>,
     aabbs: Option<GpuVec<Aabb>>,
     /// Appended keys (`capacity` long) and the sort's values, which carry nothing.
-    keys: GpuVec<u64>,
-    values: GpuVec<u32>,
+    appended: GpuVec<u64>,
+    appended_values: GpuVec<u32>,
     sorted_keys: GpuVec<u64>,
     sorted_values: GpuVec<u32>,
     /// One word: pairs found by the last run, including any past the capacity.
@@ -364,8 +364,8 @@ impl GpuBroadphase {
             is_static: Vec::new(),
             static_aabbs: Vec::new(),
             aabbs: None,
-            keys: GpuVec::with_capacity(context, "pair keys", 0)?,
-            values: GpuVec::with_capacity(context, "pair sort values", 0)?,
+            appended: GpuVec::with_capacity(context, "pair keys", 0)?,
+            appended_values: GpuVec::with_capacity(context, "pair sort values", 0)?,
             sorted_keys: GpuVec::with_capacity(context, "sorted pair keys", 0)?,
             sorted_values: GpuVec::with_capacity(context, "sorted pair values", 0)?,
             count: GpuVec::from_slice(context, "pair count", &[0])?,
@@ -386,16 +386,16 @@ impl GpuBroadphase {
 
     /// Keys the buffers hold before they must grow.
     pub fn capacity(&self) -> usize {
-        self.keys.len()
+        self.appended.len()
     }
 
     /// Reallocates the key buffers for `capacity` keys (contents are lost: call between runs).
     pub fn set_capacity(&mut self, context: &GpuContext, capacity: usize) -> Result<(), GpuError> {
         let capacity = capacity.max(1);
-        self.keys = GpuVec::with_capacity(context, "pair keys", capacity)?;
-        self.values = GpuVec::with_capacity(context, "pair sort values", capacity)?;
-        self.keys.resize(context, capacity)?;
-        self.values.resize(context, capacity)?;
+        self.appended = GpuVec::with_capacity(context, "pair keys", capacity)?;
+        self.appended_values = GpuVec::with_capacity(context, "pair sort values", capacity)?;
+        self.appended.resize(context, capacity)?;
+        self.appended_values.resize(context, capacity)?;
         self.cached = None;
         Ok(())
     }
@@ -459,7 +459,7 @@ impl GpuBroadphase {
                 self.dynamic.bounds.buffer().clone(),
                 self.fixed.nodes.buffer().clone(),
                 self.fixed.bounds.buffer().clone(),
-                self.keys.buffer().clone(),
+                self.appended.buffer().clone(),
                 self.count.buffer().clone(),
             ],
             [self.dynamic.leaves(), self.fixed.leaves(), self.capacity()],
@@ -482,7 +482,7 @@ impl GpuBroadphase {
         self.sort.encode(
             context,
             pass,
-            (&self.keys, &self.values),
+            (&self.appended, &self.appended_values),
             (&mut self.sorted_keys, &mut self.sorted_values),
             32 + body_bits,
         )
@@ -510,12 +510,17 @@ impl GpuBroadphase {
                 self.dynamic.bounds.whole(),
                 self.fixed.nodes.whole(),
                 self.fixed.bounds.whole(),
-                self.keys.whole(),
+                self.appended.whole(),
                 self.count.whole(),
             ],
         );
         Ok(vec![
-            fill_dispatch(context, self.keys.buffer(), 2 * self.capacity(), u32::MAX)?,
+            fill_dispatch(
+                context,
+                self.appended.buffer(),
+                2 * self.capacity(),
+                u32::MAX,
+            )?,
             fill_dispatch(context, self.count.buffer(), 1, 0)?,
             kernel.dispatch(
                 bind_group,

@@ -36,11 +36,10 @@ const STATIC: u32 = 1u;
 // Levels the history flags cover: 2 bits each in 64 bits.
 const HISTORY_LEVELS: u32 = 32u;
 
-struct Query {
-    low: vec3<f32>,
-    high: vec3<f32>,
-    body: u32,
-}
+// The thread's query: its dynamic body's box and index.
+var<private> query_low: vec3<f32>;
+var<private> query_high: vec3<f32>;
+var<private> query_body: u32;
 
 fn node_word(tree: u32, index: u32) -> u32 {
     if tree == DYNAMIC {
@@ -66,7 +65,7 @@ fn escape(tree: u32, node: u32) -> u32 {
 }
 
 // Overlap or touch, as Aabb::overlaps.
-fn overlaps(tree: u32, node: u32, query: Query) -> bool {
+fn overlaps(tree: u32, node: u32) -> bool {
     var low: vec3<f32>;
     var high: vec3<f32>;
     if tree == DYNAMIC {
@@ -76,20 +75,20 @@ fn overlaps(tree: u32, node: u32, query: Query) -> bool {
         low = static_bounds[2u * node].xyz;
         high = static_bounds[2u * node + 1u].xyz;
     }
-    return all(low <= query.high) && all(query.low <= high);
+    return all(low <= query_high) && all(query_low <= high);
 }
 
 // A leaf that overlaps the query: its pair, unless the dynamic tree finds it from the other
 // body (or it is the query itself).
-fn report(tree: u32, node: u32, query: Query) {
+fn report(tree: u32, node: u32) {
     let other = left_child(tree, node);
-    if tree == DYNAMIC && other <= query.body {
+    if tree == DYNAMIC && other <= query_body {
         return;
     }
     let slot = atomicAdd(&count[0], 1u);
     if slot < params.capacity {
-        keys[2u * slot] = max(other, query.body);
-        keys[2u * slot + 1u] = min(other, query.body);
+        keys[2u * slot] = max(other, query_body);
+        keys[2u * slot + 1u] = min(other, query_body);
     }
 }
 
@@ -98,13 +97,13 @@ fn leaf_count(tree: u32) -> u32 {
 }
 
 // The escape walk of the nodes from `start` until `stop` (exclusive).
-fn walk_ropes(tree: u32, start: u32, stop: u32, query: Query) {
+fn walk_ropes(tree: u32, start: u32, stop: u32) {
     let first_leaf = leaf_count(tree) - 1u;
     var node = start;
     while node != stop {
-        if overlaps(tree, node, query) {
+        if overlaps(tree, node) {
             if node >= first_leaf {
-                report(tree, node, query);
+                report(tree, node);
                 node = escape(tree, node);
             } else {
                 node = left_child(tree, node);
@@ -131,7 +130,7 @@ fn without_history_bits(history: vec2<u32>, level: u32) -> vec2<u32> {
     return updated;
 }
 
-fn walk_history(tree: u32, query: Query) {
+fn walk_history(tree: u32) {
     let first_leaf = leaf_count(tree) - 1u;
     var node = 0u;
     var level = 0u;
@@ -146,12 +145,12 @@ fn walk_history(tree: u32, query: Query) {
         var descend = NONE;
         if bits == 0u {
             // Arrived from the parent.
-            if overlaps(tree, node, query) {
+            if overlaps(tree, node) {
                 if node >= first_leaf {
-                    report(tree, node, query);
+                    report(tree, node);
                 } else if level == HISTORY_LEVELS {
                     // No bits left for this node's children: walk its subtree by escapes.
-                    walk_ropes(tree, left_child(tree, node), escape(tree, node), query);
+                    walk_ropes(tree, left_child(tree, node), escape(tree, node));
                 } else {
                     history = with_history_bit(history, level, 1u);
                     descend = left_child(tree, node);
@@ -178,13 +177,11 @@ fn walk_history(tree: u32, query: Query) {
     }
 }
 
-fn query_of(leaf: u32) -> Query {
+fn set_query(leaf: u32) {
     let node = params.dynamic_leaves - 1u + leaf;
-    return Query(
-        dynamic_bounds[2u * node].xyz,
-        dynamic_bounds[2u * node + 1u].xyz,
-        dynamic_nodes[4u * node],
-    );
+    query_low = dynamic_bounds[2u * node].xyz;
+    query_high = dynamic_bounds[2u * node + 1u].xyz;
+    query_body = dynamic_nodes[4u * node];
 }
 
 fn query_index(workgroup: vec3<u32>, groups: vec3<u32>, local: u32) -> u32 {
@@ -201,10 +198,10 @@ fn traverse_history(
     if leaf >= params.dynamic_leaves {
         return;
     }
-    let query = query_of(leaf);
-    walk_history(DYNAMIC, query);
+    set_query(leaf);
+    walk_history(DYNAMIC);
     if params.static_leaves > 0u {
-        walk_history(STATIC, query);
+        walk_history(STATIC);
     }
 }
 
@@ -218,9 +215,9 @@ fn traverse_ropes(
     if leaf >= params.dynamic_leaves {
         return;
     }
-    let query = query_of(leaf);
-    walk_ropes(DYNAMIC, 0u, NONE, query);
+    set_query(leaf);
+    walk_ropes(DYNAMIC, 0u, NONE);
     if params.static_leaves > 0u {
-        walk_ropes(STATIC, 0u, NONE, query);
+        walk_ropes(STATIC, 0u, NONE);
     }
 }
