@@ -446,12 +446,34 @@ impl GpuBroadphase {
         pass: &mut wgpu::ComputePass<'_>,
         aabbs: &GpuVec<Aabb>,
     ) -> Result<(), GpuError> {
+        self.encode_trees(context, pass, aabbs)?;
+        self.encode_pairs(context, pass)
+    }
+
+    /// The first half of [`Self::encode`]: rebuilds the dynamic tree, and the static tree when
+    /// it is stale.
+    pub fn encode_trees(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        aabbs: &GpuVec<Aabb>,
+    ) -> Result<(), GpuError> {
         debug_assert_eq!(aabbs.len(), self.is_static.len(), "one AABB per body slot");
         self.dynamic.encode(context, pass, aabbs)?;
         if self.fixed_stale {
             self.fixed.encode(context, pass, aabbs)?;
             self.fixed_stale = false;
         }
+        Ok(())
+    }
+
+    /// The second half of [`Self::encode`]: traversal and key sort on the trees as the last
+    /// [`Self::encode_trees`] left them (so the traversal can be timed alone).
+    pub fn encode_pairs(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+    ) -> Result<(), GpuError> {
         let key = (
             self.traversal,
             [
@@ -532,7 +554,7 @@ impl GpuBroadphase {
     /// Reads the pair count back (a round trip). When the last run found more pairs than the
     /// buffers hold, grows them to fit and returns true: the caller must run the stage again.
     pub fn check_capacity(&mut self, context: &GpuContext) -> Result<bool, GpuError> {
-        let count = self.count.download(context)?[0] as usize;
+        let count = self.pair_count(context)?;
         if count <= self.capacity() {
             return Ok(false);
         }
@@ -578,7 +600,20 @@ impl GpuBroadphase {
         // Kept for the next call, so the cached dispatches stay valid.
         self.aabbs = Some(uploaded);
         result?;
-        let count = self.count.download(context)?[0] as usize;
+        self.download_keys(context)
+    }
+
+    /// Reads back the pair count of the last run (a round trip; more than the capacity after
+    /// an overflow).
+    pub fn pair_count(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
+        Ok(self.count.download(context)?[0] as usize)
+    }
+
+    /// Reads back the last run's sorted keys, without the padding (the run must not have
+    /// overflowed: see [`Self::check_capacity`]).
+    pub fn download_keys(&mut self, context: &GpuContext) -> Result<Vec<u64>, GpuError> {
+        let count = self.pair_count(context)?;
+        debug_assert!(count <= self.capacity(), "the run overflowed");
         let mut keys = self.sorted_keys.download(context)?;
         keys.truncate(count);
         Ok(keys)
