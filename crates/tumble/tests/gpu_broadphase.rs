@@ -218,6 +218,17 @@ fn pairs_match_brute_force() {
     }
 }
 
+/// Past 65 536 bodies a packed key (lower << 17 | higher) spans both words of the sort key.
+#[test]
+fn pairs_past_16_bit_body_indices() {
+    let (aabbs, is_static) = scene(70_000, 9);
+    let expected = brute_force(&aabbs, &is_static);
+    assert!(expected.iter().any(|&key| key >> 32 >= 1 << 15));
+    let mut broadphase = GpuBroadphase::new(&context()).expect("broadphase");
+    let found = gpu_pairs(&mut broadphase, Traversal::Ropes, &aabbs, &is_static);
+    assert_eq!(found, expected);
+}
+
 #[test]
 fn all_static_or_all_dynamic() {
     let mut broadphase = GpuBroadphase::new(&context()).expect("broadphase");

@@ -285,7 +285,7 @@ fn collision_front_half_parameter_blocks_match_rust() {
             dynamic_leaves,
             static_leaves,
             capacity,
-            padding
+            body_bits
         })],
     );
     check(

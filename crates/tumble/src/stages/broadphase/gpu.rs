@@ -101,7 +101,8 @@ pub struct TraverseParams {
     pub dynamic_leaves: u32,
     pub static_leaves: u32,
     pub capacity: u32,
-    pub padding: u32,
+    /// Bits of a body index: the bit length of the body count.
+    pub body_bits: u32,
 }
 
 /// The kernel files' sources, for the pipelines and the layout test: codes, build, traverse.
@@ -129,13 +130,15 @@ const BUILD_BINDINGS: [Binding; 7] = [
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
-const TRAVERSE_BINDINGS: [Binding; 7] = [
+const TRAVERSE_BINDINGS: [Binding; 9] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
+    Binding::StorageRead,
     Binding::StorageReadWrite,
 ];
 
@@ -328,7 +331,7 @@ impl Lbvh {
 }
 
 /// What the cached traversal dispatches were built for.
-type PairsKey = (Traversal, [wgpu::Buffer; 6], [usize; 3]);
+type PairsKey = (Traversal, [wgpu::Buffer; 8], [usize; 4]);
 
 /// The GPU broadphase; see the module documentation.
 #[derive(Debug)]
@@ -343,15 +346,19 @@ pub struct GpuBroadphase {
     /// [`Self::find_pairs`]: the static AABBs the static tree was built from, and the AABBs.
     static_aabbs: Vec<Aabb>,
     aabbs: Option<GpuVec<Aabb>>,
-    /// Appended keys (`capacity` long) and the sort's values, which carry nothing.
+    /// Appended keys in the packed form (`capacity` long), and the sort's values, which carry
+    /// nothing.
     appended: GpuVec<u64>,
     appended_values: GpuVec<u32>,
-    sorted_keys: GpuVec<u64>,
+    sorted_packed: GpuVec<u64>,
     sorted_values: GpuVec<u32>,
+    /// The sorted keys as pair keys.
+    sorted_keys: GpuVec<u64>,
     /// One word: pairs found by the last run, including any past the capacity.
     count: GpuVec<u32>,
     sort: RadixSort,
-    cached: Option<(PairsKey, Vec<Dispatch>)>,
+    /// Dispatches before the key sort (fills, traversal) and after it (unpacking).
+    cached: Option<(PairsKey, Vec<Dispatch>, Vec<Dispatch>)>,
 }
 
 impl GpuBroadphase {
@@ -366,8 +373,9 @@ impl GpuBroadphase {
             aabbs: None,
             appended: GpuVec::with_capacity(context, "pair keys", 0)?,
             appended_values: GpuVec::with_capacity(context, "pair sort values", 0)?,
-            sorted_keys: GpuVec::with_capacity(context, "sorted pair keys", 0)?,
+            sorted_packed: GpuVec::with_capacity(context, "sorted packed keys", 0)?,
             sorted_values: GpuVec::with_capacity(context, "sorted pair values", 0)?,
+            sorted_keys: GpuVec::with_capacity(context, "sorted pair keys", 0)?,
             count: GpuVec::from_slice(context, "pair count", &[0])?,
             sort: RadixSort::new(),
             cached: None,
@@ -396,6 +404,10 @@ impl GpuBroadphase {
         self.appended_values = GpuVec::with_capacity(context, "pair sort values", capacity)?;
         self.appended.resize(context, capacity)?;
         self.appended_values.resize(context, capacity)?;
+        self.sorted_packed = GpuVec::with_capacity(context, "sorted packed keys", capacity)?;
+        self.sorted_values = GpuVec::with_capacity(context, "sorted pair values", capacity)?;
+        self.sorted_keys = GpuVec::with_capacity(context, "sorted pair keys", capacity)?;
+        self.sorted_keys.resize(context, capacity)?;
         self.cached = None;
         Ok(())
     }
@@ -483,37 +495,52 @@ impl GpuBroadphase {
                 self.fixed.bounds.buffer().clone(),
                 self.appended.buffer().clone(),
                 self.count.buffer().clone(),
+                self.sorted_packed.buffer().clone(),
+                self.sorted_keys.buffer().clone(),
             ],
-            [self.dynamic.leaves(), self.fixed.leaves(), self.capacity()],
+            [
+                self.dynamic.leaves(),
+                self.fixed.leaves(),
+                self.capacity(),
+                self.is_static.len(),
+            ],
         );
         if self
             .cached
             .as_ref()
-            .is_none_or(|(cached, _)| *cached != key)
+            .is_none_or(|(cached, ..)| *cached != key)
         {
-            let dispatches = self.pair_dispatches(context)?;
-            self.cached = Some((key, dispatches));
+            let (search, unpack) = self.pair_dispatches(context)?;
+            self.cached = Some((key, search, unpack));
         }
-        let Some((_, dispatches)) = &self.cached else {
+        let key_bits = 2 * self.body_bits();
+        let Some((_, search, unpack)) = &self.cached else {
             unreachable!("built above")
         };
-        encode_all(pass, dispatches);
-        // Body indices are below the body count, so a key's high word has that many bits;
-        // u64::MAX cut to the same bits is still above every real key.
-        let body_bits = u32::BITS - (self.is_static.len() as u32).leading_zeros();
+        encode_all(pass, search);
+        // Only the packed key's 2 × body_bits bits are sorted on (see `lbvh_traverse.wgsl`).
         self.sort.encode(
             context,
             pass,
             (&self.appended, &self.appended_values),
-            (&mut self.sorted_keys, &mut self.sorted_values),
-            32 + body_bits,
-        )
+            (&mut self.sorted_packed, &mut self.sorted_values),
+            key_bits,
+        )?;
+        encode_all(pass, unpack);
+        Ok(())
     }
 
-    fn pair_dispatches(&self, context: &GpuContext) -> Result<Vec<Dispatch>, GpuError> {
+    /// Bit length of the body count: every body index fits in it, and all ones does not
+    /// occur as an index (indices are below the count). At least 1, as the kernels expect.
+    fn body_bits(&self) -> u32 {
+        (u32::BITS - (self.is_static.len() as u32).leading_zeros()).max(1)
+    }
+
+    fn pair_dispatches(
+        &self,
+        context: &GpuContext,
+    ) -> Result<(Vec<Dispatch>, Vec<Dispatch>), GpuError> {
         let [_, _, source] = wgsl();
-        let entry = self.traversal.entry();
-        let kernel = Kernel::new(context, entry, &source, entry, &TRAVERSE_BINDINGS);
         let slots = UniformSlots::new(
             context,
             "traverse params",
@@ -521,22 +548,28 @@ impl GpuBroadphase {
                 dynamic_leaves: self.dynamic.leaves() as u32,
                 static_leaves: self.fixed.leaves() as u32,
                 capacity: self.capacity() as u32,
-                padding: 0,
+                body_bits: self.body_bits(),
             }],
         );
-        let bind_group = kernel.bind(
-            context,
-            &[
-                slots.binding(0),
-                self.dynamic.nodes.whole(),
-                self.dynamic.bounds.whole(),
-                self.fixed.nodes.whole(),
-                self.fixed.bounds.whole(),
-                self.appended.whole(),
-                self.count.whole(),
-            ],
-        );
-        Ok(vec![
+        let kernel = |entry| Kernel::new(context, entry, &source, entry, &TRAVERSE_BINDINGS);
+        let [traverse, unpack] = [self.traversal.entry(), "unpack_keys"].map(kernel);
+        let bind = |kernel: &Kernel| {
+            kernel.bind(
+                context,
+                &[
+                    slots.binding(0),
+                    self.dynamic.nodes.whole(),
+                    self.dynamic.bounds.whole(),
+                    self.fixed.nodes.whole(),
+                    self.fixed.bounds.whole(),
+                    self.appended.whole(),
+                    self.count.whole(),
+                    self.sorted_packed.whole(),
+                    self.sorted_keys.whole(),
+                ],
+            )
+        };
+        let search = vec![
             fill_dispatch(
                 context,
                 self.appended.buffer(),
@@ -544,11 +577,16 @@ impl GpuBroadphase {
                 u32::MAX,
             )?,
             fill_dispatch(context, self.count.buffer(), 1, 0)?,
-            kernel.dispatch(
-                bind_group,
+            traverse.dispatch(
+                bind(&traverse),
                 workgroups_for(self.dynamic.leaves(), WORKGROUP_SIZE),
             ),
-        ])
+        ];
+        let unpack = vec![unpack.dispatch(
+            bind(&unpack),
+            workgroups_for(self.capacity(), WORKGROUP_SIZE),
+        )];
+        Ok((search, unpack))
     }
 
     /// Reads the pair count back (a round trip). When the last run found more pairs than the

@@ -13,12 +13,19 @@
 // Pairs are appended with an atomic counter; the order is fixed afterwards by sorting the keys.
 // A pair past `capacity` is counted but not written: the host sees count > capacity, grows the
 // buffer and runs the stage again.
+//
+// Appended keys are packed: (lower body << body_bits) | higher body, 2 × body_bits bits, so
+// the radix sort looks at 2 × body_bits bits instead of 32 + body_bits (4 passes instead of 6
+// at 10 000 bodies). Packing keeps the order of pair keys. The u64::MAX padding, cut to those
+// bits, is all ones, above every packed key (a body index is never all ones: it is below the
+// body count). `unpack_keys` turns the sorted packed keys into pair keys, padding into padding.
 
 struct TraverseParams {
     dynamic_leaves: u32,
     static_leaves: u32,
     capacity: u32,
-    padding: u32,
+    // Bit length of the body count, 1 to 32.
+    body_bits: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: TraverseParams;
@@ -26,9 +33,12 @@ struct TraverseParams {
 @group(0) @binding(2) var<storage, read> dynamic_bounds: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> static_nodes: array<u32>;
 @group(0) @binding(4) var<storage, read> static_bounds: array<vec4<f32>>;
-// u64 keys as (low word, high word) = (higher body, lower body).
+// Packed u64 keys as (low word, high word).
 @group(0) @binding(5) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(6) var<storage, read_write> count: array<atomic<u32>>;
+// `unpack_keys`: sorted packed keys in, pair keys (higher body, lower body) out.
+@group(0) @binding(7) var<storage, read> sorted_packed: array<u32>;
+@group(0) @binding(8) var<storage, read_write> sorted_keys: array<u32>;
 
 const NONE: u32 = 0xffffffffu;
 const DYNAMIC: u32 = 0u;
@@ -87,8 +97,15 @@ fn report(tree: u32, node: u32) {
     }
     let slot = atomicAdd(&count[0], 1u);
     if slot < params.capacity {
-        keys[2u * slot] = max(other, query_body);
-        keys[2u * slot + 1u] = min(other, query_body);
+        let low = min(other, query_body);
+        let high = max(other, query_body);
+        if params.body_bits == 32u {
+            keys[2u * slot] = high;
+            keys[2u * slot + 1u] = low;
+        } else {
+            keys[2u * slot] = (low << params.body_bits) | high;
+            keys[2u * slot + 1u] = low >> (32u - params.body_bits);
+        }
     }
 }
 
@@ -220,4 +237,29 @@ fn traverse_ropes(
     if params.static_leaves > 0u {
         walk_ropes(STATIC, 0u, NONE);
     }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn unpack_keys(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let slot = query_index(workgroup, groups, local);
+    if slot >= params.capacity {
+        return;
+    }
+    let word0 = sorted_packed[2u * slot];
+    let word1 = sorted_packed[2u * slot + 1u];
+    var low = word1;
+    var high = word0;
+    if word0 == NONE && word1 == NONE {
+        // Padding stays u64::MAX.
+    } else if params.body_bits < 32u {
+        let bits = params.body_bits;
+        high = word0 & ((1u << bits) - 1u);
+        low = (word0 >> bits) | (word1 << (32u - bits));
+    }
+    sorted_keys[2u * slot] = high;
+    sorted_keys[2u * slot + 1u] = low;
 }
