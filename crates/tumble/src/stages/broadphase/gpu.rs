@@ -3,7 +3,8 @@
 //!
 //! Per step: the dynamic bodies' tree is rebuilt from scratch (bounds of the AABB centres by a
 //! two-level reduce, 30-bit Morton codes, stable radix sort of (code, body), Karras' binary
-//! radix tree, bottom-up refit with atomic visit counters); the static bodies' tree is rebuilt
+//! radix tree, bottom-up refit by atomic min / max, which is exact under WGSL's relaxed atomics
+//! where visit counters are not: see `lbvh_build.wgsl`); the static bodies' tree is rebuilt
 //! only when the static bodies or their AABBs change. One thread per dynamic body walks the
 //! dynamic tree (keeping the pair when its body has the lower index) and the static tree, with
 //! either the talk's history flags or escape indices ([`Traversal`]). Pair keys
@@ -28,8 +29,8 @@
 //!   [`GpuBroadphase::check_capacity`] finds count > capacity it grows the buffers and returns
 //!   true, and the caller runs the stage again (the result of the overflowed run is partial).
 //! - The trees and the keys are the same on every run on a device: the sorts are stable, the
-//!   tree structure depends only on the sorted codes and positions, the refit's result does
-//!   not depend on which child finishes first, and the keys are sorted.
+//!   tree structure depends only on the sorted codes and positions, the refit's boxes are
+//!   mins and maxes, whatever order the atomics land in, and the keys are sorted.
 //! - The history-flag walk covers 32 levels; an internal node deeper than that has its subtree
 //!   walked by escape indices, so any tree depth is handled (the test builds a 37-level tree).
 
@@ -154,10 +155,10 @@ struct Lbvh {
     sorted_bodies: GpuVec<u32>,
     /// 4 words per node.
     nodes: GpuVec<u32>,
-    /// (min, max) per node.
-    bounds: GpuVec<[f32; 4]>,
-    /// 2 words per internal node: other end of the range, visit counter.
-    scratch: GpuVec<u32>,
+    /// (min, max) per node, as order-preserving u32 codes of the floats.
+    bounds: GpuVec<[u32; 4]>,
+    /// Per internal node: the other end of its leaf range.
+    ends: GpuVec<u32>,
     sort: RadixSort,
     /// Dispatches before and after the sort, and the AABB buffer they read.
     cached: Option<(wgpu::Buffer, Vec<Dispatch>, Vec<Dispatch>)>,
@@ -174,7 +175,7 @@ impl Lbvh {
             sorted_bodies: empty("lbvh sorted bodies")?,
             nodes: empty("lbvh nodes")?,
             bounds: GpuVec::with_capacity(context, "lbvh bounds", 0)?,
-            scratch: empty("lbvh scratch")?,
+            ends: empty("lbvh range ends")?,
             sort: RadixSort::new(),
             cached: None,
         })
@@ -194,7 +195,7 @@ impl Lbvh {
         self.codes.resize(context, leaves)?;
         self.nodes.resize(context, 4 * nodes)?;
         self.bounds.resize(context, 2 * nodes)?;
-        self.scratch.resize(context, 2 * leaves.saturating_sub(1))?;
+        self.ends.resize(context, leaves.saturating_sub(1))?;
         self.cached = None;
         Ok(())
     }
@@ -297,7 +298,7 @@ impl Lbvh {
                     self.sorted_bodies.whole(),
                     self.nodes.whole(),
                     self.bounds.whole(),
-                    self.scratch.whole(),
+                    self.ends.whole(),
                 ],
             )
         };

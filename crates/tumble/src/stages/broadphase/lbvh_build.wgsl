@@ -7,12 +7,20 @@
 // words per node: internal (left child, right child, parent, escape); leaf (body, 0, parent,
 // escape). The escape is the next node of a depth-first, left-first walk once the node's
 // subtree is done (NONE after the last). `bounds` holds 8 words per node: min xyz, 0, max xyz,
-// 0 (f32 bits). `scratch` holds 2 words per internal node: the other end of its leaf range,
-// and the refit's visit counter.
+// 0, each float in the order-preserving u32 code of `ordered` (decoded by the traversal).
+// `ends` holds, per internal node, the other end of its leaf range (the node's index is one).
 //
 // Equal codes are ordered by leaf position (the sort is stable and its input ascends by body),
 // and `prefix` breaks their ties by position, so every split is well defined and the tree is
 // the same every run.
+//
+// The refit climbs from every leaf with atomicMin / atomicMax on the ordered codes, rather than
+// handing finished child boxes to the second visitor of a node through a visit counter: WGSL's
+// atomics are relaxed (naga emits no memory semantics), so a counter does not order the first
+// visitor's box writes before the second visitor's reads on every device. Min and max need no
+// ordering: each word ends as the min (max) over its subtree whatever the interleaving, so the
+// boxes are exact and the same every run. A thread stops pushing a word as soon as the node
+// already held a value at least as tight: the thread that put it there climbs on with it.
 
 struct BuildParams {
     leaf_count: u32,
@@ -26,10 +34,8 @@ struct BuildParams {
 @group(0) @binding(2) var<storage, read> sorted_codes: array<u32>;
 @group(0) @binding(3) var<storage, read> sorted_bodies: array<u32>;
 @group(0) @binding(4) var<storage, read_write> nodes: array<u32>;
-// Atomic: the refit hands boxes between threads of different workgroups; atomics are the
-// accesses WGSL keeps coherent across the device.
 @group(0) @binding(5) var<storage, read_write> bounds: array<atomic<u32>>;
-@group(0) @binding(6) var<storage, read_write> scratch: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read_write> ends: array<u32>;
 
 const NONE: u32 = 0xffffffffu;
 
@@ -100,8 +106,12 @@ fn build_internal(
     if node == 0u {
         nodes[2u] = NONE;
     }
-    atomicStore(&scratch[2u * node], u32(j));
-    atomicStore(&scratch[2u * node + 1u], 0u);
+    ends[node] = u32(j);
+    // The identities of min and max, which the refit's leaves tighten.
+    for (var axis = 0u; axis < 3u; axis++) {
+        atomicStore(&bounds[8u * node + axis], 0xffffffffu);
+        atomicStore(&bounds[8u * node + 4u + axis], 0u);
+    }
 }
 
 // The node after the subtree whose leaf range ends at leaf `last`: the right sibling of the
@@ -115,40 +125,21 @@ fn escape_after(last: u32) -> u32 {
         return NONE;
     }
     let next = last + 1u;
-    if next < n - 1u && atomicLoad(&scratch[2u * next]) > next {
+    if next < n - 1u && ends[next] > next {
         return next;
     }
     return n - 1u + next;
 }
 
-fn store_bounds(node: u32, lo: vec3<f32>, hi: vec3<f32>) {
-    atomicStore(&bounds[8u * node], bitcast<u32>(lo.x));
-    atomicStore(&bounds[8u * node + 1u], bitcast<u32>(lo.y));
-    atomicStore(&bounds[8u * node + 2u], bitcast<u32>(lo.z));
-    atomicStore(&bounds[8u * node + 4u], bitcast<u32>(hi.x));
-    atomicStore(&bounds[8u * node + 5u], bitcast<u32>(hi.y));
-    atomicStore(&bounds[8u * node + 6u], bitcast<u32>(hi.z));
+// f32 → u32 keeping the order (for non-NaN values): flip all bits of a negative float, only
+// the sign bit of a positive one.
+fn ordered(value: vec3<f32>) -> vec3<u32> {
+    let bits = bitcast<vec3<u32>>(value);
+    return select(bits | vec3<u32>(0x80000000u), ~bits, (bits & vec3<u32>(0x80000000u)) != vec3<u32>(0u));
 }
 
-fn load_low(node: u32) -> vec3<f32> {
-    return vec3<f32>(
-        bitcast<f32>(atomicLoad(&bounds[8u * node])),
-        bitcast<f32>(atomicLoad(&bounds[8u * node + 1u])),
-        bitcast<f32>(atomicLoad(&bounds[8u * node + 2u])),
-    );
-}
-
-fn load_high(node: u32) -> vec3<f32> {
-    return vec3<f32>(
-        bitcast<f32>(atomicLoad(&bounds[8u * node + 4u])),
-        bitcast<f32>(atomicLoad(&bounds[8u * node + 5u])),
-        bitcast<f32>(atomicLoad(&bounds[8u * node + 6u])),
-    );
-}
-
-// One thread per leaf: writes the leaf, then climbs. At each internal node the first child's
-// thread to arrive stops; the second (the counter was 1) has both children's boxes and
-// continues, so every node is written once, after both of its children.
+// One thread per leaf: writes the leaf and the escapes of leaf k and internal node k, then
+// climbs, tightening each ancestor's box word by word until none of its six words tightens.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn refit(
     @builtin(local_invocation_index) local: u32,
@@ -163,11 +154,12 @@ fn refit(
     let node = n - 1u + leaf;
     let body = sorted_bodies[leaf];
     let base = body * 6u;
-    store_bounds(
-        node,
-        vec3<f32>(aabbs[base], aabbs[base + 1u], aabbs[base + 2u]),
-        vec3<f32>(aabbs[base + 3u], aabbs[base + 4u], aabbs[base + 5u]),
-    );
+    let low = ordered(vec3<f32>(aabbs[base], aabbs[base + 1u], aabbs[base + 2u]));
+    let high = ordered(vec3<f32>(aabbs[base + 3u], aabbs[base + 4u], aabbs[base + 5u]));
+    for (var axis = 0u; axis < 3u; axis++) {
+        atomicStore(&bounds[8u * node + axis], low[axis]);
+        atomicStore(&bounds[8u * node + 4u + axis], high[axis]);
+    }
     nodes[4u * node] = body;
     nodes[4u * node + 1u] = 0u;
     nodes[4u * node + 3u] = escape_after(leaf);
@@ -176,21 +168,24 @@ fn refit(
         nodes[2u] = NONE;
         return;
     }
+    if leaf < n - 1u {
+        nodes[4u * leaf + 3u] = escape_after(max(leaf, ends[leaf]));
+    }
+    // Bit w set: word w (min x, y, z, max x, y, z) still tightens the ancestors.
+    var open = 0x3fu;
     var current = nodes[4u * node + 2u];
     loop {
-        if atomicAdd(&scratch[2u * current + 1u], 1u) == 0u {
-            return;
+        for (var axis = 0u; axis < 3u; axis++) {
+            if (open & (1u << axis)) != 0u
+                && atomicMin(&bounds[8u * current + axis], low[axis]) <= low[axis] {
+                open &= ~(1u << axis);
+            }
+            if (open & (8u << axis)) != 0u
+                && atomicMax(&bounds[8u * current + 4u + axis], high[axis]) >= high[axis] {
+                open &= ~(8u << axis);
+            }
         }
-        let left = nodes[4u * current];
-        let right = nodes[4u * current + 1u];
-        store_bounds(
-            current,
-            min(load_low(left), load_low(right)),
-            max(load_high(left), load_high(right)),
-        );
-        let last = max(current, atomicLoad(&scratch[2u * current]));
-        nodes[4u * current + 3u] = escape_after(last);
-        if current == 0u {
+        if open == 0u || current == 0u {
             return;
         }
         current = nodes[4u * current + 2u];

@@ -30,9 +30,10 @@ struct TraverseParams {
 
 @group(0) @binding(0) var<uniform> params: TraverseParams;
 @group(0) @binding(1) var<storage, read> dynamic_nodes: array<u32>;
-@group(0) @binding(2) var<storage, read> dynamic_bounds: array<vec4<f32>>;
+// Node boxes as (min, max) in the refit's order-preserving u32 codes (`lbvh_build.wgsl`).
+@group(0) @binding(2) var<storage, read> dynamic_bounds: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read> static_nodes: array<u32>;
-@group(0) @binding(4) var<storage, read> static_bounds: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> static_bounds: array<vec4<u32>>;
 // Packed u64 keys as (low word, high word).
 @group(0) @binding(5) var<storage, read_write> keys: array<u32>;
 @group(0) @binding(6) var<storage, read_write> count: array<atomic<u32>>;
@@ -74,16 +75,22 @@ fn escape(tree: u32, node: u32) -> u32 {
     return node_word(tree, 4u * node + 3u);
 }
 
+// The float of an order-preserving code: the inverse of `ordered` in lbvh_build.wgsl.
+fn unordered(code: vec3<u32>) -> vec3<f32> {
+    let sign = vec3<u32>(0x80000000u);
+    return bitcast<vec3<f32>>(select(~code, code ^ sign, (code & sign) != vec3<u32>(0u)));
+}
+
 // Overlap or touch, as Aabb::overlaps.
 fn overlaps(tree: u32, node: u32) -> bool {
     var low: vec3<f32>;
     var high: vec3<f32>;
     if tree == DYNAMIC {
-        low = dynamic_bounds[2u * node].xyz;
-        high = dynamic_bounds[2u * node + 1u].xyz;
+        low = unordered(dynamic_bounds[2u * node].xyz);
+        high = unordered(dynamic_bounds[2u * node + 1u].xyz);
     } else {
-        low = static_bounds[2u * node].xyz;
-        high = static_bounds[2u * node + 1u].xyz;
+        low = unordered(static_bounds[2u * node].xyz);
+        high = unordered(static_bounds[2u * node + 1u].xyz);
     }
     return all(low <= query_high) && all(query_low <= high);
 }
@@ -196,8 +203,8 @@ fn walk_history(tree: u32) {
 
 fn set_query(leaf: u32) {
     let node = params.dynamic_leaves - 1u + leaf;
-    query_low = dynamic_bounds[2u * node].xyz;
-    query_high = dynamic_bounds[2u * node + 1u].xyz;
+    query_low = unordered(dynamic_bounds[2u * node].xyz);
+    query_high = unordered(dynamic_bounds[2u * node + 1u].xyz);
     query_body = dynamic_nodes[4u * node];
 }
 
