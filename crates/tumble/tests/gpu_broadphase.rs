@@ -102,7 +102,9 @@ fn scene(count: usize, seed: u64) -> (Vec<Aabb>, Vec<bool>) {
 fn aabbs_match_cpu() {
     let context = context();
     let mut random = Random::new(11);
-    for count in [0usize, 1, 2, 100, 10_000] {
+    // One stage for all sizes: its device copies are reused, growing and shrinking.
+    let mut stage = GpuAabbs::new();
+    for count in [0usize, 1, 2, 100, 10_000, 257] {
         let mut poses = Vec::new();
         let mut velocities = Vec::new();
         let mut colliders = Vec::new();
@@ -152,7 +154,7 @@ fn aabbs_match_cpu() {
         let mut expected = Vec::new();
         compute_aabbs(&poses, &velocities, &colliders, margin, dt, &mut expected);
         let mut found = Vec::new();
-        GpuAabbs::new()
+        stage
             .run(
                 &context,
                 &poses,

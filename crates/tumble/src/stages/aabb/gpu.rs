@@ -56,6 +56,18 @@ type AabbKey = ([wgpu::Buffer; 4], usize, u32, u32);
 #[derive(Debug, Default)]
 pub struct GpuAabbs {
     cached: Option<(AabbKey, Dispatch)>,
+    /// [`Self::run`]'s device copies, kept so that a step mixing executors allocates nothing.
+    host_path: Option<HostPath>,
+}
+
+#[derive(Debug)]
+struct HostPath {
+    poses: GpuVec<BodyPose>,
+    velocities: GpuVec<BodyVelocity>,
+    colliders: GpuVec<ColliderData>,
+    aabbs: GpuVec<Aabb>,
+    /// Reused host buffer of packed colliders.
+    data: Vec<ColliderData>,
 }
 
 impl GpuAabbs {
@@ -118,24 +130,38 @@ impl GpuAabbs {
         dt: f32,
         aabbs: &mut Vec<Aabb>,
     ) -> Result<(), GpuError> {
-        let data: Vec<ColliderData> = colliders.iter().map(Collider::data).collect();
-        let poses = GpuVec::from_slice(context, "poses", poses)?;
-        let velocities = GpuVec::from_slice(context, "velocities", velocities)?;
-        let colliders = GpuVec::from_slice(context, "colliders", &data)?;
-        let mut output = GpuVec::with_capacity(context, "aabbs", poses.len())?;
-        context.submit_pass("aabbs", |pass| {
-            self.encode(
-                context,
-                pass,
-                &poses,
-                &velocities,
-                &colliders,
-                margin,
-                dt,
-                &mut output,
-            )
-        })?;
-        output.download_into(context, aabbs)
+        let mut host = match self.host_path.take() {
+            Some(host) => host,
+            None => HostPath {
+                poses: GpuVec::with_capacity(context, "poses", poses.len())?,
+                velocities: GpuVec::with_capacity(context, "velocities", poses.len())?,
+                colliders: GpuVec::with_capacity(context, "colliders", poses.len())?,
+                aabbs: GpuVec::with_capacity(context, "aabbs", poses.len())?,
+                data: Vec::new(),
+            },
+        };
+        host.data.clear();
+        host.data.extend(colliders.iter().map(Collider::data));
+        let result = (|| {
+            host.poses.upload(context, poses)?;
+            host.velocities.upload(context, velocities)?;
+            host.colliders.upload(context, &host.data)?;
+            context.submit_pass("aabbs", |pass| {
+                self.encode(
+                    context,
+                    pass,
+                    &host.poses,
+                    &host.velocities,
+                    &host.colliders,
+                    margin,
+                    dt,
+                    &mut host.aabbs,
+                )
+            })?;
+            host.aabbs.download_into(context, aabbs)
+        })();
+        self.host_path = Some(host);
+        result
     }
 }
 

@@ -80,6 +80,8 @@ pub struct GpuPairDiff {
     compact_added: Compact,
     compact_removed: Compact,
     cached: Option<(DiffKey, Dispatch)>,
+    /// [`Self::run`]'s device copies of the old and new keys, reused from call to call.
+    host_keys: Option<(GpuVec<u64>, GpuVec<u64>)>,
 }
 
 impl GpuPairDiff {
@@ -98,6 +100,7 @@ impl GpuPairDiff {
             compact_added: Compact::new(),
             compact_removed: Compact::new(),
             cached: None,
+            host_keys: None,
         })
     }
 
@@ -215,10 +218,21 @@ impl GpuPairDiff {
         old_keys: &[u64],
         new_keys: &[u64],
     ) -> Result<PairDiff, GpuError> {
-        let old = GpuVec::from_slice(context, "old pair keys", old_keys)?;
-        let new = GpuVec::from_slice(context, "new pair keys", new_keys)?;
-        context.submit_pass("pair diff", |pass| self.encode(context, pass, &old, &new))?;
-        self.read_back(context, old_keys, new_keys)
+        let (mut old, mut new) = match self.host_keys.take() {
+            Some(keys) => keys,
+            None => (
+                GpuVec::with_capacity(context, "old pair keys", old_keys.len())?,
+                GpuVec::with_capacity(context, "new pair keys", new_keys.len())?,
+            ),
+        };
+        let result = (|| {
+            old.upload(context, old_keys)?;
+            new.upload(context, new_keys)?;
+            context.submit_pass("pair diff", |pass| self.encode(context, pass, &old, &new))?;
+            self.read_back(context, old_keys, new_keys)
+        })();
+        self.host_keys = Some((old, new));
+        result
     }
 
     /// Reads the last encoded diff back, turning positions into keys with the host copies of
