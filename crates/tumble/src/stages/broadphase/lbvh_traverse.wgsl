@@ -1,6 +1,7 @@
 // Pair finding: one thread per leaf of the dynamic tree (a dynamic body) walks the dynamic
-// tree, keeping pairs whose other body has the higher index (so each pair is found once), and
-// the static tree, keeping every overlap. Two stackless walks, picked by entry point:
+// tree, keeping pairs whose other leaf comes later in sorted (Morton) order, so each pair is
+// found once, and the static tree, keeping every overlap. Two stackless walks, picked by entry
+// point:
 //
 // - `traverse_history`: the talk's history flags. 2 bits per tree level record which
 //   children of the node on the current path were entered; climbing resets the level's bits,
@@ -47,10 +48,11 @@ const STATIC: u32 = 1u;
 // Levels the history flags cover: 2 bits each in 64 bits.
 const HISTORY_LEVELS: u32 = 32u;
 
-// The thread's query: its dynamic body's box and index.
+// The thread's query: its dynamic body's box, index and sorted leaf position.
 var<private> query_low: vec3<f32>;
 var<private> query_high: vec3<f32>;
 var<private> query_body: u32;
+var<private> query_leaf: u32;
 
 fn node_word(tree: u32, index: u32) -> u32 {
     if tree == DYNAMIC {
@@ -81,8 +83,27 @@ fn unordered(code: vec3<u32>) -> vec3<f32> {
     return bitcast<vec3<f32>>(select(~code, code ^ sign, (code & sign) != vec3<u32>(0u)));
 }
 
-// Overlap or touch, as Aabb::overlaps.
-fn overlaps(tree: u32, node: u32) -> bool {
+// Sorted position of the last leaf under `node` in the dynamic tree. The node after the
+// subtree (its escape) starts at the next leaf: escapes are right children, whose index is the
+// first leaf of their range (internal) or n - 1 + that leaf (leaf).
+fn last_dynamic_leaf(node: u32) -> u32 {
+    // n - 1: the index of leaf 0's node, and the position of the last leaf.
+    let last = params.dynamic_leaves - 1u;
+    let next = dynamic_nodes[4u * node + 3u];
+    if next == NONE {
+        return last;
+    }
+    return select(next, next - last, next >= last) - 1u;
+}
+
+// Whether the walk enters `node`: its box overlaps or touches the query's (as Aabb::overlaps)
+// and, in the dynamic tree, its subtree holds a leaf sorted after the query's. So a dynamic
+// pair is found from its first leaf only, never with the query itself, and the subtrees of
+// earlier leaves (about half the tree) are skipped.
+fn enters(tree: u32, node: u32) -> bool {
+    if tree == DYNAMIC && last_dynamic_leaf(node) <= query_leaf {
+        return false;
+    }
     var low: vec3<f32>;
     var high: vec3<f32>;
     if tree == DYNAMIC {
@@ -95,13 +116,9 @@ fn overlaps(tree: u32, node: u32) -> bool {
     return all(low <= query_high) && all(query_low <= high);
 }
 
-// A leaf that overlaps the query: its pair, unless the dynamic tree finds it from the other
-// body (or it is the query itself).
+// A leaf the walk entered: its pair with the query.
 fn report(tree: u32, node: u32) {
     let other = left_child(tree, node);
-    if tree == DYNAMIC && other <= query_body {
-        return;
-    }
     let slot = atomicAdd(&count[0], 1u);
     if slot < params.capacity {
         let low = min(other, query_body);
@@ -125,7 +142,7 @@ fn walk_ropes(tree: u32, start: u32, stop: u32) {
     let first_leaf = leaf_count(tree) - 1u;
     var node = start;
     while node != stop {
-        if overlaps(tree, node) {
+        if enters(tree, node) {
             if node >= first_leaf {
                 report(tree, node);
                 node = escape(tree, node);
@@ -169,7 +186,7 @@ fn walk_history(tree: u32) {
         var descend = NONE;
         if bits == 0u {
             // Arrived from the parent.
-            if overlaps(tree, node) {
+            if enters(tree, node) {
                 if node >= first_leaf {
                     report(tree, node);
                 } else if level == HISTORY_LEVELS {
@@ -206,6 +223,7 @@ fn set_query(leaf: u32) {
     query_low = unordered(dynamic_bounds[2u * node].xyz);
     query_high = unordered(dynamic_bounds[2u * node + 1u].xyz);
     query_body = dynamic_nodes[4u * node];
+    query_leaf = leaf;
 }
 
 fn query_index(workgroup: vec3<u32>, groups: vec3<u32>, local: u32) -> u32 {
