@@ -6,11 +6,15 @@
 //! radix tree, bottom-up refit by atomic min / max, which is exact under WGSL's relaxed atomics
 //! where visit counters are not: see `lbvh_build.wgsl`); the static bodies' tree is rebuilt
 //! only when the static bodies or their AABBs change. One thread per dynamic body walks the
-//! dynamic tree (keeping the pair when its body has the lower index) and the static tree, with
-//! either the talk's history flags or escape indices ([`Traversal`]). Pair keys
-//! ([`pair_key`](crate::stages::pairs::pair_key)) are appended with an atomic counter, then
-//! the whole key buffer is radix sorted, so the order never depends on which thread appended
-//! first.
+//! dynamic tree (only the subtrees holding leaves sorted after its own, so each pair is found
+//! once) and the static tree, with either the talk's history flags or escape indices
+//! ([`Traversal`]). Pair keys ([`pair_key`](crate::stages::pairs::pair_key)) are appended with
+//! an atomic counter, then the whole key buffer is radix sorted (packed to 2 × the bits of a
+//! body index, then unpacked), so the order never depends on which thread appended first.
+//!
+//! Dispatches per step at 10 000 bodies (8 000 dynamic, 16 384 key slots): 17 for the dynamic
+//! tree (bounds 2, codes 1, 4 sort passes of 3, build 2) and 24 for the pairs (2 fills, the
+//! traversal, 4 sort passes of 5, unpacking).
 //!
 //! Dispatch sizes: the traversal's thread count is the dynamic body count, known on the host
 //! (the body lists change only with [`GpuBroadphase::set_bodies`]); the only count produced on
