@@ -286,3 +286,83 @@ fn narrowphase_structs_match_rust() {
         &["ClipVertex"],
     );
 }
+
+#[test]
+fn collision_front_half_parameter_blocks_match_rust() {
+    use tumble::dynamics::body::{BodyPose, BodyVelocity, ColliderData};
+    use tumble::stages::aabb::gpu::{self as aabb, AabbParams};
+    use tumble::stages::broadphase::gpu::TraverseParams;
+    use tumble::stages::broadphase::gpu::{self as broadphase, BuildParams, CodeParams};
+    use tumble::stages::pairs::gpu::{self as pairs, DiffParams};
+    check(
+        aabb::wgsl(),
+        vec![
+            rust_layout!(AabbParams {
+                count,
+                margin,
+                dt,
+                padding
+            }),
+            // body.wgsl's structs, included by the kernel (checked above with BodyMass).
+            rust_layout!(BodyPose {
+                position,
+                _pad,
+                rotation
+            }),
+            rust_layout!(BodyVelocity {
+                linear,
+                _pad0,
+                angular,
+                _pad1
+            }),
+            rust_layout!(tumble::dynamics::body::BodyMass {
+                inverse_inertia,
+                inverse_mass
+            }),
+            rust_layout!(ColliderData {
+                kind,
+                friction,
+                restitution,
+                bounding_radius,
+                params
+            }),
+        ],
+    );
+    let [codes, build, traverse] = broadphase::wgsl();
+    check(
+        codes,
+        vec![rust_layout!(CodeParams {
+            leaf_count,
+            partial_count,
+            padding0,
+            padding1
+        })],
+    );
+    check(
+        build,
+        vec![rust_layout!(BuildParams {
+            leaf_count,
+            padding0,
+            padding1,
+            padding2
+        })],
+    );
+    check(
+        traverse,
+        vec![rust_layout!(TraverseParams {
+            dynamic_leaves,
+            static_leaves,
+            capacity,
+            body_bits
+        })],
+    );
+    check(
+        pairs::wgsl(),
+        vec![rust_layout!(DiffParams {
+            new_count,
+            old_count,
+            padding0,
+            padding1
+        })],
+    );
+}

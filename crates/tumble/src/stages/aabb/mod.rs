@@ -5,6 +5,10 @@
 //! Guarantees: `aabbs[i]` encloses body `i`'s shape at its current pose and at its pose moved
 //! by `linear_velocity · dt`, expanded by `margin`; slots of removed bodies are left as they are
 //! (the broadphase no longer holds them).
+//!
+//! The GPU executor ([`gpu`]) computes the same boxes on the device, to a few f32 roundings.
+
+pub mod gpu;
 
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
 use crate::math::Aabb;

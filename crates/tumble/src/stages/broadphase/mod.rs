@@ -27,6 +27,9 @@
 //! body's query decides all of its pairs afresh. In a settled pile almost no proxy leaves its
 //! fat box, so a step costs a merge pass over the pairs instead of two queries per body.
 //!
+//! The GPU executor ([`gpu`]) rebuilds linear BVHs instead and reports exact AABB overlaps (no
+//! fat AABBs), so its pairs are a subset of this broadphase's; its invariants are in its module.
+//!
 //! Invariants:
 //! - Every body is in at most one tree, and after [`Broadphase::update`] each proxy's fat AABB
 //!   contains the AABB it was last given. Hence every pair of bodies whose AABBs overlap is
@@ -44,6 +47,7 @@
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
 mod cpu;
+pub mod gpu;
 
 use crate::collision::dbvt::{Dbvt, ProxyId};
 use crate::math::{Aabb, Vec3};

@@ -14,6 +14,8 @@
 //! - Buffers are swapped, never rebuilt: once they have grown to the largest pair count seen,
 //!   an update allocates nothing.
 
+pub mod gpu;
+
 /// The key of the unordered pair {a, b}: the lower index in the high 32 bits. `a != b`.
 #[inline]
 pub fn pair_key(a: u32, b: u32) -> u64 {
