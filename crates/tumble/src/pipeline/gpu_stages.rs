@@ -1,28 +1,51 @@
-//! The world's GPU side: the adapter, the GPU executors of the stages that
-//! [`StageDevices`](crate::pipeline::devices::StageDevices) puts there, and device copies of
-//! the arrays they read and write.
-//!
-//! A GPU stage here runs between CPU stages: it uploads the inputs the host changed, runs its
-//! kernels, waits, and downloads its outputs, so the host arrays stay the world's state. Each
-//! transfer is a copy line in the profile under the stage (`copy to gpu`, `copy to cpu`), as in
-//! the talk's profiles; the kernels' own time is a `gpu` line when the adapter has timestamps.
-//! Bodies' colliders and masses change only when bodies come and go: they are uploaded again
-//! only then.
-
 use std::time::Instant;
 
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
+use crate::math::Aabb;
 use crate::pipeline::devices::Stage;
-use crate::profile::Profiler;
+use crate::profile::{Profiler, SpanKind};
+use crate::stages::aabb::gpu::GpuAabbs;
+use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact};
 
-const NARROWPHASE_UPLOAD: SpanPath = &["narrowphase", "copy to gpu"];
-const NARROWPHASE_KERNEL: SpanPath = &["narrowphase", "kernel"];
-const NARROWPHASE_DOWNLOAD: SpanPath = &["narrowphase", "copy to cpu"];
+/// Profile lines of one GPU stage: uploads, the kernels (GPU time), waiting on the host,
+/// downloads.
+struct StageSpans {
+    upload: SpanPath,
+    kernel: SpanPath,
+    wait: SpanPath,
+    download: SpanPath,
+}
+
+const AABB: StageSpans = StageSpans {
+    upload: &["aabb", "copy to gpu"],
+    kernel: &["aabb", "kernel"],
+    wait: &["aabb", "encode, submit and wait"],
+    download: &["aabb", "copy to cpu"],
+};
+const BROADPHASE: StageSpans = StageSpans {
+    upload: &["broadphase", "copy to gpu"],
+    kernel: &["broadphase", "kernels"],
+    wait: &["broadphase", "encode, submit and wait"],
+    download: &["broadphase", "copy to cpu"],
+};
+const NARROWPHASE: StageSpans = StageSpans {
+    upload: &["narrowphase", "copy to gpu"],
+    kernel: &["narrowphase", "kernel"],
+    wait: &["narrowphase", "encode, submit and wait"],
+    download: &["narrowphase", "copy to cpu"],
+};
+
+/// The step's body arrays, as the GPU stages read them.
+pub(crate) struct BodyInputs<'a> {
+    pub poses: &'a [BodyPose],
+    pub velocities: &'a [BodyVelocity],
+    pub colliders: &'a [Collider],
+}
 
 /// Device copies of the body arrays, shared by the GPU stages.
 struct DeviceBodies {
@@ -31,12 +54,17 @@ struct DeviceBodies {
     colliders: GpuVec<ColliderData>,
     /// The host's colliders changed since the last upload.
     colliders_stale: bool,
+    /// Poses and velocities were uploaded this step (they change only in the solver).
+    uploaded_this_step: bool,
 }
 
 pub(crate) struct GpuStages {
     context: GpuContext,
     profiler: GpuProfiler,
     bodies: DeviceBodies,
+    aabb: GpuAabbs,
+    aabbs: GpuVec<Aabb>,
+    broadphase: GpuBroadphase,
     narrowphase: GpuNarrowphase,
     /// The narrowphase's inputs and output on the device.
     keys: GpuVec<u64>,
@@ -61,7 +89,11 @@ impl GpuStages {
                 velocities: GpuVec::with_capacity(&context, "velocities", 0)?,
                 colliders: GpuVec::with_capacity(&context, "colliders", 0)?,
                 colliders_stale: true,
+                uploaded_this_step: false,
             },
+            aabb: GpuAabbs::new(),
+            aabbs: GpuVec::with_capacity(&context, "aabbs", 0)?,
+            broadphase: GpuBroadphase::new(&context)?,
             narrowphase: GpuNarrowphase::new(&context),
             keys: GpuVec::with_capacity(&context, "pair keys", 0)?,
             old_index: GpuVec::with_capacity(&context, "old pair index", 0)?,
@@ -77,7 +109,7 @@ impl GpuStages {
 
     /// Whether `stage` has a GPU executor.
     pub fn runs(stage: Stage) -> bool {
-        matches!(stage, Stage::Narrowphase)
+        matches!(stage, Stage::Aabb | Stage::Broadphase | Stage::Narrowphase)
     }
 
     /// A one-line description of the adapter, for reports.
@@ -88,6 +120,87 @@ impl GpuStages {
     /// Bodies were added or removed: upload the colliders again before the next GPU stage.
     pub fn colliders_changed(&mut self) {
         self.bodies.colliders_stale = true;
+    }
+
+    /// A new step: the host's poses and velocities are newer than the device's.
+    pub fn begin_step(&mut self) {
+        self.bodies.uploaded_this_step = false;
+    }
+
+    /// Stage 1 on the GPU: [`compute_aabbs`](crate::stages::aabb::compute_aabbs)'s contract.
+    /// The AABBs stay on the device for a GPU broadphase; `download` brings them to the host
+    /// for a CPU one.
+    pub fn compute_aabbs(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &BodyInputs,
+        margin: f32,
+        dt: f32,
+        download: Option<&mut Vec<Aabb>>,
+    ) -> Result<(), GpuError> {
+        let start = Instant::now();
+        upload_bodies(
+            &self.context,
+            &mut self.bodies,
+            &mut self.collider_data,
+            bodies,
+        )?;
+        record_copy(profiler, AABB.upload, elapsed_ms(start));
+        let (context, device) = (&self.context, &self.bodies);
+        let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
+        run_pass(context, &mut self.profiler, profiler, &AABB, |pass| {
+            aabb.encode(
+                context,
+                pass,
+                &device.poses,
+                &device.velocities,
+                &device.colliders,
+                margin,
+                dt,
+                aabbs,
+            )
+        })?;
+        if let Some(host) = download {
+            let start = Instant::now();
+            self.aabbs.download_into(context, host)?;
+            record_copy(profiler, AABB.download, elapsed_ms(start));
+        }
+        Ok(())
+    }
+
+    /// Stage 2 on the GPU: the sorted keys of the pairs whose AABBs overlap, moving × moving
+    /// and moving × static (`is_static` by body slot: static, asleep or removed). The AABBs
+    /// come from `host_aabbs` when the AABB stage ran on the CPU, else from the device.
+    /// Unlike the CPU broadphase's fat boxes, these are exact overlaps: fewer candidates, the
+    /// same contacts.
+    pub fn find_pairs(
+        &mut self,
+        profiler: &mut Profiler,
+        host_aabbs: Option<&[Aabb]>,
+        is_static: &[bool],
+        keys: &mut Vec<u64>,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        if let Some(aabbs) = host_aabbs {
+            self.aabbs.upload(context, aabbs)?;
+        }
+        self.broadphase.set_bodies(context, is_static)?;
+        record_copy(profiler, BROADPHASE.upload, elapsed_ms(start));
+        loop {
+            let (broadphase, aabbs) = (&mut self.broadphase, &self.aabbs);
+            run_pass(context, &mut self.profiler, profiler, &BROADPHASE, |pass| {
+                broadphase.encode(context, pass, aabbs)
+            })?;
+            // Reads the pair count back: more pairs than room means grow and run again.
+            if !self.broadphase.check_capacity(context)? {
+                break;
+            }
+        }
+        let start = Instant::now();
+        *keys = self.broadphase.download_keys(context)?;
+        record_copy(profiler, BROADPHASE.download, elapsed_ms(start));
+        Ok(())
     }
 
     /// Stage 4 on the GPU: [`update_contacts`](crate::stages::narrowphase::update_contacts)'s
@@ -112,61 +225,83 @@ impl GpuStages {
         self.old_index.upload(context, &self.identity)?;
         self.old_contacts.upload(context, contacts)?;
         self.skipped.upload(context, inputs.skipped)?;
-        upload_bodies(context, &mut self.bodies, &mut self.collider_data, inputs)?;
-        record_copy(profiler, NARROWPHASE_UPLOAD, elapsed_ms(start));
+        let bodies = BodyInputs {
+            poses: inputs.poses,
+            velocities: inputs.velocities,
+            colliders: inputs.colliders,
+        };
+        upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
+        record_copy(profiler, NARROWPHASE.upload, elapsed_ms(start));
 
-        let start = Instant::now();
-        let mut encoder = context
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("narrowphase"),
-            });
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("narrowphase"),
-                timestamp_writes: self.profiler.pass_timestamps(NARROWPHASE_KERNEL),
-            });
-            let device_inputs = GpuNarrowphaseInputs {
-                keys: &self.keys,
-                old_index: &self.old_index,
-                old_contacts: &self.old_contacts,
-                poses: &self.bodies.poses,
-                velocities: &self.bodies.velocities,
-                colliders: &self.bodies.colliders,
-                skipped: &self.skipped,
-                margin: inputs.margin,
-                dt: inputs.dt,
-            };
-            self.narrowphase
-                .encode(context, &mut pass, &device_inputs, &mut self.contacts)?;
-        }
-        self.profiler.resolve(&mut encoder);
-        context.queue.submit([encoder.finish()]);
-        context.wait()?;
-        profiler.record(
-            &["narrowphase", "encode, submit and wait"],
-            crate::profile::SpanKind::Cpu,
-            elapsed_ms(start),
-        );
-        self.profiler.collect(context, profiler)?;
+        let device_inputs = GpuNarrowphaseInputs {
+            keys: &self.keys,
+            old_index: &self.old_index,
+            old_contacts: &self.old_contacts,
+            poses: &self.bodies.poses,
+            velocities: &self.bodies.velocities,
+            colliders: &self.bodies.colliders,
+            skipped: &self.skipped,
+            margin: inputs.margin,
+            dt: inputs.dt,
+        };
+        let (narrowphase, output) = (&mut self.narrowphase, &mut self.contacts);
+        run_pass(
+            context,
+            &mut self.profiler,
+            profiler,
+            &NARROWPHASE,
+            |pass| narrowphase.encode(context, pass, &device_inputs, output),
+        )?;
 
         let start = Instant::now();
         self.contacts.download_into(context, &mut self.downloaded)?;
         contacts.copy_from_slice(&self.downloaded);
-        record_copy(profiler, NARROWPHASE_DOWNLOAD, elapsed_ms(start));
+        record_copy(profiler, NARROWPHASE.download, elapsed_ms(start));
         Ok(())
     }
 }
 
-/// Uploads poses and velocities, and the colliders when they changed.
+/// Encodes one stage's kernels into a measured pass, submits and waits: the host's wait is a
+/// CPU line, the kernels' time a GPU line when the adapter has timestamps.
+fn run_pass(
+    context: &GpuContext,
+    gpu_profiler: &mut GpuProfiler,
+    profiler: &mut Profiler,
+    spans: &StageSpans,
+    encode: impl FnOnce(&mut wgpu::ComputePass<'_>) -> Result<(), GpuError>,
+) -> Result<(), GpuError> {
+    let start = Instant::now();
+    let mut encoder = context
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some(spans.kernel[0]),
+        });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(spans.kernel[0]),
+            timestamp_writes: gpu_profiler.pass_timestamps(spans.kernel),
+        });
+        encode(&mut pass)?;
+    }
+    gpu_profiler.resolve(&mut encoder);
+    context.queue.submit([encoder.finish()]);
+    context.wait()?;
+    profiler.record(spans.wait, SpanKind::Cpu, elapsed_ms(start));
+    gpu_profiler.collect(context, profiler)
+}
+
+/// Uploads poses and velocities once a step, and the colliders when they changed.
 fn upload_bodies(
     context: &GpuContext,
     bodies: &mut DeviceBodies,
     collider_data: &mut Vec<ColliderData>,
-    inputs: &NarrowphaseInputs,
+    inputs: &BodyInputs,
 ) -> Result<(), GpuError> {
-    bodies.poses.upload(context, inputs.poses)?;
-    bodies.velocities.upload(context, inputs.velocities)?;
+    if !bodies.uploaded_this_step {
+        bodies.poses.upload(context, inputs.poses)?;
+        bodies.velocities.upload(context, inputs.velocities)?;
+        bodies.uploaded_this_step = true;
+    }
     if bodies.colliders_stale || bodies.colliders.len() != inputs.colliders.len() {
         collider_data.clear();
         collider_data.extend(inputs.colliders.iter().map(Collider::data));

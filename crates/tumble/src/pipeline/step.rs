@@ -4,6 +4,7 @@ use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
+use crate::pipeline::gpu_stages::BodyInputs;
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
@@ -19,6 +20,8 @@ use crate::stages::{aabb, integrate, narrowphase, solver};
 #[derive(Default)]
 pub(crate) struct StepScratch {
     aabbs: Vec<Aabb>,
+    /// Which bodies a GPU broadphase puts in its static tree.
+    is_static: Vec<bool>,
     pair_keys: Vec<u64>,
     inverse_inertia: Vec<Mat3>,
     contacts: Vec<ContactConstraint>,
@@ -39,29 +42,79 @@ impl World {
         let dt = config.dt;
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
+        let aabb_on_gpu = self.devices.get(Stage::Aabb) == Executor::Gpu;
+        let broadphase_on_gpu = self.devices.get(Stage::Broadphase) == Executor::Gpu;
+        if let Some(gpu) = &mut self.gpu {
+            gpu.begin_step();
+        }
 
         // 1. World AABBs, grown by the speculative contact margin and swept over the step.
-        profiler.scope("aabb", || {
-            aabb::compute_aabbs(
-                &self.poses,
-                &self.velocities,
-                &self.colliders,
-                config.contact_margin,
-                dt,
-                &mut scratch.aabbs,
-            )
-        });
+        profiler.begin("aabb");
+        match &mut self.gpu {
+            Some(gpu) if aabb_on_gpu => {
+                let bodies = BodyInputs {
+                    poses: &self.poses,
+                    velocities: &self.velocities,
+                    colliders: &self.colliders,
+                };
+                // A GPU broadphase reads them where they are.
+                let download = (!broadphase_on_gpu).then_some(&mut scratch.aabbs);
+                let result =
+                    gpu.compute_aabbs(profiler, &bodies, config.contact_margin, dt, download);
+                profiler.end();
+                result?;
+            }
+            _ => {
+                aabb::compute_aabbs(
+                    &self.poses,
+                    &self.velocities,
+                    &self.colliders,
+                    config.contact_margin,
+                    dt,
+                    &mut scratch.aabbs,
+                );
+                profiler.end();
+            }
+        }
 
         // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
         profiler.begin("broadphase");
-        profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
-        profiler.scope("find pairs", || {
-            self.broadphase.find_pairs(&mut scratch.pair_keys);
-            // Sleeping bodies' pairs are in no tree's result: keep them with theirs.
-            if !self.resting_pairs.is_empty() {
-                merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
+        match &mut self.gpu {
+            Some(gpu) if broadphase_on_gpu => {
+                // Static to the broadphase: static, asleep or removed (their pairs go below).
+                scratch.is_static.clear();
+                scratch
+                    .is_static
+                    .extend(self.masses.iter().map(|mass| mass.inverse_mass == 0.0));
+                let host_aabbs = (!aabb_on_gpu).then_some(&scratch.aabbs[..]);
+                let result = gpu.find_pairs(
+                    profiler,
+                    host_aabbs,
+                    &scratch.is_static,
+                    &mut scratch.pair_keys,
+                );
+                if result.is_err() {
+                    profiler.end();
+                }
+                result?;
+                let slots = &self.slots;
+                let live = |body: u32| slots[body as usize].is_live();
+                scratch.pair_keys.retain(|&key| {
+                    let (a, b) = crate::stages::pairs::pair_bodies(key);
+                    live(a) && live(b)
+                });
             }
-        });
+            _ => {
+                profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
+                profiler.scope("find pairs", || {
+                    self.broadphase.find_pairs(&mut scratch.pair_keys)
+                });
+            }
+        }
+        // Sleeping bodies' pairs are in no tree's result: keep them with theirs.
+        if !self.resting_pairs.is_empty() {
+            merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
+        }
         profiler.end();
 
         // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.

@@ -72,12 +72,19 @@ enum SlotState {
 }
 
 #[derive(Clone, Debug)]
-struct Slot {
+pub(crate) struct Slot {
     generation: u32,
     state: SlotState,
     /// The mass the body was made with (kg), reported back in dumps.
     mass: f32,
     name: Option<String>,
+}
+
+impl Slot {
+    /// Whether a body lives here (it was not removed).
+    pub(crate) fn is_live(&self) -> bool {
+        self.state != SlotState::Free
+    }
 }
 
 /// A physics world: bodies, the persistent state between steps, and the step itself.
@@ -88,7 +95,7 @@ pub struct World {
     pub(crate) velocities: Vec<BodyVelocity>,
     pub(crate) masses: Vec<BodyMass>,
     pub(crate) colliders: Vec<Collider>,
-    slots: Vec<Slot>,
+    pub(crate) slots: Vec<Slot>,
     free_slots: Vec<u32>,
     // Joints, by slot; `None` is a free slot.
     pub(crate) joints: Vec<Option<Joint>>,
