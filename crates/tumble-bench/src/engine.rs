@@ -1,12 +1,12 @@
 //! Engines under test behind one trait, so the measuring loop treats them all alike.
 //!
-//! An [`EngineKind`] is an engine on a device (`tumble-cpu`, `tumble-gpu`, `rapier`): the GPU
-//! step of Tumble arrives as one more kind whose [`EngineKind::build`] stops saying
-//! "not available", and every column, table and chart takes it unchanged.
+//! An [`EngineKind`] is an engine on a device (`tumble-cpu`, `tumble-gpu`, `rapier`), and every
+//! column, table and chart takes each kind alike.
 
 use crate::rapier::{RapierSimulation, SolverSettings};
 use tumble::World;
 use tumble::math::Vec3;
+use tumble::pipeline::devices::StageDevices;
 use tumble::scene::Scene;
 
 /// An engine on a device, as named on the command line and in the CSV.
@@ -71,7 +71,7 @@ impl EngineKind {
     /// The scene loaded into this engine, or why this engine cannot run here.
     pub fn build(self, scene: &Scene) -> Result<Box<dyn Simulation>, String> {
         match self {
-            EngineKind::TumbleCpu => {
+            EngineKind::TumbleCpu | EngineKind::TumbleGpu => {
                 let mut world = scene.build().map_err(|e| e.to_string())?;
                 // Sleeping is off in benchmarks, as on the peers: a settled pile is timed
                 // solving, not asleep.
@@ -80,9 +80,13 @@ impl EngineKind {
                     ..*world.config()
                 };
                 world.set_config(config).map_err(|e| e.to_string())?;
+                if self == EngineKind::TumbleGpu {
+                    world
+                        .set_stage_devices(StageDevices::gpu_where_possible())
+                        .map_err(|e| e.to_string())?;
+                }
                 Ok(Box::new(TumbleSimulation { world }))
             }
-            EngineKind::TumbleGpu => Err("the GPU step is not implemented yet".into()),
             EngineKind::Rapier => Ok(Box::new(RapierSimulation::new(
                 scene,
                 SolverSettings::Matched,

@@ -41,6 +41,11 @@ impl Stage {
         Stage::Solver,
     ];
 
+    /// Whether the stage has a GPU executor (`pipeline/gpu_stages.rs`).
+    pub fn has_gpu_executor(self) -> bool {
+        matches!(self, Stage::Aabb | Stage::Broadphase | Stage::Narrowphase)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Stage::Aabb => "aabb",
@@ -91,6 +96,15 @@ impl StageDevices {
 
     pub fn set(&mut self, stage: Stage, executor: Executor) {
         self.executors[stage as usize] = executor;
+    }
+
+    /// Every stage that has a GPU executor on the GPU, the others on the CPU.
+    pub fn gpu_where_possible() -> Self {
+        let mut devices = Self::default();
+        for stage in Stage::ALL.into_iter().filter(|s| s.has_gpu_executor()) {
+            devices.set(stage, Executor::Gpu);
+        }
+        devices
     }
 
     /// Whether any stage needs the GPU.

@@ -5,7 +5,6 @@ use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::math::Aabb;
-use crate::pipeline::devices::Stage;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::broadphase::gpu::GpuBroadphase;
@@ -105,11 +104,6 @@ impl GpuStages {
             downloaded: Vec::new(),
             context,
         })
-    }
-
-    /// Whether `stage` has a GPU executor.
-    pub fn runs(stage: Stage) -> bool {
-        matches!(stage, Stage::Aabb | Stage::Broadphase | Stage::Narrowphase)
     }
 
     /// A one-line description of the adapter, for reports.

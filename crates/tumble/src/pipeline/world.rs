@@ -590,7 +590,7 @@ impl World {
     /// executors within the parity tests' tolerances, not bitwise.
     pub fn set_stage_devices(&mut self, devices: StageDevices) -> Result<(), StageError> {
         for stage in Stage::ALL {
-            if devices.get(stage) == Executor::Gpu && !GpuStages::runs(stage) {
+            if devices.get(stage) == Executor::Gpu && !stage.has_gpu_executor() {
                 return Err(StageError::NotOnGpu(stage.name()));
             }
         }
