@@ -163,6 +163,10 @@ impl World {
             inverse_inertia: mass_properties.inverse_inertia,
             inverse_mass: mass_properties.inverse_mass,
         };
+        let aabb = desc
+            .shape
+            .aabb(&pose.transform())
+            .expanded(self.config.contact_margin);
         let collider = Collider {
             shape: desc.shape,
             friction: desc.friction,
@@ -200,10 +204,6 @@ impl World {
                 (self.slots.len() - 1) as u32
             }
         };
-        let aabb = collider
-            .shape
-            .aabb(&pose.transform())
-            .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
         Ok(BodyHandle {
             index,
@@ -480,7 +480,7 @@ impl World {
             &self.slots[i],
         );
         Ok(BodyDesc {
-            shape: collider.shape,
+            shape: collider.shape.clone(),
             position: pose.position,
             rotation: pose.rotation,
             mass: slot.mass,
