@@ -72,7 +72,9 @@ impl World {
                 dt,
                 skipped: &self.jointed_pairs,
             };
-            narrowphase::update_contacts(keys, contacts, &inputs)
+            narrowphase::update_contacts(keys, contacts, &inputs);
+            // Pairs with a mesh: one child manifold per touching triangle.
+            narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
         });
 
         // 5. Constraint rows: contacts, then joints. Stiffness is capped by the sub-step rate
@@ -100,6 +102,7 @@ impl World {
         build_constraints(
             self.pairs.keys(),
             self.pairs.values(),
+            &self.children,
             &inputs,
             &mut scratch.contacts,
         );
@@ -151,7 +154,8 @@ impl World {
             );
             // Which batch each pair's manifold went to, for the viewer's colored batches.
             self.pair_batches.clear();
-            self.pair_batches.resize(self.pairs.len(), NO_BATCH);
+            self.pair_batches
+                .resize(self.pairs.len() + self.children.len(), NO_BATCH);
             for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
                 self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
             }
@@ -176,7 +180,11 @@ impl World {
             has_overflow: scratch.coloring.has_overflow,
         };
         solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
-        store_contact_impulses(&scratch.batched_contacts, self.pairs.values_mut());
+        store_contact_impulses(
+            &scratch.batched_contacts,
+            self.pairs.values_mut(),
+            self.children.values_mut(),
+        );
         let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         if let Some(drag) = self.drag.as_mut()
             && let Some(solved) = scratch
@@ -202,7 +210,7 @@ impl World {
         histogram.clone_from(&scratch.coloring.histogram);
         self.stats = StepStats {
             batch_histogram: histogram,
-            ..collect_stats(&scratch.pair_keys, &self.pairs, scratch)
+            ..collect_stats(&scratch.pair_keys, &self.pairs, &self.children, scratch)
         };
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
@@ -211,13 +219,21 @@ impl World {
     }
 }
 
-/// Solved impulses back into the pair cache, for next step's warm start.
+/// Solved impulses back into the pair and child caches (by slot, see
+/// [`ContactConstraint::pair`]), for next step's warm start.
 fn store_contact_impulses(
     constraints: &[ContactConstraint],
     contacts: &mut [narrowphase::PairContact],
+    children: &mut [narrowphase::PairContact],
 ) {
+    let pair_count = contacts.len();
     for constraint in constraints {
-        let contact = &mut contacts[constraint.pair as usize];
+        let slot = constraint.pair as usize;
+        let contact = if slot < pair_count {
+            &mut contacts[slot]
+        } else {
+            &mut children[slot - pair_count]
+        };
         for (impulse, point) in contact
             .impulses
             .iter_mut()
@@ -263,11 +279,13 @@ fn store_joint_impulses(
 fn collect_stats(
     pair_keys: &[u64],
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
+    children: &narrowphase::ChildCache,
     scratch: &StepScratch,
 ) -> StepStats {
     let max_penetration = pairs
         .values()
         .iter()
+        .chain(children.values())
         .flat_map(|c| c.manifold.points().iter().map(|p| -p.separation))
         .fold(0.0f32, f32::max);
     StepStats {

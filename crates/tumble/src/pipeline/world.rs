@@ -32,7 +32,7 @@ use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
-use crate::stages::narrowphase::PairContact;
+use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::PairCache;
 
 /// Batch number of a pair that has no constraint this step.
@@ -95,6 +95,8 @@ pub struct World {
     // State carried from step to step.
     pub(crate) broadphase: Broadphase,
     pub(crate) pairs: PairCache<PairContact>,
+    /// Per-triangle manifolds of pairs with a mesh (`stages::narrowphase::children`).
+    pub(crate) children: ChildCache,
     pub(crate) scratch: StepScratch,
     pub(crate) stats: StepStats,
     /// The batch of each pair's manifold in the last step ([`NO_BATCH`] without contacts).
@@ -123,6 +125,7 @@ impl World {
             drag: None,
             broadphase,
             pairs: PairCache::default(),
+            children: ChildCache::default(),
             scratch: StepScratch::default(),
             stats: StepStats::default(),
             pair_batches: Vec::new(),

@@ -12,6 +12,10 @@
 //! Guarantees: `contacts[i]` belongs to `keys[i]` = (a, b) with a < b, body A = a, normal from
 //! b to a; the result depends only on the poses and last step's manifold, never on thread count.
 
+mod children;
+
+pub use children::{ChildCache, ChildKey, has_children, update_child_contacts};
+
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyPose, BodyVelocity, Collider};
@@ -85,6 +89,11 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
             }
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
+            if has_children(&colliders[a].shape, &colliders[b].shape) {
+                // One manifold per triangle: they live in the child cache.
+                *contact = PairContact::default();
+                return;
+            }
             let mut manifold = Manifold::default();
             collide(
                 &colliders[a].shape,
