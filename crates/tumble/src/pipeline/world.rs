@@ -566,6 +566,21 @@ impl World {
             })
     }
 
+    /// Child contacts (per triangle of a mesh) as (body A, body B, triangle, pair data), in
+    /// child order: what [`contacts`](Self::contacts) is for pairs without a mesh.
+    pub fn child_contacts(
+        &self,
+    ) -> impl Iterator<Item = (BodyHandle, BodyHandle, u32, &PairContact)> + '_ {
+        self.children
+            .keys()
+            .iter()
+            .zip(self.children.values())
+            .map(|(&(key, child), contact)| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                (self.handle_of(a), self.handle_of(b), child, contact)
+            })
+    }
+
     /// Seeds the warm-start impulses of a pair (used when loading a dumped scene, so the run
     /// continues bitwise). The manifold is recomputed at the next step; points keep these
     /// impulses where their feature ids match.
@@ -573,8 +588,33 @@ impl World {
         &mut self,
         a: BodyHandle,
         b: BodyHandle,
-        mut contact: PairContact,
+        contact: PairContact,
     ) -> Result<(), BodyError> {
+        let (key, contact) = self.pair_ordered(a, b, contact)?;
+        self.pairs.insert(key, contact);
+        Ok(())
+    }
+
+    /// [`restore_contact`](Self::restore_contact) for the child manifold of triangle `child`.
+    pub fn restore_child_contact(
+        &mut self,
+        a: BodyHandle,
+        b: BodyHandle,
+        child: u32,
+        contact: PairContact,
+    ) -> Result<(), BodyError> {
+        let (key, contact) = self.pair_ordered(a, b, contact)?;
+        self.children.insert((key, child), contact);
+        Ok(())
+    }
+
+    /// The pair key of (a, b) and the contact as the cache keeps it, from the lower index.
+    fn pair_ordered(
+        &self,
+        a: BodyHandle,
+        b: BodyHandle,
+        mut contact: PairContact,
+    ) -> Result<(u64, PairContact), BodyError> {
         let (ia, ib) = (self.check(a)?, self.check(b)?);
         let key = crate::stages::pairs::pair_key(ia as u32, ib as u32);
         if ia > ib {
@@ -587,8 +627,7 @@ impl World {
                 point.anchor = to.inverse_transform_point(from.transform_point(point.anchor));
             }
         }
-        self.pairs.insert(key, contact);
-        Ok(())
+        Ok((key, contact))
     }
 
     pub(crate) fn handle_of(&self, index: u32) -> BodyHandle {

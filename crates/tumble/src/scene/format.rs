@@ -236,6 +236,9 @@ pub struct JointStateFile {
 #[serde(deny_unknown_fields)]
 pub struct ContactFile {
     pub bodies: [usize; 2],
+    /// For a contact with a triangle mesh: the triangle (the child manifold's key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub child: Option<u32>,
     pub points: Vec<ContactPointFile>,
 }
 
@@ -281,6 +284,9 @@ pub struct Scene {
     pub joints: Vec<SceneJoint>,
     /// (body index, body index, impulses by feature id).
     pub contacts: Vec<(usize, usize, PairContact)>,
+    /// (body index, body index, triangle, impulses by feature id): child manifolds of pairs
+    /// with a mesh.
+    pub child_contacts: Vec<(usize, usize, u32, PairContact)>,
 }
 
 /// A joint of a scene: a [`JointDesc`] whose bodies are indices into [`Scene::bodies`].
@@ -317,6 +323,7 @@ impl Scene {
             bodies: Vec::new(),
             joints: Vec::new(),
             contacts: Vec::new(),
+            child_contacts: Vec::new(),
         }
     }
 
@@ -375,6 +382,7 @@ impl Scene {
             joints.push(joint);
         }
         let mut contacts = Vec::with_capacity(file.contacts.len());
+        let mut child_contacts = Vec::new();
         for (i, contact) in file.contacts.iter().enumerate() {
             let [a, b] = contact.bodies;
             if a >= bodies.len() || b >= bodies.len() || a == b {
@@ -418,13 +426,17 @@ impl Scene {
                     tangent: point.tangent_impulse,
                 };
             }
-            contacts.push((a, b, pair));
+            match contact.child {
+                Some(child) => child_contacts.push((a, b, child, pair)),
+                None => contacts.push((a, b, pair)),
+            }
         }
         Ok(Scene {
             config,
             bodies,
             joints,
             contacts,
+            child_contacts,
         })
     }
 
@@ -470,6 +482,14 @@ impl Scene {
                 .restore_contact(handles[a], handles[b], contact)
                 .map_err(|e| SceneError::Invalid {
                     field: format!("contacts[{i}]"),
+                    message: e.to_string(),
+                })?;
+        }
+        for (i, &(a, b, child, contact)) in self.child_contacts.iter().enumerate() {
+            world
+                .restore_child_contact(handles[a], handles[b], child, contact)
+                .map_err(|e| SceneError::Invalid {
+                    field: format!("contacts[{}]", self.contacts.len() + i),
                     message: e.to_string(),
                 })?;
         }
@@ -528,11 +548,18 @@ impl Scene {
             .contacts()
             .filter_map(|(a, b, contact)| Some((*index_of.get(&a)?, *index_of.get(&b)?, *contact)))
             .collect();
+        let child_contacts = world
+            .child_contacts()
+            .filter_map(|(a, b, child, contact)| {
+                Some((*index_of.get(&a)?, *index_of.get(&b)?, child, *contact))
+            })
+            .collect();
         Scene {
             config: *world.config(),
             bodies,
             joints,
             contacts,
+            child_contacts,
         }
     }
 
@@ -552,21 +579,12 @@ impl Scene {
             contacts: self
                 .contacts
                 .iter()
-                .map(|(a, b, contact)| ContactFile {
-                    bodies: [*a, *b],
-                    points: contact
-                        .manifold
-                        .points()
-                        .iter()
-                        .zip(&contact.impulses)
-                        .map(|(point, impulse)| ContactPointFile {
-                            id: point.id,
-                            anchor: point.anchor.to_array(),
-                            normal_impulse: impulse.normal,
-                            tangent_impulse: impulse.tangent,
-                        })
-                        .collect(),
-                })
+                .map(|(a, b, contact)| contact_file([*a, *b], None, contact))
+                .chain(
+                    self.child_contacts.iter().map(|(a, b, child, contact)| {
+                        contact_file([*a, *b], Some(*child), contact)
+                    }),
+                )
                 .collect(),
         }
     }
@@ -623,6 +641,25 @@ fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String
     desc.validate()
         .map_err(|error| (field_of(&body.shape, &error), error.requirement()))?;
     Ok(desc)
+}
+
+fn contact_file(bodies: [usize; 2], child: Option<u32>, contact: &PairContact) -> ContactFile {
+    ContactFile {
+        bodies,
+        child,
+        points: contact
+            .manifold
+            .points()
+            .iter()
+            .zip(&contact.impulses)
+            .map(|(point, impulse)| ContactPointFile {
+                id: point.id,
+                anchor: point.anchor.to_array(),
+                normal_impulse: impulse.normal,
+                tangent_impulse: impulse.tangent,
+            })
+            .collect(),
+    }
 }
 
 /// Parses scene JSON; errors name the field.

@@ -23,7 +23,7 @@
 //! | pair | ids |
 //! |---|---|
 //! | sphere | `0` |
-//! | capsule | `0`, `1`: the segment's `-half_height`, `+half_height` end over the face; `2`: one point at the closest points |
+//! | capsule | `0`, `1`: the ends of the part of the segment over the face, `0` towards the `-half_height` end; `2`: one point at the closest points |
 //! | box, triangle face reference | clip feature (bits 0–6) · incident box face `<< 7` |
 //! | box, box face reference | clip feature (bits 0–6) · reference box face `<< 7` · `1 << 10` |
 //! | box, edge–edge | `1 << 11` · box edge axis `<< 2` · triangle edge |
@@ -48,6 +48,9 @@ const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
 
 /// Distance (m) under which the closest points coincide: no direction, the face normal is used.
 const COINCIDENT_DISTANCE: f32 = 1.0e-6;
+
+/// Segment parameters closer than this give one capsule point, not two.
+const COINCIDENT_PARAMETER: f32 = 1.0e-4;
 
 /// Most vertices of a clipped polygon: a quadrilateral cut by three half-planes has at most 7,
 /// a triangle cut by four at most 7.
@@ -230,33 +233,34 @@ pub(crate) fn capsule_triangle(
         );
         return;
     }
-    // Face normal: each end standing over the face rests on it (a capsule lying flat gets two
-    // points); with neither, one point at the closest points.
+    // Face normal: the part of the segment standing over the face rests on it at both its
+    // ends (a capsule lying flat gets two points, as on a box face); with no part over the
+    // face, one point at the closest points.
     out.normal = face_normal;
-    for (id, (point, height)) in [(start, height_start), (end, height_end)]
-        .into_iter()
-        .enumerate()
-    {
-        let (_, over) = closest_point_on_triangle(point, vertices);
-        let separation = sign_or_positive(middle_height) * height - radius;
-        if over == Feature::Face && separation < margin {
-            push_contact(
-                out,
-                point - face_normal * radius,
-                face_normal,
-                separation,
-                id as u32,
-            );
+    let side = sign_or_positive(middle_height);
+    if let Some((low, high)) = clip_segment_to_prism(start, delta, vertices, triangle.normal) {
+        for (id, parameter) in [(0, low), (1, high)] {
+            if id == 1 && high - low <= COINCIDENT_PARAMETER {
+                break;
+            }
+            let point = start + delta * parameter;
+            let separation = side * triangle.height(point) - radius;
+            if separation < margin {
+                push_contact(
+                    out,
+                    point - face_normal * radius,
+                    face_normal,
+                    separation,
+                    id,
+                );
+            }
         }
     }
     if out.count == 0 {
         let separation = if feature == Feature::Face {
             // Pierced (or touching) inside the face: how deep the nearer end reaches below the
             // side the capsule is on, so the push is along the face normal.
-            (sign_or_positive(middle_height) * height_start)
-                .min(sign_or_positive(middle_height) * height_end)
-                .min(0.0)
-                - radius
+            (side * height_start).min(side * height_end).min(0.0) - radius
         } else {
             distance - radius
         };
@@ -268,6 +272,41 @@ pub(crate) fn capsule_triangle(
             2,
         );
     }
+}
+
+/// The parameter interval `[low, high]` of the segment `start + s · delta`, `s ∈ [0, 1]`, that
+/// lies over the triangle (inside the prism its edges sweep along `normal`); `None` when no
+/// part does.
+fn clip_segment_to_prism(
+    start: Vec3,
+    delta: Vec3,
+    vertices: &[Vec3; 3],
+    normal: Vec3,
+) -> Option<(f32, f32)> {
+    let (mut low, mut high) = (0.0f32, 1.0f32);
+    for edge in 0..3 {
+        let edge_start = vertices[edge];
+        let inward = normal.cross(vertices[(edge + 1) % 3] - edge_start);
+        // inward · (start + s delta − edge_start) ≥ 0.
+        let at_start = inward.dot(start - edge_start);
+        let rate = inward.dot(delta);
+        if rate.abs() <= f32::EPSILON * inward.length() * delta.length() {
+            if at_start < 0.0 {
+                return None;
+            }
+            continue;
+        }
+        let crossing = -at_start / rate;
+        if rate > 0.0 {
+            low = low.max(crossing);
+        } else {
+            high = high.min(crossing);
+        }
+        if low > high {
+            return None;
+        }
+    }
+    Some((low, high))
 }
 
 /// The axis the separating-axis test settled on.
@@ -310,7 +349,7 @@ pub(crate) fn box_triangle(
         && !matches!(axis, Axis::TriangleFace)
         && local_out.count > 0
         && local_out.points().iter().all(|point| {
-            let (_, feature) = closest_point_on_triangle(point.position, &local.vertices);
+            let feature = triangle_feature(point.id);
             feature != Feature::Face && !local.feature_is_active(feature)
         })
     {
@@ -334,6 +373,24 @@ pub(crate) fn box_triangle(
             point.separation,
             point.id,
         ));
+    }
+}
+
+/// The triangle feature a box point with a box-face or edge–edge `id` lies on, read from the
+/// id (module docs) rather than from the point's position, where rounding could put a point
+/// on an edge just inside the face. Box-face reference: an unclipped triangle vertex, a cut on
+/// a triangle edge (its polygon line 0..=2), or a cut by a box side plane (inside the face).
+fn triangle_feature(id: u32) -> Feature {
+    if id & EDGE_CONTACT_BIT != 0 {
+        return Feature::Edge((id & 3) as usize);
+    }
+    let clip_feature = id & 0x7f;
+    if clip_feature < 8 {
+        return Feature::Vertex(clip_feature as usize);
+    }
+    match (clip_feature - 8) / 8 {
+        line @ 0..=2 => Feature::Edge(line as usize),
+        _ => Feature::Face,
     }
 }
 

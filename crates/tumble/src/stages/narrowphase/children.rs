@@ -41,7 +41,8 @@
 use super::{MATCH_DISTANCE, NarrowphaseInputs, PairContact, PointImpulse, closing_speed_bound};
 use crate::collision::contact::collide_mesh;
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
-use crate::shape::Shape;
+use crate::math::Quat;
+use crate::shape::{Shape, TriMesh};
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
@@ -198,9 +199,20 @@ fn carry_from_children(
 }
 
 /// Merges the manifolds of `found` (sorted by triangle) whose normals agree within
-/// [`COPLANAR_COSINE`] into the first of each group, reduced to 4 points; ids become
-/// triangle-qualified (module docs). Returns the merged list, still sorted by triangle.
-fn merge_coplanar(found: Vec<(u32, Manifold)>) -> Vec<(u32, Manifold)> {
+/// [`COPLANAR_COSINE`] *and* are their triangles' face normals into the first of each group,
+/// reduced to 4 points; ids become triangle-qualified (module docs). Returns the merged list,
+/// still sorted by triangle. Manifolds with another normal (a box face or edge on the
+/// triangle) stay apart: triangles that are not coplanar can share such a normal, and their
+/// points belong to different surfaces.
+fn merge_coplanar(
+    found: Vec<(u32, Manifold)>,
+    mesh: &TriMesh,
+    mesh_rotation: Quat,
+) -> Vec<(u32, Manifold)> {
+    let on_face = |(triangle, manifold): &(u32, Manifold)| {
+        let face = mesh_rotation * mesh.triangle(*triangle).normal;
+        manifold.normal.dot(face).abs() >= COPLANAR_COSINE
+    };
     let mut taken = vec![false; found.len()];
     let mut merged = Vec::with_capacity(found.len());
     let mut candidates: Vec<ContactPoint> = Vec::new();
@@ -209,10 +221,15 @@ fn merge_coplanar(found: Vec<(u32, Manifold)>) -> Vec<(u32, Manifold)> {
             continue;
         }
         let normal = found[first].1.normal;
+        let mergeable = on_face(&found[first]);
         candidates.clear();
         for member in first..found.len() {
             let (triangle, manifold) = &found[member];
-            if taken[member] || manifold.normal.dot(normal) < COPLANAR_COSINE {
+            let joins = member == first
+                || (mergeable
+                    && on_face(&found[member])
+                    && manifold.normal.dot(normal) >= COPLANAR_COSINE);
+            if taken[member] || !joins {
                 continue;
             }
             taken[member] = true;
@@ -280,7 +297,7 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
                 &mut found,
             );
             let pose_a = poses[a].transform();
-            merge_coplanar(found)
+            merge_coplanar(found, mesh, poses[mesh_body].rotation)
                 .into_iter()
                 .map(|(triangle, mut manifold)| {
                     if flip {
