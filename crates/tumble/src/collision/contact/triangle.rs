@@ -668,3 +668,161 @@ impl Polygon {
         output
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Quat, vec3};
+
+    /// A triangle in the plane y = 0 facing +y, around the origin, with the given active edges.
+    fn floor_triangle(active_edges: u8) -> Triangle {
+        Triangle {
+            vertices: [
+                vec3(-2.0, 0.0, -2.0),
+                vec3(0.0, 0.0, 3.0),
+                vec3(3.0, 0.0, -2.0),
+            ],
+            normal: Vec3::Y,
+            active_edges,
+        }
+    }
+
+    #[test]
+    fn closest_point_features() {
+        let vertices = floor_triangle(0).vertices;
+        let (point, feature) = closest_point_on_triangle(vec3(0.0, 1.0, 0.0), &vertices);
+        assert_eq!(feature, Feature::Face);
+        assert!(point.length() < 1e-6);
+        let (point, feature) = closest_point_on_triangle(vec3(-5.0, 1.0, -5.0), &vertices);
+        assert_eq!((point, feature), (vertices[0], Feature::Vertex(0)));
+        // Below edge 2 (vertex 2 → vertex 0, along z = -2).
+        let (point, feature) = closest_point_on_triangle(vec3(0.5, -1.0, -4.0), &vertices);
+        assert_eq!((point, feature), (vec3(0.5, 0.0, -2.0), Feature::Edge(2)));
+    }
+
+    #[test]
+    fn sphere_over_the_face_and_beside_an_edge() {
+        let mut out = Manifold::default();
+        sphere_triangle(
+            vec3(0.5, 0.4, 0.0),
+            0.5,
+            &floor_triangle(0b111),
+            0.02,
+            &mut out,
+        );
+        assert_eq!(out.count, 1);
+        assert_eq!(out.normal, Vec3::Y);
+        assert!((out.points[0].separation + 0.1).abs() < 1e-6);
+        // Midway between the surfaces: 0.05 below the sphere's lowest point.
+        assert!((out.points[0].position - vec3(0.5, -0.05, 0.0)).length() < 1e-6);
+
+        // Beside edge 2 (z = -2), 0.3 out and 0.3 up: the normal points from the edge at 45°
+        // when the edge is active, straight up when it is not.
+        let center = vec3(0.5, 0.3, -2.3);
+        let mut out = Manifold::default();
+        sphere_triangle(center, 0.5, &floor_triangle(0b111), 0.02, &mut out);
+        let diagonal = vec3(0.0, 1.0, -1.0).normalize();
+        assert!((out.normal - diagonal).length() < 1e-6);
+        let distance = 0.3 * std::f32::consts::SQRT_2;
+        assert!((out.points[0].separation - (distance - 0.5)).abs() < 1e-6);
+        let mut out = Manifold::default();
+        sphere_triangle(center, 0.5, &floor_triangle(0b011), 0.02, &mut out);
+        assert_eq!(out.normal, Vec3::Y);
+        assert!((out.points[0].separation - (distance - 0.5)).abs() < 1e-6);
+
+        // Beyond the margin: nothing.
+        let mut out = Manifold::default();
+        sphere_triangle(
+            vec3(0.0, 0.53, 0.0),
+            0.5,
+            &floor_triangle(0),
+            0.02,
+            &mut out,
+        );
+        assert_eq!(out.count, 0);
+    }
+
+    #[test]
+    fn capsule_lying_on_the_face_rests_on_both_ends() {
+        let mut out = Manifold::default();
+        let (start, end) = (vec3(-0.5, 0.29, 0.0), vec3(1.0, 0.29, 0.0));
+        capsule_triangle(start, end, 0.3, &floor_triangle(0b111), 0.02, &mut out);
+        assert_eq!(out.count, 2);
+        assert_eq!(out.normal, Vec3::Y);
+        for (point, expected_x) in out.points().iter().zip([-0.5, 1.0]) {
+            assert!((point.separation + 0.01).abs() < 1e-6);
+            assert!((point.position - vec3(expected_x, -0.005, 0.0)).length() < 1e-6);
+        }
+        // Hanging over edge 2 (z = -2): the part over the face ends at the edge.
+        let mut out = Manifold::default();
+        let (start, end) = (vec3(0.0, 0.29, -1.0), vec3(0.0, 0.29, -3.0));
+        capsule_triangle(start, end, 0.3, &floor_triangle(0b011), 0.02, &mut out);
+        assert_eq!(out.count, 2);
+        assert!((out.points[1].position.z + 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn box_resting_on_a_big_triangle_touches_at_its_four_corners() {
+        let cuboid = Cuboid {
+            half_extents: vec3(0.5, 0.25, 0.4),
+        };
+        let pose = Transform::new(vec3(0.3, 0.24, -0.5), Quat::from_rotation_y(0.3));
+        let mut out = Manifold::default();
+        box_triangle(&cuboid, &pose, &floor_triangle(0b111), 0.02, &mut out);
+        assert_eq!(out.count, 4);
+        assert!((out.normal - Vec3::Y).length() < 1e-6);
+        for point in out.points() {
+            assert!((point.separation + 0.01).abs() < 1e-5, "{point:?}");
+            assert!((point.position.y + 0.005).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn box_over_a_seam_takes_the_face_normal_when_the_edge_is_inactive() {
+        // A box standing just past edge 2 (z = -2), its bottom face overlapping the triangle
+        // by a 2 mm strip and sunk 10 mm: the separating-axis test prefers the sideways axis
+        // (2 mm < 10 mm). On an active edge that is the contact; on an inactive one (a flat
+        // seam) the face normal is used, with the strip's points.
+        let cuboid = Cuboid {
+            half_extents: vec3(0.5, 0.25, 0.5),
+        };
+        let pose = Transform::from_position(vec3(0.5, 0.24, -2.498));
+        let mut active = Manifold::default();
+        box_triangle(&cuboid, &pose, &floor_triangle(0b111), 0.02, &mut active);
+        assert!(active.count > 0);
+        assert!(
+            active.normal.y.abs() < 1e-3,
+            "sideways: {:?}",
+            active.normal
+        );
+        let mut inactive = Manifold::default();
+        box_triangle(&cuboid, &pose, &floor_triangle(0b011), 0.02, &mut inactive);
+        assert!((inactive.normal - Vec3::Y).length() < 1e-6);
+        assert!(inactive.count >= 2);
+        for point in inactive.points() {
+            assert!((point.separation + 0.01).abs() < 1e-5, "{point:?}");
+            assert!(point.position.z >= -2.0 - 1e-5 && point.position.z <= -1.996 + 1e-5);
+        }
+    }
+
+    #[test]
+    fn box_standing_on_an_edge_touches_at_both_ends_of_it() {
+        let cuboid = Cuboid {
+            half_extents: Vec3::splat(0.5),
+        };
+        let half_diagonal = 0.5 * std::f32::consts::SQRT_2;
+        // Turned 45° about z: its lowest edge runs along z at x = 0.5, 10 mm into the face.
+        let pose = Transform::new(
+            vec3(0.5, half_diagonal - 0.01, 0.0),
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+        );
+        let mut out = Manifold::default();
+        box_triangle(&cuboid, &pose, &floor_triangle(0b111), 0.02, &mut out);
+        assert!((out.normal - Vec3::Y).length() < 1e-5, "{:?}", out.normal);
+        assert_eq!(out.count, 2, "the lowest edge touches at both its ends");
+        for point in out.points() {
+            assert!((point.separation + 0.01).abs() < 1e-5);
+            assert!((point.position.x - 0.5).abs() < 1e-4);
+        }
+    }
+}
