@@ -292,6 +292,9 @@ fn collect_stats(
         pairs: pair_keys.len(),
         pairs_added: pairs.added().len(),
         pairs_removed: pairs.removed().len(),
+        child_manifolds: children.len(),
+        child_manifolds_added: children.added(),
+        child_manifolds_removed: children.removed(),
         manifolds: scratch.contacts.len(),
         contacts: scratch
             .contacts

@@ -46,7 +46,12 @@ pub struct StepStats {
     /// Pairs new this step / gone this step (the talk's persistent pairs).
     pub pairs_added: usize,
     pub pairs_removed: usize,
-    /// Pairs with at least one contact point.
+    /// Child manifolds (one per touching triangle of a mesh, coplanar ones merged), and how
+    /// many were new / gone this step.
+    pub child_manifolds: usize,
+    pub child_manifolds_added: usize,
+    pub child_manifolds_removed: usize,
+    /// Manifolds with at least one contact point, pair and child manifolds together.
     pub manifolds: usize,
     /// Contact points.
     pub contacts: usize,
