@@ -62,6 +62,12 @@ const TRIANGLE_ID_SHIFT: u32 = 12;
 pub struct ChildCache {
     keys: Vec<ChildKey>,
     values: Vec<PairContact>,
+    /// Last step's children while the next are built; swapped, never rebuilt, so the buffers
+    /// stop allocating once they have grown to the scene's size.
+    old_keys: Vec<ChildKey>,
+    old_values: Vec<PairContact>,
+    /// Old points (4 per old child of the current pair) already given to a new point.
+    claimed: Vec<bool>,
     added: usize,
     removed: usize,
 }
@@ -110,13 +116,16 @@ impl ChildCache {
     /// Replaces the children with this step's `(key, manifold)` list (sorted by key), carrying
     /// impulses over from last step's children of the same pair (module docs).
     fn replace(&mut self, fresh: impl Iterator<Item = (ChildKey, Manifold)>) {
-        let old_keys = std::mem::take(&mut self.keys);
-        let old_values = std::mem::take(&mut self.values);
+        std::mem::swap(&mut self.keys, &mut self.old_keys);
+        std::mem::swap(&mut self.values, &mut self.old_values);
+        self.keys.clear();
+        self.values.clear();
+        let (old_keys, old_values) = (&self.old_keys, &self.old_values);
+        let claimed = &mut self.claimed;
         // Old children of the current pair: old_keys[pair_start..pair_end]. Both lists are
         // sorted, so the range only moves forward.
         let (mut pair_start, mut pair_end) = (0, 0);
         let mut current_pair = None;
-        let mut claimed = Vec::new();
         let mut old = 0;
         let mut kept = 0;
         for (key, manifold) in fresh {
@@ -140,8 +149,7 @@ impl ChildCache {
             if old < old_keys.len() && old_keys[old] == key {
                 kept += 1;
             }
-            let contact =
-                carry_from_children(manifold, &old_values[pair_start..pair_end], &mut claimed);
+            let contact = carry_from_children(manifold, &old_values[pair_start..pair_end], claimed);
             self.keys.push(key);
             self.values.push(contact);
         }
@@ -313,4 +321,73 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
         })
         .collect();
     children.replace(per_pair.into_iter().flatten());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::Vec3;
+
+    fn manifold(points: &[(u32, Vec3)]) -> Manifold {
+        let mut manifold = Manifold {
+            normal: Vec3::Y,
+            ..Manifold::default()
+        };
+        for &(id, anchor) in points {
+            manifold.push(ContactPoint {
+                anchor,
+                ..ContactPoint::new(anchor, 0.0, id)
+            });
+        }
+        manifold
+    }
+
+    #[test]
+    fn impulses_follow_a_body_from_one_triangle_to_the_next() {
+        let mut cache = ChildCache::default();
+        let near = Vec3::new(0.0, 0.0, 0.0);
+        cache.replace(
+            [
+                ((7, 3), manifold(&[(3 << 12, near)])),
+                ((9, 1), manifold(&[(1 << 12, Vec3::X)])),
+            ]
+            .into_iter(),
+        );
+        assert_eq!((cache.added(), cache.removed()), (2, 0));
+        cache.values_mut()[0].impulses[0].normal = 1.5;
+        cache.values_mut()[1].impulses[0].normal = 2.5;
+
+        // Pair 7's point moved 1 cm onto triangle 4 (new key, new id): it keeps its impulse.
+        // Pair 9 is gone; pair 8 is new and near pair 9's old point, but another pair's
+        // impulses never carry over.
+        cache.replace(
+            [
+                (
+                    (7, 4),
+                    manifold(&[(4 << 12, near + Vec3::new(0.01, 0.0, 0.0))]),
+                ),
+                ((8, 1), manifold(&[(1 << 12, Vec3::X)])),
+            ]
+            .into_iter(),
+        );
+        assert_eq!(cache.keys(), [(7, 4), (8, 1)]);
+        assert_eq!((cache.added(), cache.removed()), (2, 2));
+        assert_eq!(cache.values()[0].impulses[0].normal, 1.5);
+        assert_eq!(cache.values()[1].impulses[0].normal, 0.0);
+
+        // The same child again: kept, and an old point is claimed once only.
+        cache.replace(
+            [(
+                (7, 4),
+                manifold(&[(99, near), (98, near + Vec3::new(0.001, 0.0, 0.0))]),
+            )]
+            .into_iter(),
+        );
+        assert_eq!((cache.added(), cache.removed()), (0, 1));
+        let normals: Vec<f32> = cache.values()[0].impulses[..2]
+            .iter()
+            .map(|impulse| impulse.normal)
+            .collect();
+        assert_eq!(normals, [1.5, 0.0]);
+    }
 }
