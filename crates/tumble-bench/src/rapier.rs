@@ -120,7 +120,7 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
     .pose(pose)
     .can_sleep(false)
     .ccd_enabled(false);
-    let collider = match desc.shape {
+    let collider = match &desc.shape {
         tumble::Shape::Sphere(sphere) => ColliderBuilder::ball(sphere.radius),
         tumble::Shape::Cuboid(cuboid) => {
             let h = cuboid.half_extents;
@@ -134,6 +134,19 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
         tumble::Shape::Plane(plane) => {
             ColliderBuilder::new(SharedShape::halfspace(vector(plane.normal)))
                 .translation(vector(plane.normal * plane.offset))
+        }
+        // Rapier's internal-edge fix, the counterpart of Tumble's active edges; it needs a
+        // manifold mesh, so a mesh it refuses goes in without it.
+        tumble::Shape::TriMesh(mesh) => {
+            let vertices: Vec<Vector> = mesh.vertices().iter().map(|&v| vector(v)).collect();
+            let indices = mesh.triangles().to_vec();
+            ColliderBuilder::trimesh_with_flags(
+                vertices.clone(),
+                indices.clone(),
+                TriMeshFlags::FIX_INTERNAL_EDGES,
+            )
+            .or_else(|_| ColliderBuilder::trimesh(vertices, indices))
+            .expect("rapier refuses only empty meshes, and TriMesh::new refused those")
         }
     }
     .friction(desc.friction)
@@ -291,6 +304,14 @@ mod tests {
             BodyDesc::dynamic(Shape::capsule(0.2, 0.7))
                 .position(Vec3::new(3.0, 2.0, 0.0))
                 .mass(1.5),
+            BodyDesc::fixed(Shape::trimesh(
+                tumble::shape::TriMesh::new(
+                    vec![Vec3::ZERO, Vec3::Z, Vec3::X, Vec3::new(1.0, 0.0, 1.0)],
+                    vec![[0, 1, 2], [2, 1, 3]],
+                )
+                .unwrap(),
+            ))
+            .position(Vec3::new(20.0, 0.0, 0.0)),
         ];
         scene
     }
@@ -344,7 +365,7 @@ mod tests {
                 CoefficientCombineRule::Max
             );
             let shape = collider.shape();
-            match desc.shape {
+            match &desc.shape {
                 Shape::Sphere(sphere) => assert_eq!(shape.as_ball().unwrap().radius, sphere.radius),
                 Shape::Cuboid(cuboid) => {
                     let h = shape.as_cuboid().unwrap().half_extents;
@@ -365,6 +386,10 @@ mod tests {
                     // The boundary passes through offset·n.
                     let boundary = collider.position().translation;
                     assert_eq!(boundary.dot(normal), plane.offset);
+                }
+                Shape::TriMesh(mesh) => {
+                    let rapier_mesh = shape.as_trimesh().unwrap();
+                    assert_eq!(rapier_mesh.indices(), mesh.triangles());
                 }
             }
         }

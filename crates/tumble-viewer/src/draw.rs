@@ -124,7 +124,7 @@ impl DrawList {
                 (true, BatchView::Off) => body_colour(handle.index() as usize),
                 (true, _) => BATCH_BODY_COLOUR,
             };
-            let (key, scale) = match desc.shape {
+            let (key, scale) = match &desc.shape {
                 Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
                 Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
                 Shape::Capsule(capsule) => (
@@ -149,6 +149,9 @@ impl DrawList {
                     });
                     continue;
                 }
+                // The viewer has no mesh for triangle meshes yet: a static mesh is left out of
+                // the picture (the physics still collides with it).
+                Shape::TriMesh(_) => continue,
             };
             smallest = smallest.min(desc.shape.aabb(&pose).half_extents().min_element());
             let model = Mat4::from_scale_rotation_translation(scale, pose.rotation, pose.position);

@@ -369,7 +369,7 @@ fn run_steps(context: &GpuContext, frames: &[World]) -> Vec<Vec<PairContact>> {
 }
 
 /// One pair of two bodies per entry of `bodies`, body 2i and 2i + 1.
-fn pairs_world(bodies: &[[(Shape, Vec3, Quat); 2]]) -> World {
+fn pairs_world(bodies: &[[(&Shape, Vec3, Quat); 2]]) -> World {
     let mut world = World {
         poses: Vec::new(),
         velocities: Vec::new(),
@@ -380,6 +380,7 @@ fn pairs_world(bodies: &[[(Shape, Vec3, Quat); 2]]) -> World {
     for pair in bodies {
         let first = world.poses.len() as u32;
         for &(shape, position, rotation) in pair {
+            let shape = shape.clone();
             world.poses.push(BodyPose::new(position, rotation));
             world.velocities.push(BodyVelocity::default());
             world.colliders.push(collider(shape));
@@ -396,8 +397,8 @@ fn pairs_world(bodies: &[[(Shape, Vec3, Quat); 2]]) -> World {
 #[test]
 fn stacked_boxes_flip_ids_alike() {
     let context = context();
-    let cube = Shape::cuboid(Vec3::splat(0.5));
-    let slab = Shape::cuboid(vec3(0.5, 0.25, 0.5));
+    let cube = &Shape::cuboid(Vec3::splat(0.5));
+    let slab = &Shape::cuboid(vec3(0.5, 0.25, 0.5));
     let offsets = [
         vec3(0.0, 0.0, 0.0),
         vec3(1e-7, -1e-6, 0.0),
@@ -492,9 +493,9 @@ fn stacked_boxes_flip_ids_alike() {
 #[test]
 fn box_on_plane_matches_on_ties() {
     let context = context();
-    let cube = Shape::cuboid(Vec3::splat(0.5));
-    let thin = Shape::cuboid(vec3(0.5, 0.005, 0.5));
-    let ground = Shape::plane(Vec3::Y, 0.0);
+    let cube = &Shape::cuboid(Vec3::splat(0.5));
+    let thin = &Shape::cuboid(vec3(0.5, 0.005, 0.5));
+    let ground = &Shape::plane(Vec3::Y, 0.0);
     let frames: Vec<World> = (0..4)
         .map(|step| {
             let lift = vec3(0.0, step as f32 * 1e-4, 0.0);
@@ -528,7 +529,7 @@ fn box_on_plane_matches_on_ties() {
                 [
                     (cube, vec3(15.0, 1.749, 0.0), Quat::IDENTITY),
                     (
-                        Shape::plane(Vec3::X, 0.25),
+                        &Shape::plane(Vec3::X, 0.25),
                         vec3(15.0, 1.0, 0.0),
                         Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
                     ),
@@ -547,8 +548,8 @@ fn box_on_plane_matches_on_ties() {
 #[test]
 fn parallel_capsules_match() {
     let context = context();
-    let capsule = Shape::capsule(0.25, 0.5);
-    let long = Shape::capsule(0.25, 1.0);
+    let capsule = &Shape::capsule(0.25, 0.5);
+    let long = &Shape::capsule(0.25, 1.0);
     let lying = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
     let frames: Vec<World> = (0..3)
         .map(|step| {
@@ -570,14 +571,14 @@ fn parallel_capsules_match() {
                 [
                     (capsule, vec3(15.0, 0.74, 0.0) + slide, lying),
                     (
-                        Shape::cuboid(Vec3::splat(0.5)),
+                        &Shape::cuboid(Vec3::splat(0.5)),
                         vec3(15.0, 0.0, 0.0),
                         Quat::IDENTITY,
                     ),
                 ],
                 [
                     (long, vec3(20.0, 0.25, 0.0) + slide, lying),
-                    (Shape::plane(Vec3::Y, 0.0), Vec3::ZERO, Quat::IDENTITY),
+                    (&Shape::plane(Vec3::Y, 0.0), Vec3::ZERO, Quat::IDENTITY),
                 ],
                 // Crossing at right angles, touching: one point.
                 [

@@ -79,17 +79,13 @@ impl Manifold {
 /// GPU narrowphase keep the same points in the same order.
 pub const REDUCE_TIE_RELATIVE: f32 = 1.0e-4;
 
-/// Depths (m) within this of the deepest so far count as equally deep, for the same reason:
-/// the corners of a box lying flat differ in depth only by rounding.
-pub const REDUCE_TIE_DEPTH: f32 = 1.0e-5;
-
 /// Keeps at most [`MAX_MANIFOLD_POINTS`] of `candidates`, chosen to hold the body as a larger
 /// set would: the deepest point (it carries the largest impulse), then the point farthest from
 /// it, then the one making the largest triangle with those two, then the one making the
 /// largest quadrilateral with the triangle. Distances and areas are measured in the contact
 /// plane (perpendicular to the unit `normal`), so depth differences do not count as spread.
 ///
-/// Deterministic: ties (within [`REDUCE_TIE_RELATIVE`] and [`REDUCE_TIE_DEPTH`]) go to the
+/// Deterministic: ties (scores within [`REDUCE_TIE_RELATIVE`], equal depths) go to the
 /// lower index; the kept points are listed in the order chosen.
 /// The result's normal is `normal`. With four candidates or fewer, all are kept in order.
 pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
@@ -106,7 +102,11 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
 
     let mut deepest = 0;
     for (index, candidate) in candidates.iter().enumerate() {
-        if candidate.separation < candidates[deepest].separation - REDUCE_TIE_DEPTH {
+        // Strictly deepest, with no slack for rounding as the scores have: a box sliding over
+        // a mesh digs its leading edge in by micrometres, and a 1e-5 m (even 1e-6 m) tie rule
+        // that kept a corner by index instead yawed it by 0.02 rad/s against 0.0015
+        // (tests/trimesh_floor.rs).
+        if candidate.separation < candidates[deepest].separation {
             deepest = index;
         }
     }

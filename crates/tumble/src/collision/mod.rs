@@ -1,6 +1,7 @@
 //! Geometry shared by the stages: the dynamic AABB tree, contact manifolds and the pair
 //! functions that make them.
 
+pub mod bvh;
 pub mod contact;
 pub mod dbvt;
 pub mod manifold;

@@ -84,7 +84,7 @@ pub struct BodyMass {
 const _: () = assert!(size_of::<BodyMass>() == 16);
 
 /// What a body collides as.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Collider {
     pub shape: Shape,
     /// Coulomb friction coefficient (≥ 0); pairs combine as sqrt(a·b).
@@ -101,6 +101,8 @@ impl Collider {
             Shape::Capsule(c) => Vec4::new(c.radius, c.half_height, 0.0, 0.0),
             Shape::Cuboid(c) => c.half_extents.extend(0.0),
             Shape::Plane(p) => p.normal.extend(p.offset),
+            // The GPU narrowphase does not collide meshes yet: only the kind is uploaded.
+            Shape::TriMesh(_) => Vec4::ZERO,
         };
         ColliderData {
             kind: self.shape.kind() as u32,
@@ -276,6 +278,9 @@ impl BodyDesc {
         if matches!(self.shape, Shape::Plane(_)) && !self.is_static() {
             return Err(BodyError::DynamicPlane);
         }
+        if matches!(self.shape, Shape::TriMesh(_)) && !self.is_static() {
+            return Err(BodyError::DynamicTriMesh);
+        }
         Ok(())
     }
 }
@@ -321,6 +326,8 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
             }
             Ok(())
         }
+        // Checked when the mesh was built (TriMesh::new).
+        Shape::TriMesh(_) => Ok(()),
     }
 }
 
@@ -341,6 +348,8 @@ pub enum BodyError {
     ZeroNormal,
     #[error("a plane is infinite and must be static (mass 0)")]
     DynamicPlane,
+    #[error("a triangle mesh is static only (mass 0); use a convex shape for moving bodies")]
+    DynamicTriMesh,
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

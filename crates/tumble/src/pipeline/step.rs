@@ -140,6 +140,11 @@ impl World {
                 Ok(())
             }
         };
+        if narrowphase.is_ok() {
+            // Pairs with a mesh: one child manifold per touching triangle (on the CPU: the GPU
+            // narrowphase has no meshes yet).
+            narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
+        }
         profiler.end();
         narrowphase?;
 
@@ -177,6 +182,7 @@ impl World {
         build_constraints(
             self.pairs.keys(),
             self.pairs.values(),
+            &self.children,
             &inputs,
             &mut scratch.contacts,
         );
@@ -228,7 +234,8 @@ impl World {
             );
             // Which batch each pair's manifold went to, for the viewer's colored batches.
             self.pair_batches.clear();
-            self.pair_batches.resize(self.pairs.len(), NO_BATCH);
+            self.pair_batches
+                .resize(self.pairs.len() + self.children.len(), NO_BATCH);
             for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
                 self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
             }
@@ -253,7 +260,11 @@ impl World {
             has_overflow: scratch.coloring.has_overflow,
         };
         solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
-        store_contact_impulses(&scratch.batched_contacts, self.pairs.values_mut());
+        store_contact_impulses(
+            &scratch.batched_contacts,
+            self.pairs.values_mut(),
+            self.children.values_mut(),
+        );
         let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         if let Some(drag) = self.drag.as_mut()
             && let Some(solved) = scratch
@@ -279,7 +290,7 @@ impl World {
         histogram.clone_from(&scratch.coloring.histogram);
         self.stats = StepStats {
             batch_histogram: histogram,
-            ..collect_stats(&scratch.pair_keys, &self.pairs, scratch)
+            ..collect_stats(&scratch.pair_keys, &self.pairs, &self.children, scratch)
         };
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
@@ -364,13 +375,21 @@ impl World {
     }
 }
 
-/// Solved impulses back into the pair cache, for next step's warm start.
+/// Solved impulses back into the pair and child caches (by slot, see
+/// [`ContactConstraint::pair`]), for next step's warm start.
 fn store_contact_impulses(
     constraints: &[ContactConstraint],
     contacts: &mut [narrowphase::PairContact],
+    children: &mut [narrowphase::PairContact],
 ) {
+    let pair_count = contacts.len();
     for constraint in constraints {
-        let contact = &mut contacts[constraint.pair as usize];
+        let slot = constraint.pair as usize;
+        let contact = if slot < pair_count {
+            &mut contacts[slot]
+        } else {
+            &mut children[slot - pair_count]
+        };
         for (impulse, point) in contact
             .impulses
             .iter_mut()
@@ -424,17 +443,22 @@ fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
 fn collect_stats(
     pair_keys: &[u64],
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
+    children: &narrowphase::ChildCache,
     scratch: &StepScratch,
 ) -> StepStats {
     let max_penetration = pairs
         .values()
         .iter()
+        .chain(children.values())
         .flat_map(|c| c.manifold.points().iter().map(|p| -p.separation))
         .fold(0.0f32, f32::max);
     StepStats {
         pairs: pair_keys.len(),
         pairs_added: pairs.added().len(),
         pairs_removed: pairs.removed().len(),
+        child_manifolds: children.len(),
+        child_manifolds_added: children.added(),
+        child_manifolds_removed: children.removed(),
         manifolds: scratch.contacts.len(),
         contacts: scratch
             .contacts

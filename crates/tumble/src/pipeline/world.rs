@@ -36,7 +36,7 @@ use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
-use crate::stages::narrowphase::PairContact;
+use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::PairCache;
 
 /// Batch number of a pair that has no constraint this step.
@@ -50,7 +50,12 @@ pub struct StepStats {
     /// Pairs new this step / gone this step (the talk's persistent pairs).
     pub pairs_added: usize,
     pub pairs_removed: usize,
-    /// Pairs with at least one contact point.
+    /// Child manifolds (one per touching triangle of a mesh, coplanar ones merged), and how
+    /// many were new / gone this step.
+    pub child_manifolds: usize,
+    pub child_manifolds_added: usize,
+    pub child_manifolds_removed: usize,
+    /// Manifolds with at least one contact point, pair and child manifolds together.
     pub manifolds: usize,
     /// Contact points.
     pub contacts: usize,
@@ -108,6 +113,8 @@ pub struct World {
     // State carried from step to step.
     pub(crate) broadphase: Broadphase,
     pub(crate) pairs: PairCache<PairContact>,
+    /// Per-triangle manifolds of pairs with a mesh (`stages::narrowphase::children`).
+    pub(crate) children: ChildCache,
     pub(crate) scratch: StepScratch,
     pub(crate) stats: StepStats,
     /// The batch of each pair's manifold in the last step ([`NO_BATCH`] without contacts).
@@ -150,6 +157,7 @@ impl World {
             drag: None,
             broadphase,
             pairs: PairCache::default(),
+            children: ChildCache::default(),
             scratch: StepScratch::default(),
             stats: StepStats::default(),
             pair_batches: Vec::new(),
@@ -202,6 +210,10 @@ impl World {
             inverse_inertia: mass_properties.inverse_inertia,
             inverse_mass: mass_properties.inverse_mass,
         };
+        let aabb = desc
+            .shape
+            .aabb(&pose.transform())
+            .expanded(self.config.contact_margin);
         let collider = Collider {
             shape: desc.shape,
             friction: desc.friction,
@@ -239,10 +251,6 @@ impl World {
                 (self.slots.len() - 1) as u32
             }
         };
-        let aabb = collider
-            .shape
-            .aabb(&pose.transform())
-            .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
         if let Some(gpu) = &mut self.gpu {
             gpu.colliders_changed();
@@ -675,7 +683,7 @@ impl World {
             &self.slots[i],
         );
         Ok(BodyDesc {
-            shape: collider.shape,
+            shape: collider.shape.clone(),
             position: pose.position,
             rotation: pose.rotation,
             mass: slot.mass,
@@ -758,6 +766,21 @@ impl World {
             })
     }
 
+    /// Child contacts (per triangle of a mesh) as (body A, body B, triangle, pair data), in
+    /// child order: what [`contacts`](Self::contacts) is for pairs without a mesh.
+    pub fn child_contacts(
+        &self,
+    ) -> impl Iterator<Item = (BodyHandle, BodyHandle, u32, &PairContact)> + '_ {
+        self.children
+            .keys()
+            .iter()
+            .zip(self.children.values())
+            .map(|(&(key, child), contact)| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                (self.handle_of(a), self.handle_of(b), child, contact)
+            })
+    }
+
     /// Seeds the warm-start impulses of a pair (used when loading a dumped scene, so the run
     /// continues bitwise). The manifold is recomputed at the next step; points keep these
     /// impulses where their feature ids match.
@@ -765,8 +788,33 @@ impl World {
         &mut self,
         a: BodyHandle,
         b: BodyHandle,
-        mut contact: PairContact,
+        contact: PairContact,
     ) -> Result<(), BodyError> {
+        let (key, contact) = self.pair_ordered(a, b, contact)?;
+        self.pairs.insert(key, contact);
+        Ok(())
+    }
+
+    /// [`restore_contact`](Self::restore_contact) for the child manifold of triangle `child`.
+    pub fn restore_child_contact(
+        &mut self,
+        a: BodyHandle,
+        b: BodyHandle,
+        child: u32,
+        contact: PairContact,
+    ) -> Result<(), BodyError> {
+        let (key, contact) = self.pair_ordered(a, b, contact)?;
+        self.children.insert((key, child), contact);
+        Ok(())
+    }
+
+    /// The pair key of (a, b) and the contact as the cache keeps it, from the lower index.
+    fn pair_ordered(
+        &self,
+        a: BodyHandle,
+        b: BodyHandle,
+        mut contact: PairContact,
+    ) -> Result<(u64, PairContact), BodyError> {
         let (ia, ib) = (self.check(a)?, self.check(b)?);
         let key = crate::stages::pairs::pair_key(ia as u32, ib as u32);
         if ia > ib {
@@ -779,8 +827,7 @@ impl World {
                 point.anchor = to.inverse_transform_point(from.transform_point(point.anchor));
             }
         }
-        self.pairs.insert(key, contact);
-        Ok(())
+        Ok((key, contact))
     }
 
     pub(crate) fn handle_of(&self, index: u32) -> BodyHandle {

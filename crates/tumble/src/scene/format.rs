@@ -12,7 +12,7 @@ use crate::dynamics::joint::{JointDesc, JointKind, JointState, MAX_ANGULAR_ROWS,
 use crate::math::{Quat, Vec3};
 use crate::pipeline::config::StepConfig;
 use crate::pipeline::world::World;
-use crate::shape::Shape;
+use crate::shape::{Shape, TriMesh};
 use crate::stages::narrowphase::{PairContact, PointImpulse};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -112,6 +112,17 @@ pub enum ShapeFile {
         normal: [f32; 3],
         #[serde(default)]
         offset: f32,
+    },
+    /// A static triangle mesh: three indices into `vertices` per triangle, counter-clockwise
+    /// seen from the front (see `shape::trimesh`).
+    Trimesh {
+        vertices: Vec<[f32; 3]>,
+        indices: Vec<u32>,
+    },
+    /// A Wavefront OBJ file loaded as a static triangle mesh (all its objects together). A
+    /// relative path is relative to the scene file's folder.
+    Obj {
+        path: String,
     },
 }
 
@@ -236,6 +247,9 @@ pub struct JointStateFile {
 #[serde(deny_unknown_fields)]
 pub struct ContactFile {
     pub bodies: [usize; 2],
+    /// For a contact with a triangle mesh: the triangle (the child manifold's key).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub child: Option<u32>,
     pub points: Vec<ContactPointFile>,
 }
 
@@ -284,6 +298,9 @@ pub struct Scene {
     pub joints: Vec<SceneJoint>,
     /// (body index, body index, impulses by feature id).
     pub contacts: Vec<(usize, usize, PairContact)>,
+    /// (body index, body index, triangle, impulses by feature id): child manifolds of pairs
+    /// with a mesh.
+    pub child_contacts: Vec<(usize, usize, u32, PairContact)>,
 }
 
 /// A body's sleep state in a scene: its rest time (s) and, asleep, its island's number.
@@ -328,43 +345,32 @@ impl Scene {
             sleep: Vec::new(),
             joints: Vec::new(),
             contacts: Vec::new(),
+            child_contacts: Vec::new(),
         }
     }
 
-    /// Reads and validates a scene file.
+    /// Reads and validates a scene file; `obj` paths are relative to its folder.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
             path: path.display().to_string(),
             source,
         })?;
-        Self::from_json(&text)
+        let folder = path.parent().unwrap_or(Path::new(""));
+        Self::from_file_in(&parse(&text)?, folder)
     }
 
-    /// Parses and validates scene JSON.
+    /// Parses and validates scene JSON; `obj` paths are relative to the working directory.
     pub fn from_json(text: &str) -> Result<Self, SceneError> {
-        let deserializer = &mut serde_json::Deserializer::from_str(text);
-        let file: SceneFile = serde_path_to_error::deserialize(deserializer).map_err(|error| {
-            let path = error.path().to_string();
-            let inner = error.into_inner();
-            // A syntax error before any field was reached: the file is not JSON at all.
-            let at_root = path == ".";
-            let field = if at_root { "scene".to_string() } else { path };
-            let syntax = matches!(
-                inner.classify(),
-                serde_json::error::Category::Syntax | serde_json::error::Category::Eof
-            );
-            let message = if at_root && syntax {
-                format!("not valid JSON: {inner}")
-            } else {
-                inner.to_string()
-            };
-            SceneError::Parse { field, message }
-        })?;
-        Self::from_file(&file)
+        Self::from_file(&parse(text)?)
     }
 
-    /// Validates a parsed scene file.
+    /// Validates a parsed scene file; `obj` paths are relative to the working directory.
     pub fn from_file(file: &SceneFile) -> Result<Self, SceneError> {
+        Self::from_file_in(file, Path::new(""))
+    }
+
+    /// Validates a parsed scene file whose relative `obj` paths start at `folder`.
+    pub fn from_file_in(file: &SceneFile, folder: &Path) -> Result<Self, SceneError> {
         let invalid = |field: String, message: String| SceneError::Invalid { field, message };
         let config = StepConfig {
             gravity: Vec3::from_array(file.gravity),
@@ -380,7 +386,7 @@ impl Scene {
         let mut bodies = Vec::with_capacity(file.bodies.len());
         let mut sleep = Vec::new();
         for (i, body) in file.bodies.iter().enumerate() {
-            let desc = body_desc(body)
+            let desc = body_desc(body, folder)
                 .map_err(|(field, message)| invalid(format!("bodies[{i}].{field}"), message))?;
             if !(body.sleep_timer.is_finite() && body.sleep_timer >= 0.0) {
                 return Err(invalid(
@@ -421,6 +427,7 @@ impl Scene {
             joints.push(joint);
         }
         let mut contacts = Vec::with_capacity(file.contacts.len());
+        let mut child_contacts = Vec::new();
         for (i, contact) in file.contacts.iter().enumerate() {
             let [a, b] = contact.bodies;
             if a >= bodies.len() || b >= bodies.len() || a == b {
@@ -464,7 +471,10 @@ impl Scene {
                     tangent: point.tangent_impulse,
                 };
             }
-            contacts.push((a, b, pair));
+            match contact.child {
+                Some(child) => child_contacts.push((a, b, child, pair)),
+                None => contacts.push((a, b, pair)),
+            }
         }
         Ok(Scene {
             config,
@@ -472,6 +482,7 @@ impl Scene {
             sleep,
             joints,
             contacts,
+            child_contacts,
         })
     }
 
@@ -517,6 +528,14 @@ impl Scene {
                 .restore_contact(handles[a], handles[b], contact)
                 .map_err(|e| SceneError::Invalid {
                     field: format!("contacts[{i}]"),
+                    message: e.to_string(),
+                })?;
+        }
+        for (i, &(a, b, child, contact)) in self.child_contacts.iter().enumerate() {
+            world
+                .restore_child_contact(handles[a], handles[b], child, contact)
+                .map_err(|e| SceneError::Invalid {
+                    field: format!("contacts[{}]", self.contacts.len() + i),
                     message: e.to_string(),
                 })?;
         }
@@ -596,12 +615,19 @@ impl Scene {
         if sleep.iter().all(|state| *state == BodySleep::default()) {
             sleep.clear();
         }
+        let child_contacts = world
+            .child_contacts()
+            .filter_map(|(a, b, child, contact)| {
+                Some((*index_of.get(&a)?, *index_of.get(&b)?, child, *contact))
+            })
+            .collect();
         Scene {
             config: *world.config(),
             bodies,
             sleep,
             joints,
             contacts,
+            child_contacts,
         }
     }
 
@@ -630,21 +656,12 @@ impl Scene {
             contacts: self
                 .contacts
                 .iter()
-                .map(|(a, b, contact)| ContactFile {
-                    bodies: [*a, *b],
-                    points: contact
-                        .manifold
-                        .points()
-                        .iter()
-                        .zip(&contact.impulses)
-                        .map(|(point, impulse)| ContactPointFile {
-                            id: point.id,
-                            anchor: point.anchor.to_array(),
-                            normal_impulse: impulse.normal,
-                            tangent_impulse: impulse.tangent,
-                        })
-                        .collect(),
-                })
+                .map(|(a, b, contact)| contact_file([*a, *b], None, contact))
+                .chain(
+                    self.child_contacts.iter().map(|(a, b, child, contact)| {
+                        contact_file([*a, *b], Some(*child), contact)
+                    }),
+                )
                 .collect(),
         }
     }
@@ -664,8 +681,19 @@ impl Scene {
 }
 
 /// A body of the file as a description, or (field, message) of the first problem.
-fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
+fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String)> {
     let shape = match &body.shape {
+        ShapeFile::Trimesh { vertices, indices } => {
+            let vertices = vertices.iter().copied().map(Vec3::from_array).collect();
+            let mesh = TriMesh::from_flat_indices(vertices, indices)
+                .map_err(|error| ("shape.trimesh".to_string(), error.to_string()))?;
+            Shape::trimesh(mesh)
+        }
+        ShapeFile::Obj { path } => {
+            let mesh = load_obj(&folder.join(path))
+                .map_err(|message| ("shape.obj.path".to_string(), message))?;
+            Shape::trimesh(mesh)
+        }
         ShapeFile::Sphere { radius } => Shape::sphere(*radius),
         ShapeFile::Box { half_extents } => Shape::cuboid(Vec3::from_array(*half_extents)),
         ShapeFile::Capsule {
@@ -692,6 +720,76 @@ fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
     Ok(desc)
 }
 
+fn contact_file(bodies: [usize; 2], child: Option<u32>, contact: &PairContact) -> ContactFile {
+    ContactFile {
+        bodies,
+        child,
+        points: contact
+            .manifold
+            .points()
+            .iter()
+            .zip(&contact.impulses)
+            .map(|(point, impulse)| ContactPointFile {
+                id: point.id,
+                anchor: point.anchor.to_array(),
+                normal_impulse: impulse.normal,
+                tangent_impulse: impulse.tangent,
+            })
+            .collect(),
+    }
+}
+
+/// Parses scene JSON; errors name the field.
+fn parse(text: &str) -> Result<SceneFile, SceneError> {
+    let deserializer = &mut serde_json::Deserializer::from_str(text);
+    serde_path_to_error::deserialize(deserializer).map_err(|error| {
+        let path = error.path().to_string();
+        let inner = error.into_inner();
+        // A syntax error before any field was reached: the file is not JSON at all.
+        let at_root = path == ".";
+        let field = if at_root { "scene".to_string() } else { path };
+        let syntax = matches!(
+            inner.classify(),
+            serde_json::error::Category::Syntax | serde_json::error::Category::Eof
+        );
+        let message = if at_root && syntax {
+            format!("not valid JSON: {inner}")
+        } else {
+            inner.to_string()
+        };
+        SceneError::Parse { field, message }
+    })
+}
+
+/// All objects of an OBJ file as one triangle mesh (polygons fanned into triangles), or a
+/// message naming the file and the problem.
+fn load_obj(path: &Path) -> Result<TriMesh, String> {
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _materials) =
+        tobj::load_obj(path, &options).map_err(|error| format!("{}: {error}", path.display()))?;
+    let mut vertices = Vec::new();
+    let mut triangles = Vec::new();
+    for model in &models {
+        let base = vertices.len() as u32;
+        let mesh = &model.mesh;
+        vertices.extend(
+            mesh.positions
+                .chunks_exact(3)
+                .map(|p| Vec3::new(p[0], p[1], p[2])),
+        );
+        triangles.extend(
+            mesh.indices
+                .chunks_exact(3)
+                .map(|t| [base + t[0], base + t[1], base + t[2]]),
+        );
+    }
+    TriMesh::new(vertices, triangles).map_err(|error| format!("{}: {error}", path.display()))
+}
+
 /// The scene-file field a body error is about.
 fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
     let shape_name = match shape {
@@ -699,6 +797,8 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         ShapeFile::Box { .. } => "box",
         ShapeFile::Capsule { .. } => "capsule",
         ShapeFile::Plane { .. } => "plane",
+        ShapeFile::Trimesh { .. } => "trimesh",
+        ShapeFile::Obj { .. } => "obj",
     };
     match error {
         BodyError::NotFinite { field }
@@ -711,13 +811,13 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::RestitutionOutOfRange(_) => "restitution".into(),
         BodyError::ZeroRotation => "rotation".into(),
         BodyError::ZeroNormal => "shape.plane.normal".into(),
-        BodyError::DynamicPlane => "mass".into(),
+        BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
     }
 }
 
 fn body_file(desc: &BodyDesc) -> BodyFile {
-    let shape = match desc.shape {
+    let shape = match &desc.shape {
         Shape::Sphere(s) => ShapeFile::Sphere { radius: s.radius },
         Shape::Cuboid(c) => ShapeFile::Box {
             half_extents: c.half_extents.to_array(),
@@ -729,6 +829,11 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         Shape::Plane(p) => ShapeFile::Plane {
             normal: p.normal.to_array(),
             offset: p.offset,
+        },
+        // An OBJ mesh is written out as its triangles: the dump stands alone.
+        Shape::TriMesh(mesh) => ShapeFile::Trimesh {
+            vertices: mesh.vertices().iter().map(|v| v.to_array()).collect(),
+            indices: mesh.triangles().iter().flatten().copied().collect(),
         },
     };
     BodyFile {

@@ -3,6 +3,7 @@
 
 pub mod builtin;
 pub mod format;
+pub mod landscape;
 pub mod ragdoll;
 
 pub use builtin::{BUILTIN_SCENES, builtin};

@@ -1,18 +1,25 @@
-//! Collision shapes. Primitives are centred on their body frame; a plane is static only.
+//! Collision shapes. Primitives are centred on their body frame; a plane and a triangle mesh
+//! are static only. A mesh is shared behind an `Arc`, so `Shape` is `Clone` but not `Copy`.
+
+pub mod trimesh;
 
 use crate::math::{Aabb, Transform, Vec3};
+use std::sync::Arc;
+pub use trimesh::{TriMesh, TriMeshError};
 
 /// Half-size of the box that stands for "everywhere" in an infinite plane's AABB (m). Large
 /// enough for any scene, small enough that surface areas stay finite in f32 (SAH costs).
 pub const PLANE_AABB_EXTENT: f32 = 1.0e15;
 
 /// A collision shape, in its body's frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     Sphere(Sphere),
     Cuboid(Cuboid),
     Capsule(Capsule),
     Plane(Plane),
+    /// A static triangle mesh, in the body frame.
+    TriMesh(Arc<TriMesh>),
 }
 
 /// A ball of `radius` (m) centred on the body origin.
@@ -50,6 +57,7 @@ pub enum ShapeKind {
     Capsule = 1,
     Cuboid = 2,
     Plane = 3,
+    TriMesh = 4,
 }
 
 /// Mass and rotational inertia of a body about its centre of mass.
@@ -84,6 +92,10 @@ impl Shape {
         })
     }
 
+    pub fn trimesh(mesh: TriMesh) -> Self {
+        Shape::TriMesh(Arc::new(mesh))
+    }
+
     /// A plane `normal · x <= offset`; `normal` is normalized here.
     pub fn plane(normal: Vec3, offset: f32) -> Self {
         Shape::Plane(Plane {
@@ -98,6 +110,7 @@ impl Shape {
             Shape::Capsule(_) => ShapeKind::Capsule,
             Shape::Cuboid(_) => ShapeKind::Cuboid,
             Shape::Plane(_) => ShapeKind::Plane,
+            Shape::TriMesh(_) => ShapeKind::TriMesh,
         }
     }
 
@@ -137,6 +150,13 @@ impl Shape {
                 }
                 aabb
             }
+            Shape::TriMesh(mesh) => {
+                let local = mesh.local_aabb();
+                let m = glam::Mat3::from_quat(pose.rotation);
+                let e = local.half_extents();
+                let e = m.x_axis.abs() * e.x + m.y_axis.abs() * e.y + m.z_axis.abs() * e.z;
+                Aabb::from_center_half_extents(pose.transform_point(local.center()), e)
+            }
         }
     }
 
@@ -148,6 +168,7 @@ impl Shape {
             Shape::Cuboid(c) => c.half_extents.length(),
             Shape::Capsule(c) => c.half_height + c.radius,
             Shape::Plane(_) => 0.0,
+            Shape::TriMesh(mesh) => mesh.bounding_radius(),
         }
     }
 
@@ -164,7 +185,7 @@ impl Shape {
                 mass / 12.0 * Vec3::new(d2.y + d2.z, d2.x + d2.z, d2.x + d2.y)
             }
             Shape::Capsule(c) => capsule_inertia(mass, c.radius, c.half_height),
-            Shape::Plane(_) => return MassProperties::STATIC,
+            Shape::Plane(_) | Shape::TriMesh(_) => return MassProperties::STATIC,
         };
         MassProperties {
             inverse_mass: 1.0 / mass,

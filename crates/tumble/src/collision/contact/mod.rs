@@ -37,9 +37,13 @@
 
 mod box_box;
 mod capsule;
+mod mesh;
 mod plane;
 mod segment;
 mod sphere;
+mod triangle;
+
+pub use mesh::collide_mesh;
 
 use crate::collision::manifold::{ContactPoint, Manifold};
 use crate::gpu::kernel::Source;
@@ -148,8 +152,10 @@ fn collide_ordered(
         }
         (Shape::Cuboid(a), Shape::Cuboid(b)) => box_box::box_box(a, pose_a, b, pose_b, margin, out),
         (Shape::Cuboid(a), Shape::Plane(b)) => plane::box_plane(a, pose_a, b, pose_b, margin, out),
-        // Plane–plane: two static half-spaces never need a contact. Every other combination
-        // reaches this function ordered by kind, so it is one of the arms above.
+        // Plane–plane: two static half-spaces never need a contact. Meshes make one manifold
+        // per triangle and go through `collide_mesh` instead; mesh–plane and mesh–mesh are
+        // static–static. Every other combination reaches this function ordered by kind, so it
+        // is one of the arms above.
         _ => {}
     }
 }

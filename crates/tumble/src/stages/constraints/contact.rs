@@ -29,7 +29,7 @@ use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use crate::math::{Mat3, Vec3, tangent_basis};
 use crate::pipeline::config::Softness;
 use crate::stages::constraints::STATIC_BODY;
-use crate::stages::narrowphase::PairContact;
+use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::pair_bodies;
 
 /// One scalar constraint direction at one contact point.
@@ -74,7 +74,8 @@ pub struct ConstraintPoint {
 pub struct ContactConstraint {
     pub body_a: u32,
     pub body_b: u32,
-    /// Index of the pair in the pair cache, to store impulses back.
+    /// Slot of the manifold, to store impulses back: `0..pairs` index the pair cache's values,
+    /// `pairs..` the child cache's (`stages::narrowphase::children`).
     pub pair: u32,
     pub point_count: u32,
     /// Unit normal from B to A.
@@ -115,22 +116,27 @@ pub fn world_inverse_inertia(poses: &[BodyPose], masses: &[BodyMass], out: &mut 
         });
 }
 
-/// CPU executor: rows of every manifold with points, in pair order.
+/// CPU executor: rows of every manifold with points, pairs in pair order and then children in
+/// child order; child `i` gets slot `contacts.len() + i`.
 pub fn build_constraints(
     keys: &[u64],
     contacts: &[PairContact],
+    children: &ChildCache,
     inputs: &RowInputs,
     out: &mut Vec<ContactConstraint>,
 ) {
     out.clear();
-    for (pair, (contact, &key)) in contacts.iter().zip(keys).enumerate() {
+    let child_pairs = children.keys().iter().map(|&(key, _)| key);
+    let all_keys = keys.iter().copied().chain(child_pairs);
+    let all_contacts = contacts.iter().chain(children.values());
+    let resting = |body: u32| inputs.masses[body as usize].inverse_mass == 0.0;
+    for (slot, (contact, key)) in all_contacts.zip(all_keys).enumerate() {
         let (a, b) = pair_bodies(key);
-        let resting = |body: u32| inputs.masses[body as usize].inverse_mass == 0.0;
         // No points, or two sleeping bodies (or one asleep on a static one): nothing to solve.
         if contact.manifold.count == 0 || (resting(a) && resting(b)) {
             continue;
         }
-        out.push(build_constraint(pair as u32, key, contact, inputs));
+        out.push(build_constraint(slot as u32, key, contact, inputs));
     }
 }
 

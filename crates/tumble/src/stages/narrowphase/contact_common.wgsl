@@ -127,12 +127,12 @@ fn emit_candidates(count: u32, normal: vec3<f32>) {
 }
 
 // collision/manifold.rs `reduce` for count > 4: deepest, farthest from it, widest triangle,
-// largest quadrilateral, measured in the contact plane; ties (within REDUCE_TIE_DEPTH and
-// REDUCE_TIE_RELATIVE, which absorb rounding differences) to the lower index.
+// largest quadrilateral, measured in the contact plane; ties (equal depths, scores within
+// REDUCE_TIE_RELATIVE, which absorbs rounding differences) to the lower index.
 fn reduce(count: u32, normal: vec3<f32>) {
     var deepest = 0u;
     for (var index = 0u; index < count; index++) {
-        if candidates[index].separation < candidates[deepest].separation - REDUCE_TIE_DEPTH {
+        if candidates[index].separation < candidates[deepest].separation {
             deepest = index;
         }
     }

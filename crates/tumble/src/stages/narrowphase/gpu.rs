@@ -21,8 +21,8 @@
 //!
 //! - box–box prefers faces to edges and one box's face to the other's only when clearly
 //!   better (relative and absolute slack), so stacked boxes agree;
-//! - `reduce` treats scores within [`REDUCE_TIE_RELATIVE`] and depths within
-//!   [`REDUCE_TIE_DEPTH`] as equal (lower index wins): the corners of a box face tie exactly;
+//! - `reduce` treats scores within [`REDUCE_TIE_RELATIVE`] as equal (lower index wins): the
+//!   corners of a box face tie exactly (depths are compared strictly: see `reduce`);
 //! - clipping counts a vertex on a side plane as inside, and axis-aligned inputs (stacked
 //!   boxes, boxes on planes) are computed exactly on both sides, fused or not.
 //!
@@ -38,7 +38,7 @@ use bytemuck::{Pod, Zeroable};
 
 use super::{MATCH_DISTANCE, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact};
 use crate::collision::contact::wgsl_constants;
-use crate::collision::manifold::{REDUCE_TIE_DEPTH, REDUCE_TIE_RELATIVE};
+use crate::collision::manifold::REDUCE_TIE_RELATIVE;
 use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
@@ -79,7 +79,6 @@ pub fn wgsl() -> Source {
     wgsl_constants(Source::new())
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
         .constant_f32("REDUCE_TIE_RELATIVE", REDUCE_TIE_RELATIVE)
-        .constant_f32("REDUCE_TIE_DEPTH", REDUCE_TIE_DEPTH)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("contact_common.wgsl", include_str!("contact_common.wgsl"))

@@ -19,6 +19,10 @@ pub mod gpu;
 
 pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams};
 
+mod children;
+
+pub use children::{ChildCache, ChildKey, has_children, update_child_contacts};
+
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
@@ -96,6 +100,11 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
             }
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
+            if has_children(&colliders[a].shape, &colliders[b].shape) {
+                // One manifold per triangle: they live in the child cache.
+                *contact = PairContact::default();
+                return;
+            }
             if let Some(masses) = keep_resting
                 && masses[a].inverse_mass == 0.0
                 && masses[b].inverse_mass == 0.0
