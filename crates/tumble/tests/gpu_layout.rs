@@ -218,3 +218,57 @@ fn pair_contact_structs_match_rust() {
         ],
     );
 }
+
+#[test]
+fn contact_constraint_structs_match_rust() {
+    use tumble::pipeline::config::Softness;
+    use tumble::stages::constraints::{
+        CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row,
+    };
+    check(
+        Source::new().snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL),
+        vec![
+            rust_layout!(Softness {
+                bias_rate,
+                mass_scale,
+                impulse_scale
+            }),
+            rust_layout!(Row {
+                arm_a,
+                mass,
+                arm_b,
+                impulse,
+                angular_a,
+                _pad0,
+                angular_b,
+                _pad1
+            }),
+            rust_layout!(ConstraintPoint {
+                normal,
+                tangent,
+                anchor_a,
+                adjusted_separation,
+                anchor_b,
+                separation,
+                approach_velocity,
+                max_normal_impulse,
+                _pad
+            }),
+            rust_layout!(ContactConstraint {
+                body_a,
+                body_b,
+                pair,
+                point_count,
+                normal,
+                friction,
+                tangent1,
+                restitution,
+                tangent2,
+                inverse_mass_a,
+                inverse_mass_b,
+                softness,
+                points
+            }),
+        ],
+    );
+}
