@@ -130,9 +130,11 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
-/// The device the step runs on, after `--device` and `--stages`. The GPU step does not exist
-/// yet, so asking for it is a clear error and `auto` means the CPU.
-fn resolve_device(args: &RunArgs) -> Result<&'static str, String> {
+/// The device the step runs on, after `--device` and `--stages`, and whether the solver runs
+/// on the GPU. Of the GPU stages only the solver exists yet (`--stages solver=gpu`), so asking
+/// for any other GPU stage is a clear error and `auto` means the CPU.
+fn resolve_device(args: &RunArgs) -> Result<(&'static str, bool), String> {
+    let mut gpu_solver = false;
     const NO_GPU: &str =
         "the GPU step is not implemented yet (see the GPU issues); run with --device cpu";
     if let Some(stages) = &args.stages {
@@ -148,6 +150,7 @@ fn resolve_device(args: &RunArgs) -> Result<&'static str, String> {
             }
             match device {
                 "cpu" => {}
+                "gpu" if stage == "solver" => gpu_solver = true,
                 "gpu" => return Err(format!("--stages {stage}=gpu: {NO_GPU}")),
                 other => {
                     return Err(format!(
@@ -159,7 +162,8 @@ fn resolve_device(args: &RunArgs) -> Result<&'static str, String> {
     }
     match args.device {
         Device::Gpu => Err(NO_GPU.to_string()),
-        Device::Cpu | Device::Auto => Ok("cpu"),
+        Device::Cpu | Device::Auto if gpu_solver => Ok(("cpu, solver on the gpu", true)),
+        Device::Cpu | Device::Auto => Ok(("cpu", false)),
     }
 }
 
@@ -183,7 +187,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
     if args.explain {
         return Err("--explain is for the particles scene".into());
     }
-    let device = resolve_device(args)?;
+    let (device, gpu_solver) = resolve_device(args)?;
     if let Some(threads) = args.threads {
         if threads == 0 {
             return Err("--threads must be at least 1".into());
@@ -195,6 +199,12 @@ fn run(args: &RunArgs) -> Result<(), String> {
     }
     let scene = load_scene(&args.scene, args.scale)?;
     let mut world = scene.build().map_err(|e| e.to_string())?;
+    if gpu_solver {
+        let context = tumble::gpu::GpuContext::shared().map_err(|e| e.to_string())?;
+        world
+            .set_gpu_solver(Some(&context))
+            .map_err(|e| e.to_string())?;
+    }
     for _ in 0..args.steps {
         world.step();
     }

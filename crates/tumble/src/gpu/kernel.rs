@@ -50,6 +50,13 @@ impl Source {
         self
     }
 
+    /// Adds `const NAME: f32 = value;`, written with the shortest digits that parse back to
+    /// the same f32, so the kernel uses exactly Rust's value.
+    pub fn constant_f32(mut self, name: &str, value: f32) -> Self {
+        self.text += &format!("const {name}: f32 = {value:?};\n");
+        self
+    }
+
     /// Adds a named snippet; the name is written as a comment so compiler messages can be
     /// traced back to the file.
     pub fn snippet(mut self, name: &str, text: &str) -> Self {

@@ -175,7 +175,16 @@ impl World {
             joint_offsets: &scratch.joint_offsets,
             has_overflow: scratch.coloring.has_overflow,
         };
-        solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
+        match &mut self.gpu_solver {
+            Some(gpu) if batched.joints.is_empty() => profiler.scope("gpu", || {
+                // Device loss is no input error the step could report; it ends the run.
+                gpu.run(&mut scratch.solver_bodies, &mut batched, settings)
+                    .unwrap_or_else(|error| panic!("the GPU solver failed: {error}"))
+            }),
+            _ => profiler.scope("cpu", || {
+                solver::solve(&mut scratch.solver_bodies, &mut batched, settings)
+            }),
+        }
         store_contact_impulses(&scratch.batched_contacts, self.pairs.values_mut());
         let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         if let Some(drag) = self.drag.as_mut()

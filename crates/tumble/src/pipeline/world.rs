@@ -26,6 +26,7 @@ use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
 use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
+use crate::gpu::{GpuContext, GpuError};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
@@ -34,6 +35,7 @@ use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::PairCache;
+use crate::stages::solver::gpu::GpuSolver;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -101,6 +103,8 @@ pub struct World {
     pub(crate) pair_batches: Vec<u32>,
     pub(crate) profiler: Profiler,
     pub(crate) steps: u64,
+    /// The solver's executor: the GPU one when set (see [`World::set_gpu_solver`]).
+    pub(crate) gpu_solver: Option<GpuSolver>,
 }
 
 impl World {
@@ -128,7 +132,18 @@ impl World {
             pair_batches: Vec::new(),
             profiler: Profiler::new("step"),
             steps: 0,
+            gpu_solver: None,
         })
+    }
+
+    /// Runs stage 7, the solver, on the GPU of `context` (`Some`) or on the CPU (`None`, the
+    /// default); the other stages stay on the CPU, so each step uploads the bodies and batched
+    /// contacts and reads them back (the talk's `u` key). A step with joints or a drag uses
+    /// the CPU solver, which the GPU one does not replace yet; the profile shows which solver
+    /// ran as the `gpu` or `cpu` line under `solver`.
+    pub fn set_gpu_solver(&mut self, context: Option<&GpuContext>) -> Result<(), GpuError> {
+        self.gpu_solver = context.map(GpuSolver::new).transpose()?;
+        Ok(())
     }
 
     pub fn config(&self) -> &StepConfig {
