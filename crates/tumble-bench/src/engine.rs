@@ -6,7 +6,7 @@
 use crate::rapier::{RapierSimulation, SolverSettings};
 use tumble::World;
 use tumble::math::Vec3;
-use tumble::pipeline::devices::StageDevices;
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::Scene;
 
 /// An engine on a device, as named on the command line and in the CSV.
@@ -82,7 +82,7 @@ impl EngineKind {
                 world.set_config(config).map_err(|e| e.to_string())?;
                 if self == EngineKind::TumbleGpu {
                     world
-                        .set_stage_devices(StageDevices::gpu_where_possible())
+                        .set_stage_devices(StageDevices::all(Executor::Gpu))
                         .map_err(|e| e.to_string())?;
                 }
                 Ok(Box::new(TumbleSimulation { world }))

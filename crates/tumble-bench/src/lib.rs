@@ -16,9 +16,8 @@
 //!
 //! Engines (`--engines`), each an engine on a device:
 //! - `tumble-cpu`: Tumble's CPU step on a rayon pool of `--threads` threads;
-//! - `tumble-gpu`: Tumble with every stage that has a GPU executor on the GPU
-//!   ([`StageDevices::gpu_where_possible`](tumble::pipeline::devices::StageDevices)), the
-//!   others on the CPU, with the copies between them;
+//! - `tumble-gpu`: Tumble with every stage on the GPU (`StageDevices::all(Executor::Gpu)`),
+//!   each stage's inputs uploaded and outputs read back around it for now;
 //! - `rapier`: rapier3d 0.36 with Tumble's solver settings — the same sub-steps, sweeps and
 //!   contact softness (see [`rapier`] for the translation);
 //! - `rapier-default`: rapier3d with its own default solver settings.

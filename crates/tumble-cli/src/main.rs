@@ -5,6 +5,7 @@ mod particles;
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use tumble::gpu::context::GpuContext;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::{BUILTIN_SCENES, Scene, builtin};
 
@@ -119,13 +120,17 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
-/// The executor of each stage, after `--device` and then `--stages`. `auto` means the CPU
-/// until every stage has a GPU executor (the GPU issues); `gpu` asks for all of them, so it
-/// names the first stage that cannot run there.
+/// The executor of each stage, after `--device` and then `--stages`. `auto` puts the stages
+/// on a GPU when there is one, and on the CPU when the only adapter is a CPU driver (Mesa's
+/// lavapipe or llvmpipe run the kernels, but slower than the CPU executors).
 fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
     let base = match args.device {
         Device::Gpu => StageDevices::all(Executor::Gpu),
-        Device::Cpu | Device::Auto => StageDevices::default(),
+        Device::Cpu => StageDevices::default(),
+        Device::Auto => match GpuContext::shared() {
+            Ok(context) if !context.is_cpu_driver() => StageDevices::all(Executor::Gpu),
+            _ => StageDevices::default(),
+        },
     };
     base.with_assignments(args.stages.as_deref().unwrap_or(""))
         .map_err(|e| format!("--stages: {e}"))

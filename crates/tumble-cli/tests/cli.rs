@@ -58,10 +58,6 @@ fn bad_input_is_a_one_line_error_with_non_zero_exit() {
     assert_user_error(&["run", "no-such-scene"], "unknown scene");
     assert_user_error(&["run", "falling-boxes", "--scale", "-1"], "scale");
     assert_user_error(
-        &["run", "falling-boxes", "--stages", "solver=gpu"],
-        "the solver stage has no GPU executor yet",
-    );
-    assert_user_error(
         &["run", "falling-boxes", "--stages", "warp=cpu"],
         "unknown stage",
     );
@@ -122,4 +118,31 @@ fn json_summary_and_dump_that_loads_back() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn run_on_the_gpu_shows_stages_and_copies() {
+    let output = tumble(&[
+        "run",
+        "stacked-boxes",
+        "--scale",
+        "0.02",
+        "--steps",
+        "5",
+        "--device",
+        "gpu",
+        "--profile",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    for line in ["-- narrowphase", "copy to gpu [copy]", "copy to cpu [copy]"] {
+        assert!(
+            stdout.contains(line),
+            "no {line:?} in the profile: {stdout}"
+        );
+    }
+    assert!(
+        stdout.contains("batches on aabb=gpu,broadphase=gpu,narrowphase=gpu,solver=gpu"),
+        "{stdout}"
+    );
 }

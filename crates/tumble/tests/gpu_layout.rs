@@ -366,3 +366,155 @@ fn collision_front_half_parameter_blocks_match_rust() {
         })],
     );
 }
+
+#[test]
+fn contact_constraint_structs_match_rust() {
+    use tumble::pipeline::config::Softness;
+    use tumble::stages::constraints::{
+        CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row,
+    };
+    check(
+        Source::new().snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL),
+        vec![
+            rust_layout!(Softness {
+                bias_rate,
+                mass_scale,
+                impulse_scale
+            }),
+            rust_layout!(Row {
+                arm_a,
+                mass,
+                arm_b,
+                impulse,
+                angular_a,
+                _pad0,
+                angular_b,
+                _pad1
+            }),
+            rust_layout!(ConstraintPoint {
+                normal,
+                tangent,
+                anchor_a,
+                adjusted_separation,
+                anchor_b,
+                separation,
+                approach_velocity,
+                max_normal_impulse,
+                _pad
+            }),
+            rust_layout!(ContactConstraint {
+                body_a,
+                body_b,
+                pair,
+                point_count,
+                normal,
+                friction,
+                tangent1,
+                restitution,
+                tangent2,
+                inverse_mass_a,
+                inverse_mass_b,
+                softness,
+                points
+            }),
+        ],
+    );
+}
+
+#[test]
+fn solver_structs_match_rust() {
+    use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
+    use tumble::pipeline::config::Softness;
+    use tumble::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
+    use tumble::stages::solver::SolverBody;
+    use tumble::stages::solver::gpu::{SolverParams, wgsl};
+    check(
+        wgsl(),
+        vec![
+            rust_layout!(BodyPose {
+                position,
+                _pad,
+                rotation
+            }),
+            rust_layout!(BodyVelocity {
+                linear,
+                _pad0,
+                angular,
+                _pad1
+            }),
+            rust_layout!(BodyMass {
+                inverse_inertia,
+                inverse_mass
+            }),
+            rust_layout!(ColliderData {
+                kind,
+                friction,
+                restitution,
+                bounding_radius,
+                params
+            }),
+            rust_layout!(Softness {
+                bias_rate,
+                mass_scale,
+                impulse_scale
+            }),
+            rust_layout!(Row {
+                arm_a,
+                mass,
+                arm_b,
+                impulse,
+                angular_a,
+                _pad0,
+                angular_b,
+                _pad1
+            }),
+            rust_layout!(ConstraintPoint {
+                normal,
+                tangent,
+                anchor_a,
+                adjusted_separation,
+                anchor_b,
+                separation,
+                approach_velocity,
+                max_normal_impulse,
+                _pad
+            }),
+            rust_layout!(ContactConstraint {
+                body_a,
+                body_b,
+                pair,
+                point_count,
+                normal,
+                friction,
+                tangent1,
+                restitution,
+                tangent2,
+                inverse_mass_a,
+                inverse_mass_b,
+                softness,
+                points
+            }),
+            rust_layout!(SolverBody {
+                linear_velocity,
+                inverse_mass,
+                angular_velocity,
+                _pad0,
+                delta_position,
+                _pad1,
+                delta_rotation
+            }),
+            rust_layout!(SolverParams {
+                gravity,
+                h,
+                first_batch,
+                end_batch,
+                sequential,
+                use_bias,
+                moved,
+                max_push_velocity,
+                restitution_threshold,
+                body_count
+            }),
+        ],
+    );
+}

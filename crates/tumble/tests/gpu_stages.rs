@@ -1,6 +1,8 @@
 //! Stages mixed between CPU and GPU (`World::set_stage_devices`): a world with a stage on the
 //! GPU follows the all-CPU world within the stage parity tests' tolerances.
 
+mod gpu_common;
+
 use tumble::pipeline::devices::{Executor, Stage, StageDevices};
 use tumble::scene::builtin;
 use tumble::{BodyHandle, World};
@@ -32,6 +34,8 @@ fn world_on(stages: &[Stage]) -> World {
 
 /// Runs a stack with `stages` on the GPU beside the all-CPU world.
 fn follows_the_cpu(stages: &[Stage]) {
+    // One test at a time on the device (see `gpu_common::context`).
+    let _turn = gpu_common::context();
     let mut cpu = world_on(&[]);
     let mut gpu = world_on(stages);
     let bodies: Vec<BodyHandle> = cpu.bodies().collect();
@@ -75,6 +79,11 @@ fn each_collision_stage_on_the_gpu_follows_the_cpu() {
 }
 
 #[test]
-fn the_collision_stages_together_on_the_gpu_follow_the_cpu() {
-    follows_the_cpu(&[Stage::Aabb, Stage::Broadphase, Stage::Narrowphase]);
+fn the_solver_on_the_gpu_follows_the_cpu() {
+    follows_the_cpu(&[Stage::Solver]);
+}
+
+#[test]
+fn the_whole_step_on_the_gpu_follows_the_cpu() {
+    follows_the_cpu(&Stage::ALL);
 }

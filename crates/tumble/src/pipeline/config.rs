@@ -129,7 +129,11 @@ impl StepConfig {
 /// For frequency ω = 2π·hertz, damping ratio ζ and sub-step h:
 /// `a1 = 2ζ + hω`, `a2 = hω·a1`, `a3 = 1/(1 + a2)`, bias_rate = ω/a1, mass_scale = a2·a3,
 /// impulse_scale = a3.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+///
+/// repr(C) + Pod: a field of the contact constraints both executors solve (WGSL twin in
+/// `stages/constraints/contact_constraint.wgsl`). 12 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Softness {
     pub bias_rate: f32,
     pub mass_scale: f32,

@@ -41,11 +41,6 @@ impl Stage {
         Stage::Solver,
     ];
 
-    /// Whether the stage has a GPU executor (`pipeline/gpu_stages.rs`).
-    pub fn has_gpu_executor(self) -> bool {
-        matches!(self, Stage::Aabb | Stage::Broadphase | Stage::Narrowphase)
-    }
-
     pub fn name(self) -> &'static str {
         match self {
             Stage::Aabb => "aabb",
@@ -73,15 +68,6 @@ pub enum StageDevicesError {
     UnknownDevice { stage: String, device: String },
 }
 
-/// Why stages could not be put where they were asked to run.
-#[derive(Debug, thiserror::Error)]
-pub enum StageError {
-    #[error("the {0} stage has no GPU executor yet; run it with {0}=cpu")]
-    NotOnGpu(&'static str),
-    #[error(transparent)]
-    Gpu(#[from] crate::gpu::context::GpuError),
-}
-
 impl StageDevices {
     /// Every stage on `executor`.
     pub fn all(executor: Executor) -> Self {
@@ -96,15 +82,6 @@ impl StageDevices {
 
     pub fn set(&mut self, stage: Stage, executor: Executor) {
         self.executors[stage as usize] = executor;
-    }
-
-    /// Every stage that has a GPU executor on the GPU, the others on the CPU.
-    pub fn gpu_where_possible() -> Self {
-        let mut devices = Self::default();
-        for stage in Stage::ALL.into_iter().filter(|s| s.has_gpu_executor()) {
-            devices.set(stage, Executor::Gpu);
-        }
-        devices
     }
 
     /// Whether any stage needs the GPU.

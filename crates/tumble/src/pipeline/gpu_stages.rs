@@ -8,8 +8,11 @@ use crate::math::Aabb;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::broadphase::gpu::GpuBroadphase;
+use crate::stages::constraints::ContactConstraint;
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact};
+use crate::stages::solver::gpu::GpuSolver;
+use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
 /// Profile lines of one GPU stage: uploads, the kernels (GPU time), waiting on the host,
 /// downloads.
@@ -31,6 +34,12 @@ const BROADPHASE: StageSpans = StageSpans {
     kernel: &["broadphase", "kernels"],
     wait: &["broadphase", "encode, submit and wait"],
     download: &["broadphase", "copy to cpu"],
+};
+const SOLVER: StageSpans = StageSpans {
+    upload: &["solver", "copy to gpu"],
+    kernel: &["solver", "kernels"],
+    wait: &["solver", "encode, submit and wait"],
+    download: &["solver", "copy to cpu"],
 };
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
@@ -65,6 +74,11 @@ pub(crate) struct GpuStages {
     aabbs: GpuVec<Aabb>,
     broadphase: GpuBroadphase,
     narrowphase: GpuNarrowphase,
+    solver: GpuSolver,
+    /// The solver's bodies, constraints in batch order and batch offsets on the device.
+    solver_bodies: GpuVec<SolverBody>,
+    batched_contacts: GpuVec<ContactConstraint>,
+    batch_offsets: GpuVec<u32>,
     /// The narrowphase's inputs and output on the device.
     keys: GpuVec<u64>,
     old_index: GpuVec<u32>,
@@ -75,6 +89,8 @@ pub(crate) struct GpuStages {
     identity: Vec<u32>,
     collider_data: Vec<ColliderData>,
     downloaded: Vec<PairContact>,
+    downloaded_bodies: Vec<SolverBody>,
+    downloaded_constraints: Vec<ContactConstraint>,
 }
 
 impl GpuStages {
@@ -94,6 +110,10 @@ impl GpuStages {
             aabbs: GpuVec::with_capacity(&context, "aabbs", 0)?,
             broadphase: GpuBroadphase::new(&context)?,
             narrowphase: GpuNarrowphase::new(&context),
+            solver: GpuSolver::new(&context)?,
+            solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
+            batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
+            batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
             keys: GpuVec::with_capacity(&context, "pair keys", 0)?,
             old_index: GpuVec::with_capacity(&context, "old pair index", 0)?,
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
@@ -102,6 +122,8 @@ impl GpuStages {
             identity: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
+            downloaded_bodies: Vec::new(),
+            downloaded_constraints: Vec::new(),
             context,
         })
     }
@@ -251,6 +273,57 @@ impl GpuStages {
         self.contacts.download_into(context, &mut self.downloaded)?;
         contacts.copy_from_slice(&self.downloaded);
         record_copy(profiler, NARROWPHASE.download, elapsed_ms(start));
+        Ok(())
+    }
+}
+
+impl GpuStages {
+    /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract for contacts
+    /// (the caller keeps steps with joints on the CPU: joint rows have no kernel yet).
+    pub fn solve(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &mut [SolverBody],
+        batched: &mut Batched,
+        settings: SolverSettings,
+    ) -> Result<(), GpuError> {
+        debug_assert!(
+            batched.joints.is_empty(),
+            "joint rows have no GPU kernel yet"
+        );
+        let context = &self.context;
+        let start = Instant::now();
+        self.solver_bodies.upload(context, bodies)?;
+        self.batched_contacts.upload(context, batched.contacts)?;
+        self.batch_offsets
+            .upload(context, batched.contact_offsets)?;
+        record_copy(profiler, SOLVER.upload, elapsed_ms(start));
+        let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
+        let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
+        let (contacts, offsets) = (&self.batched_contacts, &self.batch_offsets);
+        run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
+            solver.encode(
+                pass,
+                device_bodies,
+                contacts,
+                offsets,
+                batched.contact_offsets,
+                batched.has_overflow,
+                settings,
+                restitution,
+            );
+            Ok(())
+        })?;
+        let start = Instant::now();
+        self.solver_bodies
+            .download_into(context, &mut self.downloaded_bodies)?;
+        bodies.copy_from_slice(&self.downloaded_bodies);
+        self.batched_contacts
+            .download_into(context, &mut self.downloaded_constraints)?;
+        batched
+            .contacts
+            .copy_from_slice(&self.downloaded_constraints);
+        record_copy(profiler, SOLVER.download, elapsed_ms(start));
         Ok(())
     }
 }

@@ -259,7 +259,23 @@ impl World {
             joint_offsets: &scratch.joint_offsets,
             has_overflow: scratch.coloring.has_overflow,
         };
-        solver::solve(&mut scratch.solver_bodies, &mut batched, settings);
+        let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
+            // Joints have no GPU rows yet: a step with joints (or a drag) solves on the CPU,
+            // and the profile's `cpu` line under `solver` says so.
+            (Executor::Gpu, Some(gpu)) if batched.joints.is_empty() => {
+                gpu.solve(profiler, &mut scratch.solver_bodies, &mut batched, settings)
+            }
+            _ => {
+                profiler.scope("cpu", || {
+                    solver::solve(&mut scratch.solver_bodies, &mut batched, settings)
+                });
+                Ok(())
+            }
+        };
+        if solved.is_err() {
+            profiler.end();
+        }
+        solved?;
         store_contact_impulses(
             &scratch.batched_contacts,
             self.pairs.values_mut(),

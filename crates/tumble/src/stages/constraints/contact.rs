@@ -32,33 +32,43 @@ use crate::stages::constraints::STATIC_BODY;
 use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::pair_bodies;
 
-/// One scalar constraint direction at one contact point.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+// Layout: the structs below are repr(C) + Pod with WGSL twins in `contact_constraint.wgsl`
+// (checked by tests/gpu_layout.rs), so both executors solve the same array. WGSL aligns a
+// vec3 to 16 bytes, so each vec3 shares its 16 bytes with a scalar (`arm_a` + `mass`, ...)
+// instead of padding wherever a scalar can fill the slot.
+
+/// One scalar constraint direction at one contact point. 64 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Row {
     /// r_a × d.
     pub arm_a: Vec3,
-    /// r_b × d.
-    pub arm_b: Vec3,
-    /// I_a⁻¹ (r_a × d), world frame.
-    pub angular_a: Vec3,
-    /// I_b⁻¹ (r_b × d), world frame.
-    pub angular_b: Vec3,
     /// Effective mass 1/K (kg).
     pub mass: f32,
+    /// r_b × d.
+    pub arm_b: Vec3,
     /// Accumulated impulse (N·s).
     pub impulse: f32,
+    /// I_a⁻¹ (r_a × d), world frame.
+    pub angular_a: Vec3,
+    pub _pad0: f32,
+    /// I_b⁻¹ (r_b × d), world frame.
+    pub angular_b: Vec3,
+    pub _pad1: f32,
 }
+const _: () = assert!(size_of::<Row>() == 64);
 
-/// Rows and solver inputs of one contact point.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// Rows and solver inputs of one contact point. 240 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ConstraintPoint {
     pub normal: Row,
     pub tangent: [Row; 2],
     /// Arms from the centres of mass to the point at the start of the step (m).
     pub anchor_a: Vec3,
-    pub anchor_b: Vec3,
     /// s₀ − n·(r_a − r_b): with the body deltas, gives the current separation (m).
     pub adjusted_separation: f32,
+    pub anchor_b: Vec3,
     /// Current separation (m): s₀ here; the solver recomputes it whenever the bodies have moved
     /// and reuses it in the sweeps that see the same positions.
     pub separation: f32,
@@ -67,10 +77,14 @@ pub struct ConstraintPoint {
     /// Largest normal impulse applied this step (N·s): restitution applies only to points
     /// that actually pushed.
     pub max_normal_impulse: f32,
+    pub _pad: [f32; 2],
 }
+const _: () = assert!(size_of::<ConstraintPoint>() == 240);
 
 /// The rows of one manifold: up to 4 points sharing a normal, bodies and material.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// 1040 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ContactConstraint {
     pub body_a: u32,
     pub body_b: u32,
@@ -81,14 +95,28 @@ pub struct ContactConstraint {
     /// Unit normal from B to A.
     pub normal: Vec3,
     pub friction: f32,
-    pub tangents: [Vec3; 2],
+    /// The friction directions: `tangent_basis(normal)`.
+    pub tangent1: Vec3,
     pub restitution: f32,
+    pub tangent2: Vec3,
     pub inverse_mass_a: f32,
     pub inverse_mass_b: f32,
     /// Spring-damper of the position correction: stiffer against static bodies.
     pub softness: Softness,
     pub points: [ConstraintPoint; 4],
 }
+const _: () = assert!(size_of::<ContactConstraint>() == 1040);
+
+impl ContactConstraint {
+    /// The two friction directions, in the order of the points' `tangent` rows.
+    #[inline]
+    pub fn tangents(&self) -> [Vec3; 2] {
+        [self.tangent1, self.tangent2]
+    }
+}
+
+/// WGSL twins of [`Row`], [`ConstraintPoint`], [`ContactConstraint`] and [`Softness`].
+pub const CONTACT_CONSTRAINT_WGSL: &str = include_str!("contact_constraint.wgsl");
 
 /// Per-step inputs the constraint rows need besides the manifolds.
 pub struct RowInputs<'a> {
@@ -162,8 +190,9 @@ fn build_constraint(
         point_count: contact.manifold.count,
         normal,
         friction: (collider_a.friction * collider_b.friction).sqrt(),
-        tangents: [t1, t2],
+        tangent1: t1,
         restitution: collider_a.restitution.max(collider_b.restitution),
+        tangent2: t2,
         inverse_mass_a: mass_a,
         inverse_mass_b: mass_b,
         softness: if against_static {
@@ -187,11 +216,12 @@ fn build_constraint(
             let k = mass_a + mass_b + arm_a.dot(angular_a) + arm_b.dot(angular_b);
             Row {
                 arm_a,
+                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
                 arm_b,
+                impulse,
                 angular_a,
                 angular_b,
-                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
-                impulse,
+                ..Row::default()
             }
         };
         let warm = contact.impulses[i];
@@ -207,7 +237,7 @@ fn build_constraint(
             adjusted_separation: point.separation - normal.dot(r_a - r_b),
             separation: point.separation,
             approach_velocity,
-            max_normal_impulse: 0.0,
+            ..ConstraintPoint::default()
         };
     }
     constraint

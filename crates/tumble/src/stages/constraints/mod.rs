@@ -5,7 +5,8 @@ pub mod contact;
 pub mod joint;
 
 pub use contact::{
-    ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints, world_inverse_inertia,
+    CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints,
+    world_inverse_inertia,
 };
 pub use joint::{
     AngularRow, DRAG_JOINT, Drag, JointConstraint, RowKind, build_joint_constraints,

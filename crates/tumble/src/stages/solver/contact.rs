@@ -40,6 +40,7 @@ pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
         a: c.inverse_mass_a,
         b: c.inverse_mass_b,
     };
+    let tangents = c.tangents();
     for point in &mut c.points[..c.point_count as usize] {
         apply(
             &point.normal,
@@ -49,7 +50,7 @@ pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
             &mut a,
             &mut b,
         );
-        for (row, direction) in point.tangent.iter().zip(c.tangents) {
+        for (row, direction) in point.tangent.iter().zip(tangents) {
             apply(row, direction, row.impulse, masses, &mut a, &mut b);
         }
     }
@@ -89,7 +90,7 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep
     // Friction: both tangent rows from the same velocities, then the impulse clamped to the
     // friction circle |λ_t| ≤ μ λ_n (clamping each row alone would allow √2 μ λ_n diagonally).
     let friction = c.friction;
-    let [t1, t2] = c.tangents;
+    let [t1, t2] = c.tangents();
     for point in &mut c.points[..count] {
         let [row1, row2] = &mut point.tangent;
         let want1 = row1.impulse - row_velocity(row1, t1, &a, &b) * row1.mass;

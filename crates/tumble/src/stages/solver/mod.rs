@@ -27,6 +27,7 @@
 //! parallel gives bitwise the same result as solving them in order, for any thread count.
 
 mod contact;
+pub mod gpu;
 mod joint;
 
 use crate::math::{Quat, Vec3};

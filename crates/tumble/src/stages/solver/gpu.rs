@@ -1,0 +1,424 @@
+//! GPU executor of the soft step: the kernels of `solver.wgsl` over the same
+//! [`SolverBody`] and [`ContactConstraint`] arrays the CPU solves, in the CPU's order.
+//!
+//! One dispatch per batch and sweep (a dispatch is the GPU's barrier between batches), except
+//! that, as on the CPU, the overflow batch and each run of consecutive batches smaller than
+//! [`SMALL_BATCH`] are one dispatch whose first thread solves them in order. A step is
+//!
+//! ```text
+//!   substeps · (2 + stages · (2 + iterations)) + stages (restitution, when any contact bounces)
+//! ```
+//!
+//! dispatches, with `stages` the parallel batches plus the sequential runs: see
+//! [`dispatch_count`].
+//!
+//! Guarantees: the same results as [`solve`](super::solve) up to float rounding (WGSL may
+//! fuse multiply-adds); deterministic, since threads of a dispatch touch disjoint bodies and
+//! constraints. Joints are not solved here yet: [`GpuSolver::run`] refuses them.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{Batched, SolverBody, SolverSettings};
+use crate::dynamics::body::BODY_WGSL;
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+};
+use crate::math::Vec3;
+use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, ContactConstraint};
+use crate::stages::integrate::MAX_ROTATION_PER_STEP;
+
+const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
+const SOLVER_WGSL: &str = include_str!("solver.wgsl");
+const BINDINGS: [Binding; 4] = [
+    Binding::Uniform,
+    Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
+    Binding::StorageRead,
+];
+
+/// Batches with fewer constraints than this are solved in order by one thread, together with
+/// their neighbours of the same kind: a dispatch costs microseconds, a few dozen constraints
+/// in one thread about as much. The CPU's threshold (2 blocks of 64) applied to the GPU; not
+/// yet measured on a GPU.
+pub const SMALL_BATCH: u32 = 128;
+
+/// Mirrors `SolverParams` in `solver.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct SolverParams {
+    pub gravity: Vec3,
+    pub h: f32,
+    pub first_batch: u32,
+    pub end_batch: u32,
+    pub sequential: u32,
+    pub use_bias: u32,
+    pub moved: u32,
+    pub max_push_velocity: f32,
+    pub restitution_threshold: f32,
+    pub body_count: u32,
+}
+const _: () = assert!(size_of::<SolverParams>() == 48);
+
+/// The solver's WGSL: body and constraint structs, integration helpers, kernels.
+pub fn wgsl() -> Source {
+    Source::new()
+        .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
+        .snippet("solver_body.wgsl", SOLVER_BODY_WGSL)
+        .snippet("solver.wgsl", SOLVER_WGSL)
+}
+
+/// Batches `first..end` solved by one dispatch: in parallel (one batch) or in order by one
+/// thread.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Stage {
+    pub first: u32,
+    pub end: u32,
+    pub sequential: bool,
+}
+
+/// The dispatches of one sweep, from the batch offsets (`offsets[b]..offsets[b + 1]` is batch
+/// b; the last batch is the overflow batch when `has_overflow`).
+pub fn stages(offsets: &[u32], has_overflow: bool) -> Vec<Stage> {
+    let batch_count = offsets.len().saturating_sub(1) as u32;
+    let mut stages = Vec::new();
+    let mut small_from = 0;
+    for batch in 0..batch_count {
+        let size = offsets[batch as usize + 1] - offsets[batch as usize];
+        let overflow = has_overflow && batch + 1 == batch_count;
+        if overflow || size < SMALL_BATCH {
+            continue;
+        }
+        if small_from < batch {
+            stages.push(Stage {
+                first: small_from,
+                end: batch,
+                sequential: true,
+            });
+        }
+        small_from = batch + 1;
+        stages.push(Stage {
+            first: batch,
+            end: batch + 1,
+            sequential: false,
+        });
+    }
+    if small_from < batch_count {
+        stages.push(Stage {
+            first: small_from,
+            end: batch_count,
+            sequential: true,
+        });
+    }
+    stages
+}
+
+/// Dispatches of one step over `stage_count` stages (see the module docs).
+pub fn dispatch_count(stage_count: usize, settings: &SolverSettings, restitution: bool) -> usize {
+    let per_substep = 2 + stage_count * (2 + settings.iterations as usize);
+    settings.substeps as usize * per_substep + if restitution { stage_count } else { 0 }
+}
+
+/// Parameter slots of a stage: which sweep it runs.
+#[derive(Clone, Copy)]
+enum Variant {
+    /// Solve with bias, recomputing separations (the first solve of a step).
+    SolveMoved = 0,
+    /// Solve with bias on the separations of the last sweep; also warm start and restitution.
+    Solve = 1,
+    /// Relax: no bias, positions moved since the solve.
+    Relax = 2,
+}
+const VARIANTS: usize = 3;
+
+/// What the bind groups were built for; rebuilt when any of it changes.
+type Key = ([wgpu::Buffer; 3], usize, Vec<(u32, u32, bool)>, [u32; 8]);
+
+/// Bind groups for the last key: one per (stage, variant), then one for the body kernels.
+struct Bound {
+    key: Key,
+    groups: Vec<wgpu::BindGroup>,
+    /// Keeps the parameter blocks the bind groups point into alive.
+    _slots: UniformSlots,
+}
+
+/// The GPU solver: its kernels with the bind groups for the arrays it last saw, and its own
+/// arrays for [`run`](Self::run).
+pub struct GpuSolver {
+    encoder: SolverEncoder,
+    bodies: GpuVec<SolverBody>,
+    contacts: GpuVec<ContactConstraint>,
+    offsets: GpuVec<u32>,
+}
+
+/// Kernels and bind groups: what encodes a step.
+struct SolverEncoder {
+    context: GpuContext,
+    warm_start: Kernel,
+    solve: Kernel,
+    restitution: Kernel,
+    integrate_velocities: Kernel,
+    integrate_positions: Kernel,
+    bound: Option<Bound>,
+    dispatches: Vec<Dispatch>,
+}
+
+impl GpuSolver {
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        let source = wgsl();
+        let kernel = |entry| Kernel::new(context, entry, &source, entry, &BINDINGS);
+        Ok(Self {
+            encoder: SolverEncoder {
+                context: context.clone(),
+                warm_start: kernel("warm_start"),
+                solve: kernel("solve"),
+                restitution: kernel("restitution"),
+                integrate_velocities: kernel("integrate_velocities"),
+                integrate_positions: kernel("integrate_positions"),
+                bound: None,
+                dispatches: Vec::new(),
+            },
+            bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
+            contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
+            offsets: GpuVec::with_capacity(context, "solver batch offsets", 0)?,
+        })
+    }
+
+    /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them),
+    /// `contacts` in batch order and `offsets` (the batch offsets, on the device); `host_offsets`
+    /// is the same offsets on the host, which size the dispatches. `restitution`: whether any
+    /// contact bounces (false skips the restitution sweep, which would change nothing).
+    /// Returns the number of dispatches encoded.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &mut self,
+        pass: &mut wgpu::ComputePass<'_>,
+        bodies: &GpuVec<SolverBody>,
+        contacts: &GpuVec<ContactConstraint>,
+        offsets: &GpuVec<u32>,
+        host_offsets: &[u32],
+        has_overflow: bool,
+        settings: SolverSettings,
+        restitution: bool,
+    ) -> usize {
+        self.encoder.encode(
+            pass,
+            bodies,
+            contacts,
+            offsets,
+            host_offsets,
+            has_overflow,
+            settings,
+            restitution,
+        )
+    }
+
+    /// The soft step with [`solve`](super::solve)'s signature: uploads the bodies and the
+    /// batched contacts, solves on the GPU, downloads both.
+    ///
+    /// # Panics
+    ///
+    /// If `batched` holds joints: the GPU solver does not solve joints yet.
+    pub fn run(
+        &mut self,
+        bodies: &mut [SolverBody],
+        batched: &mut Batched,
+        settings: SolverSettings,
+    ) -> Result<(), GpuError> {
+        assert!(
+            batched.joints.is_empty(),
+            "the GPU solver does not solve joints yet"
+        );
+        let context = self.encoder.context.clone();
+        self.bodies.upload(&context, bodies)?;
+        self.contacts.upload(&context, batched.contacts)?;
+        self.offsets.upload(&context, batched.contact_offsets)?;
+        let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
+        context.submit_pass("solver", |pass| {
+            self.encoder.encode(
+                pass,
+                &self.bodies,
+                &self.contacts,
+                &self.offsets,
+                batched.contact_offsets,
+                batched.has_overflow,
+                settings,
+                restitution,
+            )
+        });
+        let downloaded = self.bodies.download(&context)?;
+        bodies.copy_from_slice(&downloaded);
+        let downloaded = self.contacts.download(&context)?;
+        batched.contacts.copy_from_slice(&downloaded);
+        Ok(())
+    }
+}
+
+impl SolverEncoder {
+    /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them),
+    /// `contacts` in batch order and `offsets` (the batch offsets, on the device); `host_offsets`
+    /// is the same offsets on the host, which size the dispatches. `restitution`: whether any
+    /// contact bounces (false skips the restitution sweep, which would change nothing).
+    /// Returns the number of dispatches encoded.
+    #[allow(clippy::too_many_arguments)]
+    fn encode(
+        &mut self,
+        pass: &mut wgpu::ComputePass<'_>,
+        bodies: &GpuVec<SolverBody>,
+        contacts: &GpuVec<ContactConstraint>,
+        offsets: &GpuVec<u32>,
+        host_offsets: &[u32],
+        has_overflow: bool,
+        settings: SolverSettings,
+        restitution: bool,
+    ) -> usize {
+        let stages = stages(host_offsets, has_overflow);
+        let key: Key = (
+            [
+                bodies.buffer().clone(),
+                contacts.buffer().clone(),
+                offsets.buffer().clone(),
+            ],
+            bodies.len(),
+            stages
+                .iter()
+                .map(|s| (s.first, s.end, s.sequential))
+                .collect(),
+            [
+                settings.dt.to_bits(),
+                settings.substeps,
+                settings.iterations,
+                settings.gravity.x.to_bits(),
+                settings.gravity.y.to_bits(),
+                settings.gravity.z.to_bits(),
+                settings.max_push_velocity.to_bits(),
+                settings.restitution_threshold.to_bits(),
+            ],
+        );
+        if self.bound.as_ref().is_none_or(|bound| bound.key != key) {
+            self.bound = Some(self.bind(key, &stages, bodies, contacts, offsets, settings));
+        }
+        let Some(bound) = &self.bound else {
+            unreachable!("bound just above")
+        };
+        let body_groups = workgroups_for(bodies.len(), WORKGROUP_SIZE);
+        let stage_groups: Vec<u32> = stages
+            .iter()
+            .map(|stage| {
+                if stage.sequential {
+                    1
+                } else {
+                    let size =
+                        host_offsets[stage.end as usize] - host_offsets[stage.first as usize];
+                    workgroups_for(size as usize, WORKGROUP_SIZE)
+                }
+            })
+            .collect();
+        let group = |stage: usize, variant: Variant| {
+            bound.groups[stage * VARIANTS + variant as usize].clone()
+        };
+        let body_group = bound.groups[stages.len() * VARIANTS].clone();
+        let dispatches = &mut self.dispatches;
+        dispatches.clear();
+        let sweep = |dispatches: &mut Vec<Dispatch>, kernel: &Kernel, variant: Variant| {
+            for (stage, &groups) in stage_groups.iter().enumerate() {
+                dispatches.push(kernel.dispatch(group(stage, variant), groups));
+            }
+        };
+        for substep in 0..settings.substeps {
+            dispatches.push(
+                self.integrate_velocities
+                    .dispatch(body_group.clone(), body_groups),
+            );
+            sweep(dispatches, &self.warm_start, Variant::Solve);
+            for iteration in 0..settings.iterations {
+                // As on the CPU: only the first solve of the step starts from positions no
+                // sweep has seen; later ones reuse the last relax sweep's separations.
+                let variant = if substep == 0 && iteration == 0 {
+                    Variant::SolveMoved
+                } else {
+                    Variant::Solve
+                };
+                sweep(dispatches, &self.solve, variant);
+            }
+            dispatches.push(
+                self.integrate_positions
+                    .dispatch(body_group.clone(), body_groups),
+            );
+            sweep(dispatches, &self.solve, Variant::Relax);
+        }
+        if restitution {
+            sweep(dispatches, &self.restitution, Variant::Solve);
+        }
+        encode_all(pass, dispatches);
+        debug_assert_eq!(
+            dispatches.len(),
+            dispatch_count(stages.len(), &settings, restitution)
+        );
+        dispatches.len()
+    }
+
+    fn bind(
+        &self,
+        key: Key,
+        stages: &[Stage],
+        bodies: &GpuVec<SolverBody>,
+        contacts: &GpuVec<ContactConstraint>,
+        offsets: &GpuVec<u32>,
+        settings: SolverSettings,
+    ) -> Bound {
+        let base = SolverParams {
+            gravity: settings.gravity,
+            h: settings.dt / settings.substeps as f32,
+            first_batch: 0,
+            end_batch: 0,
+            sequential: 0,
+            use_bias: 1,
+            moved: 0,
+            max_push_velocity: settings.max_push_velocity,
+            restitution_threshold: settings.restitution_threshold,
+            body_count: bodies.len() as u32,
+        };
+        let mut blocks = Vec::with_capacity(stages.len() * VARIANTS + 1);
+        for stage in stages {
+            let params = SolverParams {
+                first_batch: stage.first,
+                end_batch: stage.end,
+                sequential: stage.sequential as u32,
+                ..base
+            };
+            // In the order of `Variant`.
+            blocks.push(SolverParams { moved: 1, ..params });
+            blocks.push(params);
+            blocks.push(SolverParams {
+                use_bias: 0,
+                moved: 1,
+                ..params
+            });
+        }
+        blocks.push(base);
+        let slots = UniformSlots::new(&self.context, "solver params", &blocks);
+        // Every kernel of the file shares one layout.
+        let groups = (0..blocks.len())
+            .map(|slot| {
+                self.solve.bind(
+                    &self.context,
+                    &[
+                        slots.binding(slot),
+                        bodies.whole(),
+                        contacts.whole(),
+                        offsets.whole(),
+                    ],
+                )
+            })
+            .collect();
+        Bound {
+            key,
+            groups,
+            _slots: slots,
+        }
+    }
+}
