@@ -5,7 +5,6 @@ mod particles;
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use tumble::gpu::context::GpuContext;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::{BUILTIN_SCENES, Scene, builtin};
 
@@ -120,17 +119,14 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
-/// The executor of each stage, after `--device` and then `--stages`. `auto` puts the stages
-/// on a GPU when there is one, and on the CPU when the only adapter is a CPU driver (Mesa's
-/// lavapipe or llvmpipe run the kernels, but slower than the CPU executors).
+/// The executor of each stage, after `--device` and then `--stages`. `auto` is the CPU for
+/// now: with each GPU stage's inputs and outputs copied around it, the GPU step is slower
+/// than the CPU's (H100: falling-boxes 7.4 ms against 3.5 ms at 16 threads, BENCHMARKS.md);
+/// it picks the GPU once the step stays on the device.
 fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
     let base = match args.device {
         Device::Gpu => StageDevices::all(Executor::Gpu),
-        Device::Cpu => StageDevices::default(),
-        Device::Auto => match GpuContext::shared() {
-            Ok(context) if !context.is_cpu_driver() => StageDevices::all(Executor::Gpu),
-            _ => StageDevices::default(),
-        },
+        Device::Cpu | Device::Auto => StageDevices::default(),
     };
     base.with_assignments(args.stages.as_deref().unwrap_or(""))
         .map_err(|e| format!("--stages: {e}"))
