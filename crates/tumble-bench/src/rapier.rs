@@ -120,7 +120,7 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
     .pose(pose)
     .can_sleep(false)
     .ccd_enabled(false);
-    let collider = match desc.shape {
+    let collider = match &desc.shape {
         tumble::Shape::Sphere(sphere) => ColliderBuilder::ball(sphere.radius),
         tumble::Shape::Cuboid(cuboid) => {
             let h = cuboid.half_extents;
@@ -134,6 +134,12 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
         tumble::Shape::Plane(plane) => {
             ColliderBuilder::new(SharedShape::halfspace(vector(plane.normal)))
                 .translation(vector(plane.normal * plane.offset))
+        }
+        // The body frame is the hull's frame (its centroid), so the points go in as stored.
+        tumble::Shape::ConvexHull(hull) => {
+            let points: Vec<_> = hull.vertices().iter().map(|&v| vector(v)).collect();
+            // A ConvexHull encloses volume by construction, so parry's hull of it exists.
+            ColliderBuilder::convex_hull(&points).expect("a tumble hull is a valid parry hull")
         }
     }
     .friction(desc.friction)

@@ -3,4 +3,7 @@
 
 pub mod contact;
 pub mod dbvt;
+pub mod epa;
+pub mod gjk;
 pub mod manifold;
+pub mod penetration;

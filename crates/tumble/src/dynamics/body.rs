@@ -84,7 +84,7 @@ pub struct BodyMass {
 const _: () = assert!(size_of::<BodyMass>() == 16);
 
 /// What a body collides as.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Collider {
     pub shape: Shape,
     /// Coulomb friction coefficient (≥ 0); pairs combine as sqrt(a·b).
@@ -101,6 +101,8 @@ impl Collider {
             Shape::Capsule(c) => Vec4::new(c.radius, c.half_height, 0.0, 0.0),
             Shape::Cuboid(c) => c.half_extents.extend(0.0),
             Shape::Plane(p) => p.normal.extend(p.offset),
+            // The GPU stages do not read hulls yet: the kind alone marks the collider.
+            Shape::ConvexHull(_) => Vec4::ZERO,
         };
         ColliderData {
             kind: self.shape.kind() as u32,
@@ -125,7 +127,7 @@ pub struct ColliderData {
     /// [`Shape::bounding_radius`] (m), for the narrowphase's closing-speed bound.
     pub bounding_radius: f32,
     /// Sphere: (radius, 0, 0, 0); capsule: (radius, half_height, 0, 0); cuboid: (half
-    /// extents, 0); plane: (unit normal, offset).
+    /// extents, 0); plane: (unit normal, offset); convex hull: zero.
     pub params: Vec4,
 }
 const _: () = assert!(size_of::<ColliderData>() == 32);
@@ -321,6 +323,8 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
             }
             Ok(())
         }
+        // A hull is checked when it is built (`ConvexHull::new`).
+        Shape::ConvexHull(_) => Ok(()),
     }
 }
 

@@ -6,6 +6,8 @@ const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_CAPSULE: u32 = 1u;
 const SHAPE_CUBOID: u32 = 2u;
 const SHAPE_PLANE: u32 = 3u;
+// No GPU narrowphase reads hulls yet; the value keeps the kinds in step with Rust.
+const SHAPE_CONVEX_HULL: u32 = 4u;
 
 // Position and orientation of a body frame; rotation is a unit quaternion (x, y, z, w).
 struct BodyPose {

@@ -30,10 +30,12 @@ use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
+use crate::shape::Shape;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::PairCache;
+use std::sync::Arc;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -152,7 +154,22 @@ impl World {
             return Err(BodyError::DuplicateName(name.clone()));
         }
         let dynamic = !desc.is_static();
-        let pose = BodyPose::new(desc.position, desc.unit_rotation());
+        // A hull's body frame is its principal centroid frame: compose it with the desc's pose
+        // and keep the hull in that frame, so the body (and a dump of it) has the COM pose.
+        let (pose, shape) = match &desc.shape {
+            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => {
+                let frame = Transform::new(desc.position, desc.unit_rotation())
+                    .mul_transform(&hull.local_frame());
+                (
+                    BodyPose::new(frame.position, frame.rotation),
+                    Shape::ConvexHull(Arc::new(hull.in_own_frame())),
+                )
+            }
+            shape => (
+                BodyPose::new(desc.position, desc.unit_rotation()),
+                shape.clone(),
+            ),
+        };
         let velocity = if dynamic {
             BodyVelocity::new(desc.linear_velocity, desc.angular_velocity)
         } else {
@@ -164,7 +181,7 @@ impl World {
             inverse_mass: mass_properties.inverse_mass,
         };
         let collider = Collider {
-            shape: desc.shape,
+            shape,
             friction: desc.friction,
             restitution: desc.restitution,
         };
@@ -200,7 +217,7 @@ impl World {
                 (self.slots.len() - 1) as u32
             }
         };
-        let aabb = collider
+        let aabb = self.colliders[index as usize]
             .shape
             .aabb(&pose.transform())
             .expanded(self.config.contact_margin);
@@ -480,7 +497,7 @@ impl World {
             &self.slots[i],
         );
         Ok(BodyDesc {
-            shape: collider.shape,
+            shape: collider.shape.clone(),
             position: pose.position,
             rotation: pose.rotation,
             mass: slot.mass,

@@ -102,6 +102,11 @@ pub enum ShapeFile {
         #[serde(default)]
         offset: f32,
     },
+    /// The convex hull of `points` (m, body frame). The body is placed at the hull's principal
+    /// centroid frame; a dump writes the hull in that frame and the body's pose.
+    ConvexHull {
+        points: Vec<[f32; 3]>,
+    },
 }
 
 /// One joint. `anchor` and `axis` are in the world frame at the poses of `bodies`; which of the
@@ -596,6 +601,11 @@ fn body_desc(body: &BodyFile) -> Result<BodyDesc, (String, String)> {
             half_height,
         } => Shape::capsule(*radius, *half_height),
         ShapeFile::Plane { normal, offset } => Shape::plane(Vec3::from_array(*normal), *offset),
+        ShapeFile::ConvexHull { points } => {
+            let points: Vec<Vec3> = points.iter().map(|&p| Vec3::from_array(p)).collect();
+            Shape::convex_hull(&points)
+                .map_err(|error| ("shape.convex_hull.points".to_string(), error.to_string()))?
+        }
     };
     // `World::add_body` normalizes a rotation that is off unit length.
     let rotation = Quat::from_array(body.rotation);
@@ -622,6 +632,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         ShapeFile::Box { .. } => "box",
         ShapeFile::Capsule { .. } => "capsule",
         ShapeFile::Plane { .. } => "plane",
+        ShapeFile::ConvexHull { .. } => "convex_hull",
     };
     match error {
         BodyError::NotFinite { field }
@@ -640,7 +651,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
 }
 
 fn body_file(desc: &BodyDesc) -> BodyFile {
-    let shape = match desc.shape {
+    let shape = match &desc.shape {
         Shape::Sphere(s) => ShapeFile::Sphere { radius: s.radius },
         Shape::Cuboid(c) => ShapeFile::Box {
             half_extents: c.half_extents.to_array(),
@@ -652,6 +663,11 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         Shape::Plane(p) => ShapeFile::Plane {
             normal: p.normal.to_array(),
             offset: p.offset,
+        },
+        // The stored vertices, in the hull frame the body's pose refers to (a body's hull
+        // has the identity local frame, so the points load back to the same hull).
+        Shape::ConvexHull(hull) => ShapeFile::ConvexHull {
+            points: hull.vertices().iter().map(|v| v.to_array()).collect(),
         },
     };
     BodyFile {

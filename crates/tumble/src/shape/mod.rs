@@ -1,18 +1,25 @@
-//! Collision shapes. Primitives are centred on their body frame; a plane is static only.
+//! Collision shapes. Primitives are centred on their body frame; a plane is static only; a
+//! convex hull is stored in its principal centroid frame (see [`convex_hull`]).
+
+pub mod convex_hull;
+
+use std::sync::Arc;
 
 use crate::math::{Aabb, Transform, Vec3};
+pub use convex_hull::{ConvexHull, HullError};
 
 /// Half-size of the box that stands for "everywhere" in an infinite plane's AABB (m). Large
 /// enough for any scene, small enough that surface areas stay finite in f32 (SAH costs).
 pub const PLANE_AABB_EXTENT: f32 = 1.0e15;
 
-/// A collision shape, in its body's frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A collision shape, in its body's frame. Clone is cheap: a hull is shared through an `Arc`.
+#[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     Sphere(Sphere),
     Cuboid(Cuboid),
     Capsule(Capsule),
     Plane(Plane),
+    ConvexHull(Arc<ConvexHull>),
 }
 
 /// A ball of `radius` (m) centred on the body origin.
@@ -50,6 +57,7 @@ pub enum ShapeKind {
     Capsule = 1,
     Cuboid = 2,
     Plane = 3,
+    ConvexHull = 4,
 }
 
 /// Mass and rotational inertia of a body about its centre of mass.
@@ -92,12 +100,18 @@ impl Shape {
         })
     }
 
+    /// The convex hull of `points` (m); `Err` when they enclose no volume.
+    pub fn convex_hull(points: &[Vec3]) -> Result<Self, HullError> {
+        Ok(Shape::ConvexHull(Arc::new(ConvexHull::new(points)?)))
+    }
+
     pub fn kind(&self) -> ShapeKind {
         match self {
             Shape::Sphere(_) => ShapeKind::Sphere,
             Shape::Capsule(_) => ShapeKind::Capsule,
             Shape::Cuboid(_) => ShapeKind::Cuboid,
             Shape::Plane(_) => ShapeKind::Plane,
+            Shape::ConvexHull(_) => ShapeKind::ConvexHull,
         }
     }
 
@@ -137,6 +151,17 @@ impl Shape {
                 }
                 aabb
             }
+            Shape::ConvexHull(hull) => {
+                // The extreme vertex along each world axis, found in the hull frame.
+                let mut min = Vec3::ZERO;
+                let mut max = Vec3::ZERO;
+                for axis in 0..3 {
+                    let direction = pose.inverse_transform_vector(Vec3::AXES[axis]);
+                    max[axis] = pose.transform_point(hull.support(direction))[axis];
+                    min[axis] = pose.transform_point(hull.support(-direction))[axis];
+                }
+                Aabb::new(min, max)
+            }
         }
     }
 
@@ -148,6 +173,7 @@ impl Shape {
             Shape::Cuboid(c) => c.half_extents.length(),
             Shape::Capsule(c) => c.half_height + c.radius,
             Shape::Plane(_) => 0.0,
+            Shape::ConvexHull(hull) => hull.bounding_radius(),
         }
     }
 
@@ -165,6 +191,7 @@ impl Shape {
             }
             Shape::Capsule(c) => capsule_inertia(mass, c.radius, c.half_height),
             Shape::Plane(_) => return MassProperties::STATIC,
+            Shape::ConvexHull(hull) => mass * hull.unit_inertia(),
         };
         MassProperties {
             inverse_mass: 1.0 / mass,

@@ -25,6 +25,10 @@
 //! | box–plane | the box vertex index: bit 0, 1, 2 set when the vertex is on the + side of local x, y, z |
 //! | box–box, face | clip feature (bits 0–5) · reference face `<< 6` · incident face `<< 9` · reference is A `<< 12` |
 //! | box–box, edge | `1 << 13` · B's edge index · A's edge index `<< 4` |
+//! | hull–plane | the hull vertex index |
+//! | box–hull, hull–hull | see `hull.rs`: clip feature, reference and incident faces, edges |
+//! | sphere–hull; capsule–hull at one point | `0` |
+//! | capsule–hull along a face | `0` and `1` for the segment's `-half_height` and `+half_height` ends |
 //!
 //! `box_box.rs` details the box–box fields. A point surviving alone keeps its id (capsule end
 //! `1`, box vertex `5`): ids name features, not positions in the manifold.
@@ -37,6 +41,7 @@
 
 mod box_box;
 mod capsule;
+mod hull;
 mod plane;
 mod segment;
 mod sphere;
@@ -120,6 +125,23 @@ fn collide_ordered(
         }
         (Shape::Cuboid(a), Shape::Cuboid(b)) => box_box::box_box(a, pose_a, b, pose_b, margin, out),
         (Shape::Cuboid(a), Shape::Plane(b)) => plane::box_plane(a, pose_a, b, pose_b, margin, out),
+        (Shape::Sphere(a), Shape::ConvexHull(b)) => {
+            hull::sphere_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Capsule(a), Shape::ConvexHull(b)) => {
+            hull::capsule_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Cuboid(a), Shape::ConvexHull(b)) => {
+            hull::box_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Plane(a), Shape::ConvexHull(b)) => {
+            // The hull–plane function has the plane as B: swap, then flip the normal back.
+            hull::hull_plane(b, pose_b, a, pose_a, margin, out);
+            *out = out.flipped();
+        }
+        (Shape::ConvexHull(a), Shape::ConvexHull(b)) => {
+            hull::hull_hull(a, pose_a, b, pose_b, margin, out)
+        }
         // Plane–plane: two static half-spaces never need a contact. Every other combination
         // reaches this function ordered by kind, so it is one of the arms above.
         _ => {}

@@ -1,0 +1,185 @@
+//! Sampled penetration depth: the talk's GPU-friendly replacement for EPA.
+//!
+//! The separation of two cores along a unit normal `n` (from B to A) is
+//! `s(n) = min over A of n·a - max over B of n·b = -h_M(-n)`, `h_M` being the support function
+//! of the Minkowski difference `M = A - B`. Its maximum over all directions is the signed
+//! distance: negative, it is minus the penetration depth, reached at the contact normal.
+//!
+//! Instead of building a polytope (EPA), evaluate `s` at a fixed set of directions — the
+//! vertices of a subdivided icosahedron, 42 or 162 of them, nearly uniform on the sphere — take
+//! the best, then refine around it: try eight directions on a small circle around the current
+//! best, move to a better one, else halve the circle, until the circle is under
+//! [`MIN_REFINE_ANGLE`]. Every step is a fixed amount of work on fixed-size data, with no
+//! allocation and no branching on topology: what a GPU thread can do.
+
+use std::sync::OnceLock;
+
+use super::epa::Penetration;
+use super::gjk::{MinkowskiDifference, SupportMap};
+use crate::math::Vec3;
+
+/// Refinement stops when the search circle's radius is under this angle (rad): about 0.003°.
+const MIN_REFINE_ANGLE: f32 = 5.0e-5;
+
+/// How finely the sphere of directions is sampled before refining.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sampling {
+    /// 42 directions (icosahedron subdivided once), about 32° apart.
+    Directions42,
+    /// 162 directions (subdivided twice), about 16° apart.
+    Directions162,
+}
+
+impl Sampling {
+    /// The unit directions, deterministic (the same list in every run).
+    pub fn directions(self) -> &'static [Vec3] {
+        static COARSE: OnceLock<Vec<Vec3>> = OnceLock::new();
+        static FINE: OnceLock<Vec<Vec3>> = OnceLock::new();
+        match self {
+            Sampling::Directions42 => COARSE.get_or_init(|| icosphere(1)),
+            Sampling::Directions162 => FINE.get_or_init(|| icosphere(2)),
+        }
+    }
+
+    /// Angle between neighbouring directions (rad): where refinement starts.
+    fn spacing(self) -> f32 {
+        match self {
+            Sampling::Directions42 => 0.55,
+            Sampling::Directions162 => 0.28,
+        }
+    }
+}
+
+/// Vertices of an icosahedron subdivided `levels` times, projected on the unit sphere:
+/// `10 · 4^levels + 2` of them.
+pub fn icosphere(levels: u32) -> Vec<Vec3> {
+    let t = (1.0 + 5.0f32.sqrt()) / 2.0;
+    let mut vertices: Vec<Vec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| Vec3::new(x, y, z).normalize())
+    .collect();
+    let mut triangles: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..levels {
+        // Each edge's midpoint is made once: a sorted map keyed by the edge keeps the order
+        // (and so the vertex list) the same in every run.
+        let mut midpoints = std::collections::BTreeMap::new();
+        let mut midpoint = |vertices: &mut Vec<Vec3>, a: usize, b: usize| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                vertices.push((vertices[a] + vertices[b]).normalize());
+                vertices.len() - 1
+            })
+        };
+        let mut finer = Vec::with_capacity(triangles.len() * 4);
+        for [a, b, c] in triangles {
+            let ab = midpoint(&mut vertices, a, b);
+            let bc = midpoint(&mut vertices, b, c);
+            let ca = midpoint(&mut vertices, c, a);
+            finer.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        triangles = finer;
+    }
+    vertices
+}
+
+/// The penetration of the cores of `m` found by sampling (see the module docs), in A's frame.
+/// Also right when the cores are apart: `depth` is then negative, minus their distance
+/// (along the sampled normal, so a lower bound of it).
+pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
+    m: &MinkowskiDifference<A, B>,
+    sampling: Sampling,
+) -> Penetration {
+    let mut best = Vec3::Y;
+    let mut best_separation = f32::NEG_INFINITY;
+    for &direction in sampling.directions() {
+        let separation = m.separation_along(direction);
+        if separation > best_separation {
+            best_separation = separation;
+            best = direction;
+        }
+    }
+
+    let mut angle = 0.5 * sampling.spacing();
+    while angle > MIN_REFINE_ANGLE {
+        let (u, v) = crate::math::tangent_basis(best);
+        let mut improved = false;
+        for k in 0..8 {
+            let (sin, cos) = (k as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
+            let candidate = (best + angle * (cos * u + sin * v)).normalize();
+            let separation = m.separation_along(candidate);
+            if separation > best_separation {
+                best_separation = separation;
+                best = candidate;
+                improved = true;
+            }
+        }
+        if !improved {
+            angle *= 0.5;
+        }
+    }
+
+    let deepest = m.support(-best);
+    Penetration {
+        depth: -best_separation,
+        normal: best,
+        point_a: deepest.a,
+        point_b: deepest.b,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn icospheres_have_42_and_162_unit_directions() {
+        for (sampling, count) in [(Sampling::Directions42, 42), (Sampling::Directions162, 162)] {
+            let directions = sampling.directions();
+            assert_eq!(directions.len(), count);
+            for (i, d) in directions.iter().enumerate() {
+                assert!((d.length() - 1.0).abs() < 1e-6);
+                // Neighbours are about `spacing` apart and none repeats.
+                let nearest = directions
+                    .iter()
+                    .enumerate()
+                    .filter(|&(j, _)| j != i)
+                    .map(|(_, e)| d.angle_between(*e))
+                    .fold(f32::INFINITY, f32::min);
+                assert!(nearest > 0.7 * sampling.spacing() && nearest < 1.3 * sampling.spacing());
+            }
+        }
+    }
+}
