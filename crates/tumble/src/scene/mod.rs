@@ -5,5 +5,5 @@ pub mod builtin;
 pub mod format;
 pub mod ragdoll;
 
-pub use builtin::{BUILTIN_SCENES, builtin};
+pub use builtin::{BUILTIN_SCENES, barrel_points, builtin};
 pub use format::{Scene, SceneError, SceneFile};
