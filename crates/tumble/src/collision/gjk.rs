@@ -11,8 +11,8 @@
 //!
 //! - `|v|² - v·w` (an upper bound on `|v| (|v| - distance)`) falls under a relative tolerance:
 //!   `v` is the distance vector (converged);
-//! - the new point is already in the simplex, or `|v|` stops shrinking (rounding: `v` is as
-//!   good as f32 gets);
+//! - the new point is already in the simplex, or the grown simplex is no closer (rounding: `v`
+//!   is as good as f32 gets; the last simplex is kept);
 //! - the simplex is a tetrahedron holding the origin, or `|v|` is below [`OVERLAP_DISTANCE`]:
 //!   the cores overlap, and the simplex is handed to EPA or to the sampled depth.
 //!
@@ -21,6 +21,7 @@
 
 use crate::math::{Transform, Vec3};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Sphere};
+use glam::DVec3;
 
 /// Core distance (m) under which the cores count as touching: the normal would be rounding.
 pub const OVERLAP_DISTANCE: f32 = 1.0e-5;
@@ -126,7 +127,8 @@ impl<'a, A: SupportMap + ?Sized, B: SupportMap + ?Sized> MinkowskiDifference<'a,
     /// core lies beyond B's along it (m); the largest over all normals is the signed distance.
     #[inline]
     pub fn separation_along(&self, normal: Vec3) -> f32 {
-        -self.support(-normal).w.dot(normal)
+        // min over A of n·a - max over B of n·b = min over M of n·w: M's support along -n.
+        self.support(-normal).w.dot(normal)
     }
 }
 
@@ -147,9 +149,12 @@ impl Simplex {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GjkResult {
     /// The cores are `distance` apart (m, > [`OVERLAP_DISTANCE`]); `point_a` and `point_b` are
-    /// the closest points of the cores.
+    /// the closest points of the cores, `normal` the unit direction from B's to A's. (The
+    /// normal comes from GJK's closest point itself, not from `point_a - point_b`, which loses
+    /// digits to cancellation when the cores nearly touch.)
     Separated {
         distance: f32,
+        normal: Vec3,
         point_a: Vec3,
         point_b: Vec3,
     },
@@ -174,7 +179,6 @@ pub fn gjk<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
     simplex.vertices[0] = m.support(-initial);
     let mut weights = [1.0, 0.0, 0.0, 0.0];
     let mut v = simplex.vertices[0].w;
-    let mut previous = f32::INFINITY;
     for _ in 0..MAX_ITERATIONS {
         let vv = v.length_squared();
         if vv <= OVERLAP_DISTANCE * OVERLAP_DISTANCE {
@@ -182,18 +186,21 @@ pub fn gjk<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
         }
         let w = m.support(-v);
         let duplicate = simplex.vertices().iter().any(|s| s.w == w.w);
-        if duplicate || vv - v.dot(w.w) <= RELATIVE_TOLERANCE * vv || vv >= previous {
+        if duplicate || vv - v.dot(w.w) <= RELATIVE_TOLERANCE * vv {
             break;
         }
-        previous = vv;
-        simplex.vertices[simplex.count] = w;
-        simplex.count += 1;
-        match closest_on_simplex(&mut simplex) {
+        let mut grown = simplex;
+        grown.vertices[grown.count] = w;
+        grown.count += 1;
+        match closest_on_simplex(&mut grown) {
+            // A larger simplex is never farther; if rounding says it is, keep the last one.
+            Some((closest, _)) if closest.length_squared() >= vv => break,
             Some((closest, new_weights)) => {
+                simplex = grown;
                 v = closest;
                 weights = new_weights;
             }
-            None => return GjkResult::Overlapping { simplex },
+            None => return GjkResult::Overlapping { simplex: grown },
         }
     }
     let (mut point_a, mut point_b) = (Vec3::ZERO, Vec3::ZERO);
@@ -201,8 +208,10 @@ pub fn gjk<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
         point_a += vertex.a * weight;
         point_b += vertex.b * weight;
     }
+    let distance = v.length();
     GjkResult::Separated {
-        distance: v.length(),
+        distance,
+        normal: v / distance,
         point_a,
         point_b,
     }
@@ -214,7 +223,7 @@ struct Barycentric {
     /// Indices of the vertices used, `count` of them.
     indices: [usize; 3],
     count: usize,
-    weights: [f32; 3],
+    weights: [f64; 3],
 }
 
 impl Barycentric {
@@ -226,7 +235,7 @@ impl Barycentric {
         }
     }
 
-    fn edge(i: usize, j: usize, t: f32) -> Self {
+    fn edge(i: usize, j: usize, t: f64) -> Self {
         Self {
             indices: [i, j, 0],
             count: 2,
@@ -234,8 +243,8 @@ impl Barycentric {
         }
     }
 
-    fn point(&self, points: &[Vec3]) -> Vec3 {
-        (0..self.count).fold(Vec3::ZERO, |sum, k| {
+    fn point(&self, points: &[DVec3]) -> DVec3 {
+        (0..self.count).fold(DVec3::ZERO, |sum, k| {
             sum + points[self.indices[k]] * self.weights[k]
         })
     }
@@ -245,7 +254,9 @@ impl Barycentric {
 /// returns that point with its barycentric weights (in the reduced vertex order); `None` when
 /// the simplex is a tetrahedron holding the origin.
 fn closest_on_simplex(simplex: &mut Simplex) -> Option<(Vec3, [f32; 4])> {
-    let points = simplex.vertices.map(|v| v.w);
+    // In f64: near contact the closest point is tiny next to the vertices, and f32 loses
+    // it to cancellation in the barycentric products.
+    let points = simplex.vertices.map(|v| v.w.as_dvec3());
     let closest = match simplex.count {
         1 => Barycentric::vertex(0),
         2 => segment(&points, 0, 1),
@@ -257,13 +268,13 @@ fn closest_on_simplex(simplex: &mut Simplex) -> Option<(Vec3, [f32; 4])> {
     let mut weights = [0.0; 4];
     for k in 0..closest.count {
         simplex.vertices[k] = previous[closest.indices[k]];
-        weights[k] = closest.weights[k];
+        weights[k] = closest.weights[k] as f32;
     }
-    Some((closest.point(&points), weights))
+    Some((closest.point(&points).as_vec3(), weights))
 }
 
 /// Closest point of segment `points[i] points[j]` to the origin.
-fn segment(points: &[Vec3], i: usize, j: usize) -> Barycentric {
+fn segment(points: &[DVec3], i: usize, j: usize) -> Barycentric {
     let (a, b) = (points[i], points[j]);
     let ab = b - a;
     let t = -a.dot(ab);
@@ -279,7 +290,7 @@ fn segment(points: &[Vec3], i: usize, j: usize) -> Barycentric {
 
 /// Closest point of triangle `points[abc]` to the origin (Ericson, Real-Time Collision
 /// Detection 5.1.5: Voronoi regions by barycentric sign tests).
-fn triangle(points: &[Vec3], [ia, ib, ic]: [usize; 3]) -> Barycentric {
+fn triangle(points: &[DVec3], [ia, ib, ic]: [usize; 3]) -> Barycentric {
     let (a, b, c) = (points[ia], points[ib], points[ic]);
     let ab = b - a;
     let ac = c - a;
@@ -331,30 +342,33 @@ fn triangle(points: &[Vec3], [ia, ib, ic]: [usize; 3]) -> Barycentric {
     }
 }
 
-/// Closest point of the tetrahedron `points[0..4]` to the origin: the closest of its faces
-/// that see the origin from outside; `None` when no face does (the origin is inside).
-fn tetrahedron(points: &[Vec3]) -> Option<Barycentric> {
+/// Closest point of the tetrahedron `points[0..4]` to the origin; `None` when the origin is
+/// inside (on the inner side of every face). Outside, the closest point is the nearest of the
+/// four faces' closest points: all four are searched, not only the faces that seem to face
+/// the origin, because on a nearly flat tetrahedron those side tests are rounding.
+fn tetrahedron(points: &[DVec3]) -> Option<Barycentric> {
     const FACES: [([usize; 3], usize); 4] = [
         ([0, 1, 2], 3),
         ([0, 1, 3], 2),
         ([0, 2, 3], 1),
         ([1, 2, 3], 0),
     ];
-    let mut best: Option<(f32, Barycentric)> = None;
-    for (face, opposite) in FACES {
+    let inside = FACES.iter().all(|&(face, opposite)| {
         let [i, j, k] = face.map(|i| points[i]);
         let normal = (j - i).cross(k - i);
-        // The origin is outside this face when it is on the other side from the fourth vertex.
-        if (-i).dot(normal) * (points[opposite] - i).dot(normal) >= 0.0 {
-            continue;
-        }
-        let closest = triangle(points, face);
-        let distance = closest.point(points).length_squared();
-        if best.is_none_or(|(d, _)| distance < d) {
-            best = Some((distance, closest));
-        }
+        (-i).dot(normal) * (points[opposite] - i).dot(normal) > 0.0
+    });
+    if inside {
+        return None;
     }
-    best.map(|(_, closest)| closest)
+    FACES
+        .iter()
+        .map(|&(face, _)| triangle(points, face))
+        .min_by(|p, q| {
+            p.point(points)
+                .length_squared()
+                .total_cmp(&q.point(points).length_squared())
+        })
 }
 
 #[cfg(test)]
@@ -381,6 +395,7 @@ mod tests {
             distance,
             point_a,
             point_b,
+            ..
         } = gjk(&m)
         else {
             panic!("apart");

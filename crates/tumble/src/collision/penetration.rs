@@ -9,8 +9,9 @@
 //! vertices of a subdivided icosahedron, 42 or 162 of them, nearly uniform on the sphere — take
 //! the best, then refine around it: try eight directions on a small circle around the current
 //! best, move to a better one, else halve the circle, until the circle is under
-//! [`MIN_REFINE_ANGLE`]. Every step is a fixed amount of work on fixed-size data, with no
-//! allocation and no branching on topology: what a GPU thread can do.
+//! [`MIN_REFINE_ANGLE`]; last, fit a plane to the support points around the result (see
+//! [`face_fit`]). Every step is a fixed amount of work on fixed-size data, with no allocation
+//! and no branching on topology: what a GPU thread can do.
 
 use std::sync::OnceLock;
 
@@ -151,6 +152,13 @@ pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
         }
     }
 
+    if let Some((normal, separation)) = face_fit(m, best)
+        && separation > best_separation
+    {
+        best_separation = separation;
+        best = normal;
+    }
+
     let deepest = m.support(-best);
     Penetration {
         depth: -best_separation,
@@ -158,6 +166,42 @@ pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
         point_a: deepest.a,
         point_b: deepest.b,
     }
+}
+
+/// Hill climbing ends within [`MIN_REFINE_ANGLE`] of the best normal, but where `s` has a
+/// kink (the best normal of polytopes is a face normal of `M`) it may stop on a ridge a little
+/// off it. The support points of `M` around the found direction are then that face's
+/// vertices: the plane through the three that span the largest triangle has the exact normal.
+/// Returns that normal and its separation.
+fn face_fit<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
+    m: &MinkowskiDifference<A, B>,
+    normal: Vec3,
+) -> Option<(Vec3, f32)> {
+    const PROBE_ANGLE: f32 = 1.0e-2;
+    let (u, v) = crate::math::tangent_basis(normal);
+    let probes: [Vec3; 9] = std::array::from_fn(|k| {
+        if k == 0 {
+            return m.support(-normal).w;
+        }
+        let (sin, cos) = ((k - 1) as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
+        m.support(-(normal + PROBE_ANGLE * (cos * u + sin * v)).normalize())
+            .w
+    });
+    let first = probes[0];
+    let second = probes.iter().copied().max_by(|p, q| {
+        (*p - first)
+            .length_squared()
+            .total_cmp(&(*q - first).length_squared())
+    })?;
+    let third = probes.iter().copied().max_by(|p, q| {
+        let area = |x: Vec3| (second - first).cross(x - first).length_squared();
+        area(*p).total_cmp(&area(*q))
+    })?;
+    let mut fitted = (second - first).cross(third - first).try_normalize()?;
+    if fitted.dot(normal) < 0.0 {
+        fitted = -fitted;
+    }
+    Some((fitted, m.separation_along(fitted)))
 }
 
 #[cfg(test)]

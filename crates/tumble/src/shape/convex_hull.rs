@@ -97,6 +97,10 @@ impl ConvexHull {
         }
         let input: Vec<DVec3> = points.iter().map(|p| p.as_dvec3()).collect();
         let topology = Topology::build(&input)?;
+        // Four faces at least, or the merge found the points flat within the tolerance.
+        if topology.loops.len() < 4 {
+            return Err(HullError::Coplanar);
+        }
 
         let (centroid, principal, inertia) = mass_moments(&input, &topology);
         let already_principal = centroid.length() <= RELATIVE_TOLERANCE * extent(&input)
@@ -454,10 +458,14 @@ impl Topology {
                 }
             }
             boundary.sort_unstable();
+            // A group with no boundary would be the whole surface: only a flat point set
+            // merges that far, and `new` reports it as coplanar.
+            let Some(&(start, second)) = boundary.first() else {
+                continue;
+            };
             // Walk the loop from its lowest vertex.
-            let start = boundary[0].0;
             let mut face_loop = vec![start];
-            let mut at = boundary[0].1;
+            let mut at = second;
             while at != start && face_loop.len() <= boundary.len() {
                 face_loop.push(at);
                 at = match boundary.binary_search_by(|probe| probe.0.cmp(&at)) {

@@ -39,7 +39,7 @@
 //!
 //! Their cores (a point, a segment) against the hull by GJK: the separation is the core
 //! distance minus the radius, the normal the closest points' direction. When the cores overlap,
-//! EPA gives depth and normal. A capsule lying along a face (its segment within 2° of
+//! EPA gives depth and normal (the sampled depth if EPA's polytope degenerates). A capsule lying along a face (its segment within 2° of
 //! parallel to the face touched) gets two points, the ends of its segment clipped to the face
 //! (ids 0 and 1, as for capsule–box), so it rests without rolling about one point; otherwise one
 //! point (id 0).
@@ -51,6 +51,7 @@ use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater, pus
 use crate::collision::epa::epa;
 use crate::collision::gjk::{GjkResult, MinkowskiDifference, SupportMap, gjk};
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
+use crate::collision::penetration::{Sampling, sampled_penetration};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::shape::convex_hull::{HullEdge, HullFace};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Sphere};
@@ -481,16 +482,20 @@ fn core_contact<A: SupportMap + ?Sized>(
     let (normal, core_separation, point_a) = match gjk(&m) {
         GjkResult::Separated {
             distance,
+            normal,
             point_a,
-            point_b,
+            ..
         } => {
             if distance - radius >= margin {
                 return None;
             }
-            ((point_a - point_b) / distance, distance, point_a)
+            (normal, distance, point_a)
         }
         GjkResult::Overlapping { simplex } => {
-            let penetration = epa(&m, &simplex)?;
+            // EPA fails only on a degenerate polytope (rounding on a touching pair); the
+            // sampled depth always answers.
+            let penetration = epa(&m, &simplex)
+                .unwrap_or_else(|| sampled_penetration(&m, Sampling::Directions162));
             (penetration.normal, -penetration.depth, penetration.point_a)
         }
     };

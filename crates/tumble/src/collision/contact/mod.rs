@@ -203,6 +203,7 @@ mod tests {
             Shape::capsule(0.3, 0.6),
             Shape::cuboid(vec3(0.6, 0.4, 0.5)),
             Shape::plane(Vec3::Y, 0.0),
+            Shape::convex_hull(&crate::scene::barrel_points()).unwrap(),
         ];
         let pose_a = Transform::new(vec3(0.1, 0.55, -0.2), Quat::from_rotation_z(1.2));
         let pose_b = Transform::new(vec3(0.0, 0.0, 0.1), Quat::from_rotation_x(0.1));
@@ -241,7 +242,7 @@ mod tests {
             }
         }
         // All pairs but plane–plane touch in this pose.
-        assert_eq!(produced, 15);
+        assert_eq!(produced, 24);
     }
 
     #[test]
