@@ -7,7 +7,7 @@
 //!
 //! Instead of building a polytope (EPA), evaluate `s` at a fixed set of directions — the
 //! vertices of a subdivided icosahedron, 42 or 162 of them, nearly uniform on the sphere — take
-//! the best, then refine around it: try eight directions on a small circle around the current
+//! the best few ([`REFINE_STARTS`]), then refine around each and keep the best: try eight directions on a small circle around the current
 //! best, move to a better one, else halve the circle, until the circle is under
 //! [`MIN_REFINE_ANGLE`]; last, fit a plane to the support points around the result (see
 //! [`face_fit`]). Every step is a fixed amount of work on fixed-size data, with no allocation
@@ -18,6 +18,15 @@ use std::sync::OnceLock;
 use super::epa::Penetration;
 use super::gjk::{MinkowskiDifference, SupportMap};
 use crate::math::Vec3;
+
+/// How many of the best samples are refined: the best sample can lie in the basin of a
+/// local optimum (a face of `M` whose foot point is inside it but which is not the nearest).
+const REFINE_STARTS: usize = 3;
+
+/// Radii (rad) of the probe circles of [`face_fit`], widest first: hill climbing can stall on
+/// a ridge some way off the face normal, and a circle wider than that gap reaches the face's
+/// third vertex.
+const FACE_FIT_PROBE_ANGLES: [f32; 4] = [0.1, 0.03, 0.01, 0.003];
 
 /// Refinement stops when the search circle's radius is under this angle (rad): about 0.003°.
 const MIN_REFINE_ANGLE: f32 = 5.0e-5;
@@ -123,17 +132,45 @@ pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
     m: &MinkowskiDifference<A, B>,
     sampling: Sampling,
 ) -> Penetration {
-    let mut best = Vec3::Y;
-    let mut best_separation = f32::NEG_INFINITY;
+    // The REFINE_STARTS best samples, best first (ties keep the earlier direction).
+    let mut starts = [(Vec3::Y, f32::NEG_INFINITY); REFINE_STARTS];
     for &direction in sampling.directions() {
         let separation = m.separation_along(direction);
-        if separation > best_separation {
-            best_separation = separation;
-            best = direction;
+        if let Some(slot) = starts.iter().position(|&(_, s)| separation > s) {
+            starts.copy_within(slot..REFINE_STARTS - 1, slot + 1);
+            starts[slot] = (direction, separation);
         }
     }
+    let (best, best_separation) = starts
+        .iter()
+        .map(|&(direction, separation)| refine(m, direction, separation, sampling.spacing()))
+        .fold((Vec3::Y, f32::NEG_INFINITY), |best, candidate| {
+            if candidate.1 > best.1 {
+                candidate
+            } else {
+                best
+            }
+        });
+    let deepest = m.support(-best);
+    Penetration {
+        depth: -best_separation,
+        normal: best,
+        point_a: deepest.a,
+        point_b: deepest.b,
+    }
+}
 
-    let mut angle = 0.5 * sampling.spacing();
+/// Hill climbing from `start` (with its `separation`) on circles from half the sampling
+/// `spacing` down to [`MIN_REFINE_ANGLE`], then [`face_fit`]: the best normal found and its
+/// separation.
+fn refine<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
+    m: &MinkowskiDifference<A, B>,
+    start: Vec3,
+    separation: f32,
+    spacing: f32,
+) -> (Vec3, f32) {
+    let (mut best, mut best_separation) = (start, separation);
+    let mut angle = 0.5 * spacing;
     while angle > MIN_REFINE_ANGLE {
         let (u, v) = crate::math::tangent_basis(best);
         let mut improved = false;
@@ -151,21 +188,15 @@ pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
             angle *= 0.5;
         }
     }
-
-    if let Some((normal, separation)) = face_fit(m, best)
-        && separation > best_separation
-    {
-        best_separation = separation;
-        best = normal;
+    for probe_angle in FACE_FIT_PROBE_ANGLES {
+        if let Some((normal, separation)) = face_fit(m, best, probe_angle)
+            && separation > best_separation
+        {
+            best_separation = separation;
+            best = normal;
+        }
     }
-
-    let deepest = m.support(-best);
-    Penetration {
-        depth: -best_separation,
-        normal: best,
-        point_a: deepest.a,
-        point_b: deepest.b,
-    }
+    (best, best_separation)
 }
 
 /// Hill climbing ends within [`MIN_REFINE_ANGLE`] of the best normal, but where `s` has a
@@ -176,15 +207,15 @@ pub fn sampled_penetration<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
 fn face_fit<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
     m: &MinkowskiDifference<A, B>,
     normal: Vec3,
+    probe_angle: f32,
 ) -> Option<(Vec3, f32)> {
-    const PROBE_ANGLE: f32 = 1.0e-2;
     let (u, v) = crate::math::tangent_basis(normal);
     let probes: [Vec3; 9] = std::array::from_fn(|k| {
         if k == 0 {
             return m.support(-normal).w;
         }
         let (sin, cos) = ((k - 1) as f32 * std::f32::consts::FRAC_PI_4).sin_cos();
-        m.support(-(normal + PROBE_ANGLE * (cos * u + sin * v)).normalize())
+        m.support(-(normal + probe_angle * (cos * u + sin * v)).normalize())
             .w
     });
     let first = probes[0];
