@@ -297,6 +297,9 @@ mod tests {
             BodyDesc::dynamic(Shape::capsule(0.2, 0.7))
                 .position(Vec3::new(3.0, 2.0, 0.0))
                 .mass(1.5),
+            BodyDesc::dynamic(Shape::convex_hull(&tumble::scene::barrel_points()).unwrap())
+                .position(Vec3::new(0.0, 3.0, 2.0))
+                .mass(2.5),
         ];
         scene
     }
@@ -350,7 +353,7 @@ mod tests {
                 CoefficientCombineRule::Max
             );
             let shape = collider.shape();
-            match desc.shape {
+            match &desc.shape {
                 Shape::Sphere(sphere) => assert_eq!(shape.as_ball().unwrap().radius, sphere.radius),
                 Shape::Cuboid(cuboid) => {
                     let h = shape.as_cuboid().unwrap().half_extents;
@@ -371,6 +374,17 @@ mod tests {
                     // The boundary passes through offset·n.
                     let boundary = collider.position().translation;
                     assert_eq!(boundary.dot(normal), plane.offset);
+                }
+                Shape::ConvexHull(hull) => {
+                    let points = shape.as_convex_polyhedron().unwrap().points();
+                    assert_eq!(points.len(), hull.vertices().len());
+                    for point in points {
+                        assert!(
+                            hull.vertices()
+                                .iter()
+                                .any(|v| v.to_array() == point.to_array())
+                        );
+                    }
                 }
             }
         }
