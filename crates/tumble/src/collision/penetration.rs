@@ -28,8 +28,9 @@ const REFINE_STARTS: usize = 3;
 /// third vertex.
 const FACE_FIT_PROBE_ANGLES: [f32; 4] = [0.1, 0.03, 0.01, 0.003];
 
-/// Refinement stops when the search circle's radius is under this angle (rad): about 0.003°.
-const MIN_REFINE_ANGLE: f32 = 5.0e-5;
+/// Hill climbing stops when the search circle's radius is under this angle (rad), about 0.06°:
+/// the face fit that follows lands on the exact face normal from there.
+const MIN_REFINE_ANGLE: f32 = 1.0e-3;
 
 /// How finely the sphere of directions is sampled before refining.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
