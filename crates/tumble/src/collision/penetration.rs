@@ -19,6 +19,10 @@ use super::epa::Penetration;
 use super::gjk::{MinkowskiDifference, SupportMap};
 use crate::math::Vec3;
 
+/// Moves at one circle size before it halves anyway: along a flat ridge, rounding-sized gains
+/// would otherwise keep the search walking at a small step for hundreds of evaluations.
+const MAX_MOVES_PER_ANGLE: u32 = 4;
+
 /// How many of the best samples are refined: the best sample can lie in the basin of a
 /// local optimum (a face of `M` whose foot point is inside it but which is not the nearest).
 const REFINE_STARTS: usize = 3;
@@ -172,6 +176,7 @@ fn refine<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
 ) -> (Vec3, f32) {
     let (mut best, mut best_separation) = (start, separation);
     let mut angle = 0.5 * spacing;
+    let mut moves = 0;
     while angle > MIN_REFINE_ANGLE {
         let (u, v) = crate::math::tangent_basis(best);
         let mut improved = false;
@@ -185,8 +190,10 @@ fn refine<A: SupportMap + ?Sized, B: SupportMap + ?Sized>(
                 improved = true;
             }
         }
-        if !improved {
+        moves += 1;
+        if !improved || moves == MAX_MOVES_PER_ANGLE {
             angle *= 0.5;
+            moves = 0;
         }
     }
     for probe_angle in FACE_FIT_PROBE_ANGLES {
