@@ -16,8 +16,8 @@
 //!   from A's centre (the hull frame's origin), and the separation is `axis · (p_B - p_A)`.
 //!
 //! Any separation `>= margin` ends the test with no contact. Otherwise faces are preferred as
-//! in box–box (an edge must beat the best face by 5 % and 0.5 mm; B's face must beat A's by
-//! 2 % and 0.5 mm), so the choice does not flicker between steps.
+//! in box–box (an edge must beat the best face by 5 % and 0.5 mm), so the choice does not
+//! flicker between a face and an edge; between the two best faces the larger separation wins.
 //!
 //! Face contact: the incident face is the other polyhedron's face most anti-parallel to the
 //! reference face. It is clipped against the reference face's side planes (Sutherland–Hodgman);
@@ -55,10 +55,6 @@ use crate::collision::penetration::{Sampling, sampled_penetration};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::shape::convex_hull::{HullEdge, HullFace};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Sphere};
-
-/// One polyhedron's face is the reference only if its separation beats the other's best face
-/// by this fraction (see `clearly_greater`).
-const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
 
 /// `cos²` of 2°: a capsule whose segment is this close to parallel to the touched face rests
 /// on it with two points.
@@ -317,7 +313,10 @@ fn polyhedra(
         edge_contact(&a, pose_a, &b, &b_in_a, (edge_a, edge_b, axis), out);
         return;
     }
-    if clearly_greater(separation_b, separation_a, FACE_RELATIVE_TOLERANCE) {
+    // The larger face separation gives the reference, with no preference for A or B: the same
+    // pair in the other order then picks the same face (hulls have no fixed face order to
+    // break ties by, as boxes do with face sizes).
+    if separation_b > separation_a {
         face_contact(&b, pose_b, face_b, &a, &a_in_b, false, margin, out);
         // Points were made with B as the reference: normal from A to B; flip to B → A.
         *out = out.flipped();
