@@ -7,9 +7,9 @@
 //!
 //! Instead of building a polytope (EPA), evaluate `s` at a fixed set of directions — the
 //! vertices of a subdivided icosahedron, 42 or 162 of them, nearly uniform on the sphere — take
-//! the best few ([`REFINE_STARTS`]), then refine around each and keep the best: try eight directions on a small circle around the current
-//! best, move to a better one, else halve the circle, until the circle is under
-//! [`MIN_REFINE_ANGLE`]; last, fit a plane to the support points around the result (see
+//! the best few ([`REFINE_STARTS`]), then refine around each and keep the best: try eight
+//! directions on a small circle around the current best, move to a better one, else halve the
+//! circle, until the circle is under [`MIN_REFINE_ANGLE`]; last, fit a plane to the support points around the result (see
 //! [`face_fit`]). Every step is a fixed amount of work on fixed-size data, with no allocation
 //! and no branching on topology: what a GPU thread can do.
 
