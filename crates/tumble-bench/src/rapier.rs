@@ -148,6 +148,12 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
             .or_else(|_| ColliderBuilder::trimesh(vertices, indices))
             .expect("rapier refuses only empty meshes, and TriMesh::new refused those")
         }
+        // The body frame is the hull's frame (its centroid), so the points go in as stored.
+        tumble::Shape::ConvexHull(hull) => {
+            let points: Vec<_> = hull.vertices().iter().map(|&v| vector(v)).collect();
+            // A ConvexHull encloses volume by construction, so parry's hull of it exists.
+            ColliderBuilder::convex_hull(&points).expect("a tumble hull is a valid parry hull")
+        }
     }
     .friction(desc.friction)
     .friction_combine_rule(CoefficientCombineRule::GeometricMean)
@@ -312,6 +318,9 @@ mod tests {
                 .unwrap(),
             ))
             .position(Vec3::new(20.0, 0.0, 0.0)),
+            BodyDesc::dynamic(Shape::convex_hull(&tumble::scene::barrel_points()).unwrap())
+                .position(Vec3::new(0.0, 3.0, 2.0))
+                .mass(2.5),
         ];
         scene
     }
@@ -390,6 +399,17 @@ mod tests {
                 Shape::TriMesh(mesh) => {
                     let rapier_mesh = shape.as_trimesh().unwrap();
                     assert_eq!(rapier_mesh.indices(), mesh.triangles());
+                }
+                Shape::ConvexHull(hull) => {
+                    let points = shape.as_convex_polyhedron().unwrap().points();
+                    assert_eq!(points.len(), hull.vertices().len());
+                    for point in points {
+                        assert!(
+                            hull.vertices()
+                                .iter()
+                                .any(|v| v.to_array() == point.to_array())
+                        );
+                    }
                 }
             }
         }

@@ -6,9 +6,10 @@ use std::collections::BTreeMap;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
+use std::sync::Arc;
 use tumble::World;
 use tumble::math::tangent_basis;
-use tumble::shape::Shape;
+use tumble::shape::{ConvexHull, Shape};
 
 use crate::camera::finite_bounds;
 
@@ -54,6 +55,9 @@ pub enum MeshKey {
     },
     /// The unit segment: contact normals.
     Segment,
+    /// A convex hull, named by a hash of its vertices' bits (equal hulls share a mesh);
+    /// [`DrawList::hulls`] holds its geometry.
+    Hull(u64),
 }
 
 /// A finite square of an infinite plane, drawn as a grid.
@@ -96,6 +100,19 @@ pub struct DrawList {
     pub instances: BTreeMap<MeshKey, Vec<Instance>>,
     pub grounds: Vec<GroundQuad>,
     pub wireframe: bool,
+    /// The hulls that `MeshKey::Hull` keys name.
+    pub hulls: BTreeMap<u64, Arc<ConvexHull>>,
+}
+
+/// FNV-1a over the vertices' bits: a key that is the same for equal hulls in every run.
+fn hull_key(hull: &ConvexHull) -> u64 {
+    let mut hash = 0xcbf2_9ce4_8422_2325u64;
+    for v in hull.vertices() {
+        for x in v.to_array() {
+            hash = (hash ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3);
+        }
+    }
+    hash
 }
 
 impl DrawList {
@@ -134,6 +151,11 @@ impl DrawList {
                     },
                     Vec3::ONE,
                 ),
+                Shape::ConvexHull(hull) => {
+                    let key = hull_key(hull);
+                    list.hulls.entry(key).or_insert_with(|| hull.clone());
+                    (MeshKey::Hull(key), Vec3::ONE)
+                }
                 Shape::Plane(plane) => {
                     let normal = pose.rotation * plane.normal;
                     let origin = pose.position + normal * plane.offset;

@@ -63,6 +63,27 @@ impl MeshData {
         mesh
     }
 
+    /// A convex hull in its own frame: each polygon face flat shaded, fanned into triangles,
+    /// its outline as lines.
+    pub fn hull(hull: &tumble::shape::ConvexHull) -> Self {
+        let mut mesh = MeshData::default();
+        for face in hull.faces() {
+            let base = mesh.vertices.len() as u32;
+            let face_loop = hull.face_loop(face);
+            for &v in face_loop {
+                mesh.push(hull.vertices()[v as usize], face.normal);
+            }
+            let count = face_loop.len() as u32;
+            for k in 1..count - 1 {
+                mesh.triangles.extend([base, base + k, base + k + 1]);
+            }
+            for k in 0..count {
+                mesh.lines.extend([base + k, base + (k + 1) % count]);
+            }
+        }
+        mesh
+    }
+
     /// A sphere of radius 1.
     pub fn sphere() -> Self {
         Self::capsule(1.0, 0.0)

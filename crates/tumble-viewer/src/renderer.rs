@@ -279,7 +279,7 @@ impl Renderer {
         self.draws.clear();
         for (&key, group) in &list.instances {
             if !self.meshes.contains_key(&key) {
-                let mesh = upload_mesh(&self.device, &mesh_data(key));
+                let mesh = upload_mesh(&self.device, &mesh_data(key, list));
                 self.meshes.insert(key, mesh);
             }
             let start = instances.len() as u32;
@@ -372,7 +372,7 @@ pub fn depth_view(device: &wgpu::Device, width: u32, height: u32) -> wgpu::Textu
         .create_view(&Default::default())
 }
 
-fn mesh_data(key: MeshKey) -> MeshData {
+fn mesh_data(key: MeshKey, list: &DrawList) -> MeshData {
     match key {
         MeshKey::Cube => MeshData::cube(),
         MeshKey::Sphere => MeshData::sphere(),
@@ -381,6 +381,7 @@ fn mesh_data(key: MeshKey) -> MeshData {
             half_height,
         } => MeshData::capsule(f32::from_bits(radius), f32::from_bits(half_height)),
         MeshKey::Segment => MeshData::segment(),
+        MeshKey::Hull(hash) => MeshData::hull(&list.hulls[&hash]),
     }
 }
 

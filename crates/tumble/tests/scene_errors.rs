@@ -35,6 +35,18 @@ fn each_bad_input_names_its_field() {
         ),
         (
             scene_with_body(
+                r#"{ "shape": { "convex_hull": { "points": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] } } }"#,
+            ),
+            "bodies[1].shape.convex_hull.points: all points are coplanar",
+        ),
+        (
+            scene_with_body(
+                r#"{ "shape": { "convex_hull": { "points": [[0, 0, 0], [1, 0, 0]] } } }"#,
+            ),
+            "bodies[1].shape.convex_hull.points: a hull needs at least 4 points, got 2",
+        ),
+        (
+            scene_with_body(
                 r#"{ "shape": { "sphere": { "radius": 1 } }, "position": [0, 1e39, 0] }"#,
             ),
             "bodies[1].position[1]: number out of range",

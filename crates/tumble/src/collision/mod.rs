@@ -4,4 +4,7 @@
 pub mod bvh;
 pub mod contact;
 pub mod dbvt;
+pub mod epa;
+pub mod gjk;
 pub mod manifold;
+pub mod penetration;

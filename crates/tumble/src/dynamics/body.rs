@@ -103,6 +103,8 @@ impl Collider {
             Shape::Plane(p) => p.normal.extend(p.offset),
             // The GPU narrowphase does not collide meshes yet: only the kind is uploaded.
             Shape::TriMesh(_) => Vec4::ZERO,
+            // The GPU stages do not read hulls yet: the kind alone marks the collider.
+            Shape::ConvexHull(_) => Vec4::ZERO,
         };
         ColliderData {
             kind: self.shape.kind() as u32,
@@ -127,7 +129,7 @@ pub struct ColliderData {
     /// [`Shape::bounding_radius`] (m), for the narrowphase's closing-speed bound.
     pub bounding_radius: f32,
     /// Sphere: (radius, 0, 0, 0); capsule: (radius, half_height, 0, 0); cuboid: (half
-    /// extents, 0); plane: (unit normal, offset).
+    /// extents, 0); plane: (unit normal, offset); convex hull: zero.
     pub params: Vec4,
 }
 const _: () = assert!(size_of::<ColliderData>() == 32);
@@ -328,6 +330,8 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
         }
         // Checked when the mesh was built (TriMesh::new).
         Shape::TriMesh(_) => Ok(()),
+        // A hull is checked when it is built (`ConvexHull::new`).
+        Shape::ConvexHull(_) => Ok(()),
     }
 }
 
@@ -350,6 +354,11 @@ pub enum BodyError {
     DynamicPlane,
     #[error("a triangle mesh is static only (mass 0); use a convex shape for moving bodies")]
     DynamicTriMesh,
+    #[error(
+        "convex hulls and triangle meshes do not collide with each other yet; a world holds one \
+         kind or the other"
+    )]
+    HullAndMesh,
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

@@ -34,10 +34,12 @@ use crate::pipeline::devices::StageDevices;
 use crate::pipeline::gpu_stages::GpuStages;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
+use crate::shape::Shape;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::PairCache;
+use std::sync::Arc;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -198,8 +200,37 @@ impl World {
         {
             return Err(BodyError::DuplicateName(name.clone()));
         }
+        let hull = |shape: &Shape| matches!(shape, Shape::ConvexHull(_));
+        let mesh = |shape: &Shape| matches!(shape, Shape::TriMesh(_));
+        let live_colliders = self
+            .colliders
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, slot)| slot.is_live());
+        // No hull-triangle pair function yet: refuse the mix rather than let hulls fall
+        // through meshes.
+        if (hull(&desc.shape) && live_colliders.clone().any(|(c, _)| mesh(&c.shape)))
+            || (mesh(&desc.shape) && live_colliders.clone().any(|(c, _)| hull(&c.shape)))
+        {
+            return Err(BodyError::HullAndMesh);
+        }
         let dynamic = !desc.is_static();
-        let pose = BodyPose::new(desc.position, desc.unit_rotation());
+        // A hull's body frame is its principal centroid frame: compose it with the desc's pose
+        // and keep the hull in that frame, so the body (and a dump of it) has the COM pose.
+        let (pose, shape) = match &desc.shape {
+            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => {
+                let frame = Transform::new(desc.position, desc.unit_rotation())
+                    .mul_transform(&hull.local_frame());
+                (
+                    BodyPose::new(frame.position, frame.rotation),
+                    Shape::ConvexHull(Arc::new(hull.in_own_frame())),
+                )
+            }
+            shape => (
+                BodyPose::new(desc.position, desc.unit_rotation()),
+                shape.clone(),
+            ),
+        };
         let velocity = if dynamic {
             BodyVelocity::new(desc.linear_velocity, desc.angular_velocity)
         } else {
@@ -210,12 +241,8 @@ impl World {
             inverse_inertia: mass_properties.inverse_inertia,
             inverse_mass: mass_properties.inverse_mass,
         };
-        let aabb = desc
-            .shape
-            .aabb(&pose.transform())
-            .expanded(self.config.contact_margin);
         let collider = Collider {
-            shape: desc.shape,
+            shape,
             friction: desc.friction,
             restitution: desc.restitution,
         };
@@ -251,6 +278,10 @@ impl World {
                 (self.slots.len() - 1) as u32
             }
         };
+        let aabb = self.colliders[index as usize]
+            .shape
+            .aabb(&pose.transform())
+            .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
         if let Some(gpu) = &mut self.gpu {
             gpu.colliders_changed();

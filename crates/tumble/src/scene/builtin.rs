@@ -22,6 +22,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "ragdolls",
         "136 ragdolls (11 capsules, hinges and cone-twists) in a pyramid 16 + 15 + ... + 1 falling on a plane",
     ),
+    (
+        "convex-hulls",
+        "1000 barrel-like convex hulls (40 points) in 10 layers of 10 x 10 falling on a plane",
+    ),
 ];
 
 /// The built-in scene `name` at `scale` (1 = the talk's size; body counts scale linearly).
@@ -33,6 +37,7 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
         "falling-boxes" => Ok(falling_boxes(scale)),
         "stacked-boxes" => Ok(stacked_boxes(scale)),
         "ragdolls" => Ok(ragdolls(scale)),
+        "convex-hulls" => Ok(convex_hulls(scale)),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
 }
@@ -59,6 +64,55 @@ fn falling_boxes(scale: f32) -> Scene {
                 let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
                 scene.bodies.push(
                     BodyDesc::dynamic(Shape::cuboid(Vec3::splat(HALF_EXTENT))).position(position),
+                );
+            }
+        }
+        offset -= 0.05 * (side as f32 - 1.0);
+        y += PITCH;
+    }
+    scene
+}
+
+/// The points of a barrel 1 m tall and 1 m across: two rings of 16 points at the widest
+/// (y = ±0.35 m, radius 0.5 m) and a square cap of 4 points at each end (y = ±0.5 m, radius
+/// 0.3 m), 40 points in all. Symmetric about its centre, so the hull's frame is its own.
+pub fn barrel_points() -> Vec<Vec3> {
+    const RING: usize = 16;
+    let ring = |count: usize, radius: f32, y: f32| {
+        (0..count).map(move |k| {
+            let angle = std::f32::consts::TAU * k as f32 / count as f32;
+            Vec3::new(radius * angle.cos(), y, radius * angle.sin())
+        })
+    };
+    ring(RING, 0.5, -0.35)
+        .chain(ring(RING, 0.5, 0.35))
+        .chain(ring(4, 0.3, -0.5))
+        .chain(ring(4, 0.3, 0.5))
+        .collect()
+}
+
+/// Bullet's BenchmarkDemo test 6 in spirit: barrels on a 1.5 m pitch, layer after layer, each
+/// layer shifted and each barrel tipped a little so they land on rims and tumble.
+fn convex_hulls(scale: f32) -> Scene {
+    const PITCH: f32 = 1.5;
+    let target = 1000.0 * scale;
+    let side = ((10.0 * scale.cbrt()).round() as usize).max(1);
+    let layers = ((target / (side * side) as f32).round() as usize).max(1);
+    // One hull shared by every barrel (`Shape` clones share it).
+    let barrel = Shape::convex_hull(&barrel_points()).expect("the barrel encloses volume");
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    let mut offset = -(side as f32) * PITCH * 0.5;
+    let mut y = 1.0;
+    for layer in 0..layers {
+        for j in 0..side {
+            for i in 0..side {
+                let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
+                let tilt = 0.2 * (((i + 2 * j + 3 * layer) % 5) as f32 - 2.0);
+                scene.bodies.push(
+                    BodyDesc::dynamic(barrel.clone())
+                        .position(position)
+                        .rotation(crate::math::Quat::from_rotation_z(tilt)),
                 );
             }
         }

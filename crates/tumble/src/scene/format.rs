@@ -124,6 +124,11 @@ pub enum ShapeFile {
     Obj {
         path: String,
     },
+    /// The convex hull of `points` (m, body frame). The body is placed at the hull's principal
+    /// centroid frame; a dump writes the hull in that frame and the body's pose.
+    ConvexHull {
+        points: Vec<[f32; 3]>,
+    },
 }
 
 /// One joint. `anchor` and `axis` are in the world frame at the poses of `bodies`; which of the
@@ -701,6 +706,11 @@ fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String
             half_height,
         } => Shape::capsule(*radius, *half_height),
         ShapeFile::Plane { normal, offset } => Shape::plane(Vec3::from_array(*normal), *offset),
+        ShapeFile::ConvexHull { points } => {
+            let points: Vec<Vec3> = points.iter().map(|&p| Vec3::from_array(p)).collect();
+            Shape::convex_hull(&points)
+                .map_err(|error| ("shape.convex_hull.points".to_string(), error.to_string()))?
+        }
     };
     // `World::add_body` normalizes a rotation that is off unit length.
     let rotation = Quat::from_array(body.rotation);
@@ -799,6 +809,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         ShapeFile::Plane { .. } => "plane",
         ShapeFile::Trimesh { .. } => "trimesh",
         ShapeFile::Obj { .. } => "obj",
+        ShapeFile::ConvexHull { .. } => "convex_hull",
     };
     match error {
         BodyError::NotFinite { field }
@@ -813,6 +824,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::ZeroNormal => "shape.plane.normal".into(),
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
+        BodyError::HullAndMesh => format!("shape.{shape_name}"),
     }
 }
 
@@ -834,6 +846,11 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         Shape::TriMesh(mesh) => ShapeFile::Trimesh {
             vertices: mesh.vertices().iter().map(|v| v.to_array()).collect(),
             indices: mesh.triangles().iter().flatten().copied().collect(),
+        },
+        // The stored vertices, in the hull frame the body's pose refers to (a body's hull
+        // has the identity local frame, so the points load back to the same hull).
+        Shape::ConvexHull(hull) => ShapeFile::ConvexHull {
+            points: hull.vertices().iter().map(|v| v.to_array()).collect(),
         },
     };
     BodyFile {

@@ -6,5 +6,5 @@ pub mod format;
 pub mod landscape;
 pub mod ragdoll;
 
-pub use builtin::{BUILTIN_SCENES, builtin};
+pub use builtin::{BUILTIN_SCENES, barrel_points, builtin};
 pub use format::{Scene, SceneError, SceneFile};

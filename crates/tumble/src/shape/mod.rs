@@ -1,23 +1,29 @@
 //! Collision shapes. Primitives are centred on their body frame; a plane and a triangle mesh
-//! are static only. A mesh is shared behind an `Arc`, so `Shape` is `Clone` but not `Copy`.
+//! are static only; a convex hull is stored in its principal centroid frame (see
+//! [`convex_hull`]). Hulls and meshes are shared behind an `Arc`, so `Shape` is `Clone` but
+//! not `Copy`.
 
+pub mod convex_hull;
 pub mod trimesh;
 
-use crate::math::{Aabb, Transform, Vec3};
 use std::sync::Arc;
+
+use crate::math::{Aabb, Transform, Vec3};
+pub use convex_hull::{ConvexHull, HullError};
 pub use trimesh::{TriMesh, TriMeshError};
 
 /// Half-size of the box that stands for "everywhere" in an infinite plane's AABB (m). Large
 /// enough for any scene, small enough that surface areas stay finite in f32 (SAH costs).
 pub const PLANE_AABB_EXTENT: f32 = 1.0e15;
 
-/// A collision shape, in its body's frame.
+/// A collision shape, in its body's frame. Clone is cheap: a hull is shared through an `Arc`.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Shape {
     Sphere(Sphere),
     Cuboid(Cuboid),
     Capsule(Capsule),
     Plane(Plane),
+    ConvexHull(Arc<ConvexHull>),
     /// A static triangle mesh, in the body frame.
     TriMesh(Arc<TriMesh>),
 }
@@ -57,7 +63,8 @@ pub enum ShapeKind {
     Capsule = 1,
     Cuboid = 2,
     Plane = 3,
-    TriMesh = 4,
+    ConvexHull = 4,
+    TriMesh = 5,
 }
 
 /// Mass and rotational inertia of a body about its centre of mass.
@@ -104,6 +111,11 @@ impl Shape {
         })
     }
 
+    /// The convex hull of `points` (m); `Err` when they enclose no volume.
+    pub fn convex_hull(points: &[Vec3]) -> Result<Self, HullError> {
+        Ok(Shape::ConvexHull(Arc::new(ConvexHull::new(points)?)))
+    }
+
     pub fn kind(&self) -> ShapeKind {
         match self {
             Shape::Sphere(_) => ShapeKind::Sphere,
@@ -111,6 +123,7 @@ impl Shape {
             Shape::Cuboid(_) => ShapeKind::Cuboid,
             Shape::Plane(_) => ShapeKind::Plane,
             Shape::TriMesh(_) => ShapeKind::TriMesh,
+            Shape::ConvexHull(_) => ShapeKind::ConvexHull,
         }
     }
 
@@ -157,6 +170,17 @@ impl Shape {
                 let e = m.x_axis.abs() * e.x + m.y_axis.abs() * e.y + m.z_axis.abs() * e.z;
                 Aabb::from_center_half_extents(pose.transform_point(local.center()), e)
             }
+            Shape::ConvexHull(hull) => {
+                // The extreme vertex along each world axis, found in the hull frame.
+                let mut min = Vec3::ZERO;
+                let mut max = Vec3::ZERO;
+                for axis in 0..3 {
+                    let direction = pose.inverse_transform_vector(Vec3::AXES[axis]);
+                    max[axis] = pose.transform_point(hull.support(direction))[axis];
+                    min[axis] = pose.transform_point(hull.support(-direction))[axis];
+                }
+                Aabb::new(min, max)
+            }
         }
     }
 
@@ -169,6 +193,7 @@ impl Shape {
             Shape::Capsule(c) => c.half_height + c.radius,
             Shape::Plane(_) => 0.0,
             Shape::TriMesh(mesh) => mesh.bounding_radius(),
+            Shape::ConvexHull(hull) => hull.bounding_radius(),
         }
     }
 
@@ -186,6 +211,7 @@ impl Shape {
             }
             Shape::Capsule(c) => capsule_inertia(mass, c.radius, c.half_height),
             Shape::Plane(_) | Shape::TriMesh(_) => return MassProperties::STATIC,
+            Shape::ConvexHull(hull) => mass * hull.unit_inertia(),
         };
         MassProperties {
             inverse_mass: 1.0 / mass,

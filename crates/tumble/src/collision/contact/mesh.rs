@@ -56,7 +56,8 @@ pub fn collide_mesh(
             Shape::Cuboid(cuboid) => {
                 box_triangle(cuboid, &local_pose, &triangle, margin, &mut local)
             }
-            Shape::Plane(_) | Shape::TriMesh(_) => return,
+            // Hulls never meet meshes (`BodyError::HullAndMesh`); planes and meshes are static.
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::ConvexHull(_) => return,
         }
         if local.count == 0 {
             continue;

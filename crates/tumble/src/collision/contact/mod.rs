@@ -25,6 +25,10 @@
 //! | box–plane | the box vertex index: bit 0, 1, 2 set when the vertex is on the + side of local x, y, z |
 //! | box–box, face | clip feature (bits 0–5) · reference face `<< 6` · incident face `<< 9` · reference is A `<< 12` |
 //! | box–box, edge | `1 << 13` · B's edge index · A's edge index `<< 4` |
+//! | hull–plane | the hull vertex index |
+//! | box–hull, hull–hull | see `hull.rs`: clip feature, reference and incident faces, edges |
+//! | sphere–hull; capsule–hull at one point | `0` |
+//! | capsule–hull along a face | `0` and `1` for the segment's `-half_height` and `+half_height` ends |
 //!
 //! `box_box.rs` details the box–box fields. A point surviving alone keeps its id (capsule end
 //! `1`, box vertex `5`): ids name features, not positions in the manifold.
@@ -37,6 +41,7 @@
 
 mod box_box;
 mod capsule;
+mod hull;
 mod mesh;
 mod plane;
 mod segment;
@@ -152,6 +157,23 @@ fn collide_ordered(
         }
         (Shape::Cuboid(a), Shape::Cuboid(b)) => box_box::box_box(a, pose_a, b, pose_b, margin, out),
         (Shape::Cuboid(a), Shape::Plane(b)) => plane::box_plane(a, pose_a, b, pose_b, margin, out),
+        (Shape::Sphere(a), Shape::ConvexHull(b)) => {
+            hull::sphere_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Capsule(a), Shape::ConvexHull(b)) => {
+            hull::capsule_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Cuboid(a), Shape::ConvexHull(b)) => {
+            hull::box_hull(a, pose_a, b, pose_b, margin, out)
+        }
+        (Shape::Plane(a), Shape::ConvexHull(b)) => {
+            // The hull–plane function has the plane as B: swap, then flip the normal back.
+            hull::hull_plane(b, pose_b, a, pose_a, margin, out);
+            *out = out.flipped();
+        }
+        (Shape::ConvexHull(a), Shape::ConvexHull(b)) => {
+            hull::hull_hull(a, pose_a, b, pose_b, margin, out)
+        }
         // Plane–plane: two static half-spaces never need a contact. Meshes make one manifold
         // per triangle and go through `collide_mesh` instead; mesh–plane and mesh–mesh are
         // static–static. Every other combination reaches this function ordered by kind, so it
@@ -215,6 +237,7 @@ mod tests {
             Shape::capsule(0.3, 0.6),
             Shape::cuboid(vec3(0.6, 0.4, 0.5)),
             Shape::plane(Vec3::Y, 0.0),
+            Shape::convex_hull(&crate::scene::barrel_points()).unwrap(),
         ];
         let pose_a = Transform::new(vec3(0.1, 0.55, -0.2), Quat::from_rotation_z(1.2));
         let pose_b = Transform::new(vec3(0.0, 0.0, 0.1), Quat::from_rotation_x(0.1));
@@ -253,7 +276,7 @@ mod tests {
             }
         }
         // All pairs but plane–plane touch in this pose.
-        assert_eq!(produced, 15);
+        assert_eq!(produced, 24);
     }
 
     #[test]

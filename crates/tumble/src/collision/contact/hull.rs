@@ -1,0 +1,671 @@
+//! Pairs with a convex hull: box–hull and hull–hull by SAT and clipping, sphere–hull and
+//! capsule–hull by GJK (EPA when the cores overlap), plane–hull by vertices.
+//!
+//! # Polyhedra (box–hull, hull–hull)
+//!
+//! A box is seen as a polyhedron like a hull (8 vertices, 6 quads, 12 edges; the tables below
+//! with vertex `i` on the + side of x, y, z for bits 0, 1, 2 as in box–plane). The separating
+//! axis test runs in A's frame over
+//!
+//! - A's face normals: separation `n · support_B(-n) - offset`;
+//! - B's face normals, the same in B's frame;
+//! - the cross products of an edge of A and an edge of B, only for the edge pairs that build a
+//!   face of the Minkowski difference: their arcs on the Gauss map cross (Gregorius, "The
+//!   Separating Axis Test between Convex Polyhedra", GDC 2013). Other edge pairs give axes
+//!   that can never separate more than a face, so they are skipped. The axis is oriented away
+//!   from A's centre (the hull frame's origin), and the separation is `axis · (p_B - p_A)`.
+//!
+//! Any separation `>= margin` ends the test with no contact. Otherwise faces are preferred as
+//! in box–box (an edge must beat the best face by 5 % and 0.5 mm), so the choice does not
+//! flicker between a face and an edge; between the two best faces the larger separation wins.
+//!
+//! Face contact: the incident face is the other polyhedron's face most anti-parallel to the
+//! reference face. It is clipped against the reference face's side planes (Sutherland–Hodgman);
+//! each clipped vertex below `margin` above the reference face is a point, midway between the
+//! vertex and its projection. More than four go through [`reduce`]. Edge contact: one point,
+//! midway between the closest points of the two edges.
+//!
+//! # Feature ids
+//!
+//! Face contact: bits 0–15 the clip feature — an incident vertex `k` (its position in the
+//! incident loop) is `k`, a vertex cut by reference side plane `e` (the edge from loop vertex
+//! `e` to `e + 1`) is `0x8000 | 2e | 1 if the polygon leaves the plane's inside there`; bits
+//! 16–22 the reference face index, bits 23–29 the incident face index (both mod 128), bit 30
+//! set when the reference face is A's. A convex polygon crosses a plane at most once each way,
+//! so the ids are unique within a manifold. Edge contact: bit 31, A's edge index (mod 2^15)
+//! `<< 15`, B's edge index (mod 2^15).
+//!
+//! # Spheres and capsules
+//!
+//! Their cores (a point, a segment) against the hull by GJK: the separation is the core
+//! distance minus the radius, the normal the closest points' direction. When the cores overlap,
+//! EPA gives depth and normal (the sampled depth if EPA's polytope degenerates). A capsule lying along a face (its segment within 2° of
+//! parallel to the face touched) gets two points, the ends of its segment clipped to the face
+//! (ids 0 and 1, as for capsule–box), so it rests without rolling about one point; otherwise one
+//! point (id 0).
+//!
+//! Nothing here allocates except the clip buffers of polyhedron contacts (two small vectors).
+
+use super::segment::closest_parameters_between_segments;
+use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater, push_contact};
+use crate::collision::epa::epa;
+use crate::collision::gjk::{GjkResult, MinkowskiDifference, SupportMap, gjk};
+use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
+use crate::collision::penetration::{Sampling, sampled_penetration};
+use crate::math::{Mat3, Transform, Vec3};
+use crate::shape::convex_hull::{HullEdge, HullFace};
+use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Sphere};
+
+/// `cos²` of 2°: a capsule whose segment is this close to parallel to the touched face rests
+/// on it with two points.
+const CAPSULE_FACE_COS_SQUARED: f32 = 0.998_782;
+
+const REFERENCE_IS_A_BIT: u32 = 1 << 30;
+const EDGE_CONTACT_BIT: u32 = 1 << 31;
+const CROSSING_BIT: u32 = 0x8000;
+
+/// A convex polyhedron seen through slices: a hull, or a box through [`BoxPolyhedron`].
+#[derive(Clone, Copy)]
+pub(crate) struct Polyhedron<'a> {
+    vertices: &'a [Vec3],
+    faces: &'a [HullFace],
+    face_vertices: &'a [u32],
+    edges: &'a [HullEdge],
+}
+
+impl<'a> Polyhedron<'a> {
+    pub(crate) fn of_hull(hull: &'a ConvexHull) -> Self {
+        Self {
+            vertices: hull.vertices(),
+            faces: hull.faces(),
+            face_vertices: hull.face_vertices(),
+            edges: hull.edges(),
+        }
+    }
+
+    #[inline]
+    fn support(&self, direction: Vec3) -> Vec3 {
+        let mut best = self.vertices[0];
+        let mut best_dot = best.dot(direction);
+        for &v in &self.vertices[1..] {
+            let d = v.dot(direction);
+            if d > best_dot {
+                best_dot = d;
+                best = v;
+            }
+        }
+        best
+    }
+
+    fn face_loop(&self, face: usize) -> &'a [u32] {
+        let f = &self.faces[face];
+        &self.face_vertices[f.first as usize..(f.first + f.count) as usize]
+    }
+}
+
+/// A box's corners and faces: what varies with its size; loops and edges are the tables.
+pub(crate) struct BoxPolyhedron {
+    vertices: [Vec3; 8],
+    faces: [HullFace; 6],
+}
+
+/// Faces `+x, -x, +y, -y, +z, -z`, each loop counter-clockwise seen from outside.
+const BOX_FACE_VERTICES: [u32; 24] = [
+    1, 3, 7, 5, 0, 4, 6, 2, 2, 6, 7, 3, 0, 1, 5, 4, 4, 5, 7, 6, 0, 2, 3, 1,
+];
+
+/// The 12 edges; `faces[0]` is the face whose loop runs from `vertices[0]` to `vertices[1]`.
+const BOX_EDGES: [HullEdge; 12] = {
+    const fn edge(a: u32, b: u32, f: u32, g: u32) -> HullEdge {
+        HullEdge {
+            vertices: [a, b],
+            faces: [f, g],
+        }
+    }
+    [
+        edge(0, 1, 3, 5),
+        edge(2, 3, 5, 2),
+        edge(4, 5, 4, 3),
+        edge(6, 7, 2, 4),
+        edge(0, 2, 5, 1),
+        edge(1, 3, 0, 5),
+        edge(4, 6, 1, 4),
+        edge(5, 7, 4, 0),
+        edge(0, 4, 1, 3),
+        edge(1, 5, 3, 0),
+        edge(2, 6, 2, 1),
+        edge(3, 7, 0, 2),
+    ]
+};
+
+impl BoxPolyhedron {
+    pub(crate) fn new(cuboid: &Cuboid) -> Self {
+        let h = cuboid.half_extents;
+        let vertices = std::array::from_fn(|i| {
+            h * Vec3::new(
+                [-1.0, 1.0][i & 1],
+                [-1.0, 1.0][(i >> 1) & 1],
+                [-1.0, 1.0][i >> 2],
+            )
+        });
+        let faces = std::array::from_fn(|f| {
+            let axis = f / 2;
+            let sign = if f % 2 == 0 { 1.0 } else { -1.0 };
+            HullFace {
+                normal: Vec3::AXES[axis] * sign,
+                offset: h[axis],
+                first: 4 * f as u32,
+                count: 4,
+            }
+        });
+        Self { vertices, faces }
+    }
+
+    pub(crate) fn view(&self) -> Polyhedron<'_> {
+        Polyhedron {
+            vertices: &self.vertices,
+            faces: &self.faces,
+            face_vertices: &BOX_FACE_VERTICES,
+            edges: &BOX_EDGES,
+        }
+    }
+}
+
+pub(super) fn box_hull(
+    a: &Cuboid,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    let box_a = BoxPolyhedron::new(a);
+    polyhedra(
+        box_a.view(),
+        pose_a,
+        Polyhedron::of_hull(b),
+        pose_b,
+        margin,
+        out,
+    );
+}
+
+pub(super) fn hull_hull(
+    a: &ConvexHull,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    polyhedra(
+        Polyhedron::of_hull(a),
+        pose_a,
+        Polyhedron::of_hull(b),
+        pose_b,
+        margin,
+        out,
+    );
+}
+
+/// The best face of `reference` against `other`: (separation, face index); `other_in_ref` is
+/// `other`'s frame in `reference`'s.
+fn face_query(
+    reference: &Polyhedron,
+    other: &Polyhedron,
+    other_in_ref: &Transform,
+) -> (f32, usize) {
+    let mut best = (f32::NEG_INFINITY, 0);
+    for (i, face) in reference.faces.iter().enumerate() {
+        let deepest = other_in_ref
+            .transform_point(other.support(other_in_ref.inverse_transform_vector(-face.normal)));
+        let separation = face.normal.dot(deepest) - face.offset;
+        if separation > best.0 {
+            best = (separation, i);
+        }
+    }
+    best
+}
+
+/// Whether arcs `ab` and `cd` of the Gauss map cross; `bxa`, `dxc` are the arcs' plane normals
+/// (Gregorius 2013: the arcs cross when c, d are on opposite sides of plane `bxa`, a, b on
+/// opposite sides of `dxc`, and both on the same hemisphere).
+#[inline]
+fn arcs_cross(a: Vec3, b: Vec3, c: Vec3, d: Vec3, bxa: Vec3, dxc: Vec3) -> bool {
+    let cba = c.dot(bxa);
+    let dba = d.dot(bxa);
+    let adc = a.dot(dxc);
+    let bdc = b.dot(dxc);
+    cba * dba < 0.0 && adc * bdc < 0.0 && cba * bdc > 0.0
+}
+
+/// The best edge pair (separation, A's edge, B's edge, axis from A towards B in A's frame).
+fn edge_query(
+    a: &Polyhedron,
+    b: &Polyhedron,
+    b_in_a: &Transform,
+) -> Option<(f32, usize, usize, Vec3)> {
+    let rotation = Mat3::from_quat(b_in_a.rotation);
+    let mut best: Option<(f32, usize, usize, Vec3)> = None;
+    for (j, edge_b) in b.edges.iter().enumerate() {
+        // B's Gauss arc is negated: the Minkowski difference has -B's normals.
+        let c = -(rotation * b.faces[edge_b.faces[0] as usize].normal);
+        let d = -(rotation * b.faces[edge_b.faces[1] as usize].normal);
+        let dxc = d.cross(c);
+        let qb = b_in_a.transform_point(b.vertices[edge_b.vertices[0] as usize]);
+        let eb = rotation
+            * (b.vertices[edge_b.vertices[1] as usize] - b.vertices[edge_b.vertices[0] as usize]);
+        for (i, edge_a) in a.edges.iter().enumerate() {
+            let na = a.faces[edge_a.faces[0] as usize].normal;
+            let nb = a.faces[edge_a.faces[1] as usize].normal;
+            if !arcs_cross(na, nb, c, d, nb.cross(na), dxc) {
+                continue;
+            }
+            let pa = a.vertices[edge_a.vertices[0] as usize];
+            let ea = a.vertices[edge_a.vertices[1] as usize] - pa;
+            let axis = ea.cross(eb);
+            let length_squared = axis.length_squared();
+            if length_squared <= PARALLEL_SINE_SQUARED * ea.length_squared() * eb.length_squared() {
+                continue;
+            }
+            let mut axis = axis / length_squared.sqrt();
+            if axis.dot(pa) < 0.0 {
+                axis = -axis;
+            }
+            let separation = axis.dot(qb - pa);
+            if best.is_none_or(|(s, ..)| separation > s) {
+                best = Some((separation, i, j, axis));
+            }
+        }
+    }
+    best
+}
+
+/// SAT and clipping between two polyhedra (see the module docs).
+fn polyhedra(
+    a: Polyhedron,
+    pose_a: &Transform,
+    b: Polyhedron,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    let b_in_a = pose_a.inverse().mul_transform(pose_b);
+    let a_in_b = b_in_a.inverse();
+    let (separation_a, face_a) = face_query(&a, &b, &b_in_a);
+    if separation_a >= margin {
+        return;
+    }
+    let (separation_b, face_b) = face_query(&b, &a, &a_in_b);
+    if separation_b >= margin {
+        return;
+    }
+    let edge = edge_query(&a, &b, &b_in_a);
+    if let Some((separation, ..)) = edge
+        && separation >= margin
+    {
+        return;
+    }
+    let best_face = separation_a.max(separation_b);
+    if let Some((separation, edge_a, edge_b, axis)) = edge
+        && clearly_greater(separation, best_face, EDGE_RELATIVE_TOLERANCE)
+    {
+        edge_contact(&a, pose_a, &b, &b_in_a, (edge_a, edge_b, axis), out);
+        return;
+    }
+    // The larger face separation gives the reference, with no preference for A or B: the same
+    // pair in the other order then picks the same face (hulls have no fixed face order to
+    // break ties by, as boxes do with face sizes).
+    if separation_b > separation_a {
+        face_contact(&b, pose_b, face_b, &a, &a_in_b, false, margin, out);
+        // Points were made with B as the reference: normal from A to B; flip to B → A.
+        *out = out.flipped();
+    } else {
+        face_contact(&a, pose_a, face_a, &b, &b_in_a, true, margin, out);
+    }
+}
+
+/// A point of the incident polygon being clipped: its position (reference frame) and clip
+/// feature (see the module docs).
+type ClipVertex = (Vec3, u32);
+
+/// Clips `incident` (of polyhedron `other`) against `reference`'s face `face`, filling `out` with
+/// normal from the reference face outwards — the caller flips it when the reference is B.
+#[allow(clippy::too_many_arguments)]
+fn face_contact(
+    reference: &Polyhedron,
+    pose_reference: &Transform,
+    face: usize,
+    other: &Polyhedron,
+    other_in_ref: &Transform,
+    reference_is_a: bool,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    let ref_face = reference.faces[face];
+    // The incident face: the other's face most anti-parallel to the reference normal.
+    let normal_in_other = other_in_ref.inverse_transform_vector(ref_face.normal);
+    let mut incident = 0;
+    let mut lowest = f32::INFINITY;
+    for (i, f) in other.faces.iter().enumerate() {
+        let d = f.normal.dot(normal_in_other);
+        if d < lowest {
+            lowest = d;
+            incident = i;
+        }
+    }
+    let mut polygon: Vec<ClipVertex> = other
+        .face_loop(incident)
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            (
+                other_in_ref.transform_point(other.vertices[v as usize]),
+                k as u32,
+            )
+        })
+        .collect();
+    let mut clipped: Vec<ClipVertex> = Vec::with_capacity(polygon.len() + 4);
+    let ref_loop = reference.face_loop(face);
+    for (e, &v) in ref_loop.iter().enumerate() {
+        let p = reference.vertices[v as usize];
+        let q = reference.vertices[ref_loop[(e + 1) % ref_loop.len()] as usize];
+        // Side plane through the edge, normal pointing out of the face (the loop is
+        // counter-clockwise about the face normal).
+        let side = (q - p).cross(ref_face.normal);
+        let side_offset = side.dot(p);
+        clip(&polygon, side, side_offset, e as u32, &mut clipped);
+        std::mem::swap(&mut polygon, &mut clipped);
+        if polygon.is_empty() {
+            return;
+        }
+    }
+
+    let world_normal = pose_reference.transform_vector(ref_face.normal);
+    let face_bits = ((face as u32 & 0x7F) << 16)
+        | ((incident as u32 & 0x7F) << 23)
+        | if reference_is_a {
+            REFERENCE_IS_A_BIT
+        } else {
+            0
+        };
+    let mut candidates: Vec<ContactPoint> = Vec::with_capacity(polygon.len());
+    for &(point, feature) in &polygon {
+        let separation = ref_face.normal.dot(point) - ref_face.offset;
+        if separation < margin {
+            // Midway between the incident vertex and its projection on the reference face.
+            let midpoint = point - ref_face.normal * (0.5 * separation);
+            candidates.push(ContactPoint::new(
+                pose_reference.transform_point(midpoint),
+                separation,
+                feature | face_bits,
+            ));
+        }
+    }
+    // The normal runs from the other body to the reference one: reversed reference normal.
+    let normal = -world_normal;
+    if candidates.len() > MAX_MANIFOLD_POINTS {
+        *out = reduce(&candidates, normal);
+    } else {
+        out.normal = normal;
+        for candidate in &candidates {
+            out.push(*candidate);
+        }
+    }
+}
+
+/// One Sutherland–Hodgman pass: keeps the part of `polygon` with `side · x <= offset`.
+fn clip(polygon: &[ClipVertex], side: Vec3, offset: f32, plane: u32, out: &mut Vec<ClipVertex>) {
+    out.clear();
+    let Some(&last) = polygon.last() else { return };
+    let mut previous = last;
+    let mut previous_distance = side.dot(previous.0) - offset;
+    for &current in polygon {
+        let distance = side.dot(current.0) - offset;
+        if (previous_distance <= 0.0) != (distance <= 0.0) {
+            let t = previous_distance / (previous_distance - distance);
+            let leaving = u32::from(previous_distance <= 0.0);
+            out.push((
+                previous.0 + (current.0 - previous.0) * t,
+                CROSSING_BIT | (plane << 1) | leaving,
+            ));
+        }
+        if distance <= 0.0 {
+            out.push(current);
+        }
+        previous = current;
+        previous_distance = distance;
+    }
+}
+
+/// One point midway between the closest points of A's and B's edges (`axis` in A's frame,
+/// from A towards B).
+fn edge_contact(
+    a: &Polyhedron,
+    pose_a: &Transform,
+    b: &Polyhedron,
+    b_in_a: &Transform,
+    (edge_a, edge_b, axis): (usize, usize, Vec3),
+    out: &mut Manifold,
+) {
+    let [a0, a1] = a.edges[edge_a].vertices.map(|v| a.vertices[v as usize]);
+    let [b0, b1] = b.edges[edge_b]
+        .vertices
+        .map(|v| b_in_a.transform_point(b.vertices[v as usize]));
+    let (s, t) = closest_parameters_between_segments(a0, a1 - a0, b0, b1 - b0);
+    let on_a = a0 + (a1 - a0) * s;
+    let on_b = b0 + (b1 - b0) * t;
+    let separation = axis.dot(on_b - on_a);
+    let normal = -pose_a.transform_vector(axis);
+    out.normal = normal;
+    push_contact(
+        out,
+        pose_a.transform_point(on_a),
+        normal,
+        separation,
+        EDGE_CONTACT_BIT | ((edge_a as u32 & 0x7FFF) << 15) | (edge_b as u32 & 0x7FFF),
+    );
+}
+
+/// Normal (B → A, world), separation and the surface point on A of the cores' closest or
+/// deepest points, with A's swept radius; `None` when apart by `margin` or more.
+fn core_contact<A: SupportMap + ?Sized>(
+    a: &A,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    margin: f32,
+) -> Option<(Vec3, f32, Vec3)> {
+    let radius = a.radius();
+    let m = MinkowskiDifference::new(a, pose_a, b, pose_b);
+    let (normal, core_separation, point_a) = match gjk(&m) {
+        GjkResult::Separated {
+            distance,
+            normal,
+            point_a,
+            ..
+        } => {
+            if distance - radius >= margin {
+                return None;
+            }
+            (normal, distance, point_a)
+        }
+        GjkResult::Overlapping { simplex } => {
+            // EPA fails only on a degenerate polytope (rounding on a touching pair); the
+            // sampled depth always answers.
+            let penetration = epa(&m, &simplex)
+                .unwrap_or_else(|| sampled_penetration(&m, Sampling::Directions162));
+            (penetration.normal, -penetration.depth, penetration.point_a)
+        }
+    };
+    let world_normal = pose_a.transform_vector(normal);
+    let surface_a = pose_a.transform_point(point_a - normal * radius);
+    Some((world_normal, core_separation - radius, surface_a))
+}
+
+pub(super) fn sphere_hull(
+    a: &Sphere,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    if let Some((normal, separation, surface_a)) = core_contact(a, pose_a, b, pose_b, margin) {
+        out.normal = normal;
+        push_contact(out, surface_a, normal, separation, 0);
+    }
+}
+
+pub(super) fn capsule_hull(
+    a: &Capsule,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    let Some((normal, separation, surface_a)) = core_contact(a, pose_a, b, pose_b, margin) else {
+        return;
+    };
+    // Along a face: clip the segment to the face's side planes, one point per end.
+    let normal_b = pose_b.inverse_transform_vector(normal);
+    let face = b
+        .faces()
+        .iter()
+        .max_by(|f, g| f.normal.dot(normal_b).total_cmp(&g.normal.dot(normal_b)))
+        .copied();
+    let axis = pose_b.inverse_transform_vector(pose_a.transform_vector(Vec3::Y));
+    if let Some(face) = face
+        && a.half_height > 0.0
+        && face.normal.dot(normal_b).powi(2) >= CAPSULE_FACE_COS_SQUARED
+        && axis.dot(face.normal).powi(2) <= 1.0 - CAPSULE_FACE_COS_SQUARED
+        && capsule_on_face(a, pose_a, b, pose_b, &face, margin, out)
+    {
+        return;
+    }
+    out.normal = normal;
+    push_contact(out, surface_a, normal, separation, 0);
+}
+
+/// The capsule's segment clipped to the side planes of `face` of hull B, one point per end
+/// below `margin` (ids 0 and 1 for the `-half_height` and `+half_height` ends); false if none.
+fn capsule_on_face(
+    a: &Capsule,
+    pose_a: &Transform,
+    b: &ConvexHull,
+    pose_b: &Transform,
+    face: &HullFace,
+    margin: f32,
+    out: &mut Manifold,
+) -> bool {
+    let centre = pose_b.inverse_transform_point(pose_a.position);
+    let axis = pose_b.inverse_transform_vector(pose_a.transform_vector(Vec3::Y));
+    let (mut t0, mut t1) = (-a.half_height, a.half_height);
+    let face_loop = b.face_loop(face);
+    for (e, &v) in face_loop.iter().enumerate() {
+        let p = b.vertices()[v as usize];
+        let q = b.vertices()[face_loop[(e + 1) % face_loop.len()] as usize];
+        // Keep side · (centre + t axis - p) <= 0: a bound on t from each side plane.
+        let side = (q - p).cross(face.normal);
+        let start = side.dot(centre - p);
+        let rate = side.dot(axis);
+        if rate == 0.0 {
+            if start > 0.0 {
+                return false;
+            }
+        } else if rate > 0.0 {
+            t1 = t1.min(-start / rate);
+        } else {
+            t0 = t0.max(-start / rate);
+        }
+    }
+    if t0 >= t1 {
+        return false;
+    }
+    let normal = pose_b.transform_vector(face.normal);
+    out.normal = normal;
+    for (id, t) in [(0, t0), (1, t1)] {
+        let point = centre + axis * t - face.normal * a.radius;
+        let separation = face.normal.dot(point) - face.offset;
+        if separation < margin {
+            push_contact(out, pose_b.transform_point(point), normal, separation, id);
+        }
+    }
+    out.count > 0
+}
+
+/// Hull (A) against a plane (B): every vertex below `margin`, id = vertex index.
+pub(super) fn hull_plane(
+    a: &ConvexHull,
+    pose_a: &Transform,
+    b: &Plane,
+    pose_b: &Transform,
+    margin: f32,
+    out: &mut Manifold,
+) {
+    let normal = pose_b.transform_vector(b.normal);
+    let offset = b.offset + normal.dot(pose_b.position);
+    let local_normal = pose_a.inverse_transform_vector(normal);
+    let centre_height = normal.dot(pose_a.position) - offset;
+    let lowest = local_normal.dot(a.support(-local_normal));
+    if centre_height + lowest >= margin {
+        return;
+    }
+    let mut candidates: Vec<ContactPoint> = Vec::new();
+    for (index, &v) in a.vertices().iter().enumerate() {
+        let separation = centre_height + local_normal.dot(v);
+        if separation < margin {
+            candidates.push(ContactPoint::new(
+                pose_a.transform_point(v) - normal * (0.5 * separation),
+                separation,
+                index as u32,
+            ));
+        }
+    }
+    *out = reduce(&candidates, normal);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The box tables agree with the hull built from the box's corners.
+    #[test]
+    fn box_tables_match_the_hull_of_the_corners() {
+        let cuboid = Cuboid {
+            half_extents: Vec3::new(1.0, 0.5, 0.25),
+        };
+        let boxed = BoxPolyhedron::new(&cuboid);
+        let view = boxed.view();
+        let hull = ConvexHull::new(&boxed.vertices).unwrap();
+        assert_eq!(hull.vertices(), &boxed.vertices[..]);
+        for f in 0..6 {
+            let face = view.faces[f];
+            let matching = hull
+                .faces()
+                .iter()
+                .find(|g| (g.normal - face.normal).length() < 1e-6)
+                .unwrap();
+            let mut ours = view.face_loop(f).to_vec();
+            let mut theirs = hull.face_loop(matching).to_vec();
+            // Same cycle: rotate both to start at their lowest vertex.
+            let rotate = |l: &mut Vec<u32>| {
+                let k = (0..l.len()).min_by_key(|&k| l[k]).unwrap();
+                l.rotate_left(k);
+            };
+            rotate(&mut ours);
+            rotate(&mut theirs);
+            assert_eq!(ours, theirs, "face {f}");
+            assert!((matching.offset - face.offset).abs() < 1e-6);
+        }
+        for edge in &BOX_EDGES {
+            let [v0, v1] = edge.vertices;
+            let runs = |f: u32, from: u32, to: u32| {
+                let l = view.face_loop(f as usize);
+                (0..l.len()).any(|k| l[k] == from && l[(k + 1) % l.len()] == to)
+            };
+            assert!(runs(edge.faces[0], v0, v1) && runs(edge.faces[1], v1, v0));
+        }
+    }
+}
