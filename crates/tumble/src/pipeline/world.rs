@@ -34,6 +34,7 @@ use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::PairContact;
 use crate::stages::pairs::PairCache;
+use std::sync::OnceLock;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -101,6 +102,9 @@ pub struct World {
     pub(crate) pair_batches: Vec<u32>,
     pub(crate) profiler: Profiler,
     pub(crate) steps: u64,
+    /// Bodies outside their broadphase fat AABB, for exact queries (`pipeline::query`); reset
+    /// whenever bodies move, come or go.
+    pub(crate) query_escapes: OnceLock<Vec<u32>>,
 }
 
 impl World {
@@ -128,6 +132,7 @@ impl World {
             pair_batches: Vec::new(),
             profiler: Profiler::new("step"),
             steps: 0,
+            query_escapes: OnceLock::new(),
         })
     }
 
@@ -205,6 +210,7 @@ impl World {
             .aabb(&pose.transform())
             .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
+        self.query_escapes = OnceLock::new();
         Ok(BodyHandle {
             index,
             generation: self.slots[index as usize].generation,
@@ -225,6 +231,7 @@ impl World {
             self.free_joint(joint);
         }
         self.broadphase.remove(handle.index);
+        self.query_escapes = OnceLock::new();
         let slot = &mut self.slots[i];
         slot.state = SlotState::Free;
         slot.generation = slot.generation.wrapping_add(1);
@@ -407,10 +414,20 @@ impl World {
 
     /// Advances the world by `config.dt`.
     pub fn step(&mut self) {
+        self.step_then(|_| {});
+    }
+
+    /// Advances the world by `config.dt`, then runs `after` (queries, typically) inside the
+    /// same profiler frame, so that the scopes it opens on [`Self::profiler_mut`] show in the
+    /// step's report beside the stages.
+    pub fn step_then<R>(&mut self, after: impl FnOnce(&mut World) -> R) -> R {
         self.profiler.begin_frame();
         self.step_stages();
+        self.query_escapes = OnceLock::new();
+        let result = after(self);
         self.profiler.end_frame();
         self.steps += 1;
+        result
     }
 
     /// Number of live bodies.

@@ -44,6 +44,7 @@
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
 mod cpu;
+mod query;
 
 use crate::collision::dbvt::{Dbvt, ProxyId};
 use crate::math::{Aabb, Vec3};
