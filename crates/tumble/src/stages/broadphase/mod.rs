@@ -43,6 +43,7 @@
 //!   and the sort and merge fix the order however the tasks were scheduled.
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
+pub mod alternatives;
 mod cpu;
 mod query;
 
