@@ -4,6 +4,8 @@
 pub mod builtin;
 pub mod format;
 pub mod ragdoll;
+pub mod raycast;
 
 pub use builtin::{BUILTIN_SCENES, builtin};
 pub use format::{Scene, SceneError, SceneFile};
+pub use raycast::RayFan;

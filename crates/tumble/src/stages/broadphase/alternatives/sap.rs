@@ -16,8 +16,10 @@ use crate::stages::pairs::pair_key;
 pub struct SweepAndPrune {
     /// 0, 1 or 2 (x, y, z).
     axis: usize,
-    /// (lower bound on the axis, body), sorted by bound, then body, from the last frame.
-    order: Vec<(f32, u32)>,
+    /// (box, body), sorted by the box's lower bound on the axis, then body, from the last
+    /// frame. The boxes are copied in sorted order so that the sweep reads memory in order
+    /// instead of jumping through the caller's array.
+    order: Vec<(Aabb, u32)>,
 }
 
 impl SweepAndPrune {
@@ -58,18 +60,22 @@ impl PairFinder for SweepAndPrune {
             self.axis = Self::widest_axis(aabbs);
             self.order.clear();
             self.order
-                .extend((0..aabbs.len() as u32).map(|body| (0.0, body)));
+                .extend((0..aabbs.len() as u32).map(|body| (Aabb::default(), body)));
         }
         let axis = self.axis;
         for entry in &mut self.order {
-            entry.0 = aabbs[entry.1 as usize].min[axis];
+            entry.0 = aabbs[entry.1 as usize];
         }
         // Sorted by (bound, body): a total order, so the result is unique.
-        let before = |a: &(f32, u32), b: &(f32, u32)| a.0 < b.0 || (a.0 == b.0 && a.1 < b.1);
+        let before = |a: &(Aabb, u32), b: &(Aabb, u32)| {
+            let (start_a, start_b) = (a.0.min[axis], b.0.min[axis]);
+            start_a < start_b || (start_a == start_b && a.1 < b.1)
+        };
         if rebuilt {
             // No coherence to exploit: a full sort, not an O(n²) insertion sort.
-            self.order
-                .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            self.order.sort_unstable_by(|a, b| {
+                a.0.min[axis].total_cmp(&b.0.min[axis]).then(a.1.cmp(&b.1))
+            });
         }
         for i in 1..self.order.len() {
             let entry = self.order[i];
@@ -81,16 +87,15 @@ impl PairFinder for SweepAndPrune {
             self.order[j] = entry;
         }
 
-        for (i, &(_, a)) in self.order.iter().enumerate() {
-            let box_a = &aabbs[a as usize];
+        for (i, (box_a, a)) in self.order.iter().enumerate() {
             let end = box_a.max[axis];
-            for &(start, b) in &self.order[i + 1..] {
+            for (box_b, b) in &self.order[i + 1..] {
                 // Sorted by start: no later box can reach back to this one.
-                if start > end {
+                if box_b.min[axis] > end {
                     break;
                 }
-                if box_a.overlaps(&aabbs[b as usize]) {
-                    pairs.push(pair_key(a, b));
+                if box_a.overlaps(box_b) {
+                    pairs.push(pair_key(*a, *b));
                 }
             }
         }
