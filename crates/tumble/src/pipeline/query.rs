@@ -227,8 +227,12 @@ impl World {
     fn passes(&self, index: u32, filter: &QueryFilter) -> bool {
         let is_static = self.masses[index as usize].inverse_mass == 0.0;
         let body = self.handle_of(index);
-        !(filter.exclude_static && is_static)
-            && !(filter.exclude_dynamic && !is_static)
+        let excluded_kind = if is_static {
+            filter.exclude_static
+        } else {
+            filter.exclude_dynamic
+        };
+        !excluded_kind
             && filter.exclude_body != Some(body)
             && filter.predicate.is_none_or(|keep| keep(body))
     }

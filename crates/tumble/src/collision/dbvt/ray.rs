@@ -105,16 +105,15 @@ mod tests {
     use super::*;
 
     /// Every leaf the segment meets, by brute force over the fat AABBs, with its entry.
+    /// In user order.
     fn brute_force(boxes: &[Aabb], origin: Vec3, direction: Vec3, max: f32) -> Vec<(u32, f32)> {
-        let mut hits: Vec<(u32, f32)> = boxes
+        boxes
             .iter()
             .enumerate()
             .filter_map(|(user, aabb)| {
                 segment_enters_aabb(origin, direction, max, aabb).map(|t| (user as u32, t))
             })
-            .collect();
-        hits.sort_by(|a, b| a.0.cmp(&b.0));
-        hits
+            .collect()
     }
 
     #[test]
