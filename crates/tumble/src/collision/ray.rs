@@ -1,4 +1,4 @@
-//! Rays and exact ray casts against single shapes.
+//! Rays, and exact ray casts and sphere casts ([`cast_sphere`]) against single shapes.
 //!
 //! A [`Ray`] is the half-line `origin + t · direction` for `0 <= t <= max_distance`, with a unit
 //! `direction`, so `t` is a distance in metres. [`cast_ray`] intersects it with one shape at one
@@ -18,6 +18,10 @@
 //! Each shape has its own function in the shape's frame (the ray is moved into it, the hit moved
 //! back); [`cast_ray`] dispatches on the shape in one `match`, where convex hulls and meshes
 //! join when they land.
+
+mod sphere_cast;
+
+pub use sphere_cast::cast_sphere;
 
 use crate::math::{Transform, Vec3};
 use crate::shape::{Capsule, Cuboid, Plane, Shape, Sphere};

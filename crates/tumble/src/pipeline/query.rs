@@ -1,5 +1,5 @@
-//! Scene queries on [`World`]: ray casts (closest hit, all hits) and box overlap, through the
-//! broadphase trees, with a [`QueryFilter`].
+//! Scene queries on [`World`]: ray casts (closest hit, all hits), sphere casts and box overlap,
+//! through the broadphase trees, with a [`QueryFilter`].
 //!
 //! ```
 //! use tumble::{BodyDesc, QueryFilter, Shape, StepConfig, World, collision::ray::Ray, math::Vec3};
@@ -26,7 +26,7 @@
 //! Determinism: ties are broken by body index. Closest hit: the smallest distance, then the
 //! lowest index; all hits: sorted by (distance, index); box query: by index.
 
-use crate::collision::ray::{Ray, ShapeHit, cast_ray};
+use crate::collision::ray::{Ray, ShapeHit, cast_ray, cast_sphere};
 use crate::dynamics::body::BodyHandle;
 use crate::math::{Aabb, Vec3};
 use crate::pipeline::world::World;
@@ -116,15 +116,57 @@ pub enum QueryError {
     AabbNotFinite { min: Vec3, max: Vec3 },
     #[error("query box {min:?}..{max:?} has min > max on some axis")]
     AabbInverted { min: Vec3, max: Vec3 },
+    #[error("sphere cast radius {0} must be finite and >= 0")]
+    BadRadius(f32),
 }
 
 impl World {
     /// The closest body `ray` hits, or `None`. Ties go to the lower body index.
     pub fn cast_ray(&self, ray: &Ray, filter: &QueryFilter) -> Option<RayHit> {
+        self.closest(ray, 0.0, |index, ray| self.ray_hit(index, ray, filter))
+    }
+
+    /// Sweeps a ball of `radius` (m) whose centre follows `ray`; returns the first body it
+    /// touches (`distance`: how far the centre travelled; `point`: the contact on the body;
+    /// `normal`: the body's outward normal there), ties to the lower body index. A ball that
+    /// already touches a body at the start hits it at 0 (see [`cast_sphere`]).
+    pub fn cast_sphere(
+        &self,
+        radius: f32,
+        ray: &Ray,
+        filter: &QueryFilter,
+    ) -> Result<Option<RayHit>, QueryError> {
+        if !(radius.is_finite() && radius >= 0.0) {
+            return Err(QueryError::BadRadius(radius));
+        }
+        Ok(self.closest(ray, radius, |index, ray| {
+            if !self.passes(index, filter) {
+                return None;
+            }
+            let i = index as usize;
+            let pose = self.poses[i].transform();
+            let hit = cast_sphere(radius, &self.colliders[i].shape, &pose, ray)?;
+            Some(RayHit {
+                body: self.handle_of(index),
+                distance: hit.distance,
+                point: hit.point,
+                normal: hit.normal,
+            })
+        }))
+    }
+
+    /// The smallest (distance, index) hit of `hit_of` (which applies the filter) over the
+    /// bodies whose fat AABB grown by `inflate` the ray meets, and over the escaped bodies.
+    fn closest(
+        &self,
+        ray: &Ray,
+        inflate: f32,
+        hit_of: impl Fn(u32, &Ray) -> Option<RayHit>,
+    ) -> Option<RayHit> {
         let escaped = self.escaped_bodies();
         let mut best: Option<RayHit> = None;
         let mut consider = |index: u32, end: f32| {
-            if let Some(hit) = self.ray_hit(index, &ray.with_max_distance(end), filter)
+            if let Some(hit) = hit_of(index, &ray.with_max_distance(end))
                 && best.is_none_or(|b| (hit.distance, hit.body.index) < (b.distance, b.body.index))
             {
                 best = Some(hit);
@@ -134,7 +176,7 @@ impl World {
         let (origin, direction) = (ray.origin(), ray.direction());
         let mut end = ray.max_distance();
         self.broadphase
-            .ray_cast(origin, direction, ray.max_distance(), |index| {
+            .ray_cast(origin, direction, ray.max_distance(), inflate, |index| {
                 // Escaped bodies are tested below, once.
                 if escaped.binary_search(&index).is_err() {
                     end = consider(index, end);
@@ -153,12 +195,13 @@ impl World {
         hits.clear();
         let escaped = self.escaped_bodies();
         let (origin, direction, max) = (ray.origin(), ray.direction(), ray.max_distance());
-        self.broadphase.ray_cast(origin, direction, max, |index| {
-            if escaped.binary_search(&index).is_err() {
-                hits.extend(self.ray_hit(index, ray, filter));
-            }
-            max
-        });
+        self.broadphase
+            .ray_cast(origin, direction, max, 0.0, |index| {
+                if escaped.binary_search(&index).is_err() {
+                    hits.extend(self.ray_hit(index, ray, filter));
+                }
+                max
+            });
         hits.extend(
             escaped
                 .iter()

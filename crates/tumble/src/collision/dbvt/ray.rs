@@ -56,6 +56,20 @@ impl Dbvt {
         origin: Vec3,
         direction: Vec3,
         max_distance: f32,
+        visit: impl FnMut(u32) -> f32,
+    ) {
+        self.ray_cast_inflated(origin, direction, max_distance, 0.0, visit);
+    }
+
+    /// [`Self::ray_cast`] with every box grown by `inflate` (m) on every side: the traversal
+    /// of a sphere cast of radius `inflate`, whose ball stays inside the grown boxes of what
+    /// it can touch.
+    pub fn ray_cast_inflated(
+        &self,
+        origin: Vec3,
+        direction: Vec3,
+        max_distance: f32,
+        inflate: f32,
         mut visit: impl FnMut(u32) -> f32,
     ) {
         if self.root == NULL_NODE {
@@ -66,7 +80,7 @@ impl Dbvt {
         stack.push(self.root);
         while let Some(index) = stack.pop() {
             let node = &self.nodes[index as usize];
-            if segment_enters_aabb(origin, direction, end, &node.aabb).is_none() {
+            if segment_enters_aabb(origin, direction, end, &node.aabb.expanded(inflate)).is_none() {
                 continue;
             }
             if node.is_leaf() {
@@ -78,7 +92,8 @@ impl Dbvt {
             }
             let [first, second] = node.children;
             let entry = |child: u32| {
-                segment_enters_aabb(origin, direction, end, &self.nodes[child as usize].aabb)
+                let aabb = self.nodes[child as usize].aabb.expanded(inflate);
+                segment_enters_aabb(origin, direction, end, &aabb)
             };
             match (entry(first), entry(second)) {
                 (Some(a), Some(b)) => {

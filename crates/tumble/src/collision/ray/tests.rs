@@ -387,3 +387,119 @@ fn random_rays_agree_with_signed_distance() {
     }
     assert!(hits > 500, "{hits} hits");
 }
+
+#[test]
+fn sphere_cast_closed_forms() {
+    let ball = 0.5;
+    let cast = |shape: Shape, origin: Vec3, direction: Vec3| {
+        cast_sphere(ball, &shape, &Transform::IDENTITY, &ray(origin, direction))
+    };
+    // Ball against ball: the centres meet at 1.5 m.
+    assert_hit(
+        cast(Shape::sphere(1.0), vec3(-5.0, 0.0, 0.0), Vec3::X),
+        3.5,
+        -Vec3::X,
+        -Vec3::X,
+    );
+    assert_hit(
+        cast(Shape::plane(Vec3::Y, 0.0), vec3(1.0, 3.0, 0.0), -Vec3::Y),
+        2.5,
+        vec3(1.0, 0.0, 0.0),
+        Vec3::Y,
+    );
+    assert_hit(
+        cast(Shape::capsule(0.5, 1.0), vec3(-5.0, 0.7, 0.0), Vec3::X),
+        4.0,
+        vec3(-0.5, 0.7, 0.0),
+        -Vec3::X,
+    );
+    let cube = Shape::cuboid(Vec3::ONE);
+    // A face.
+    assert_hit(
+        cast(cube, vec3(-5.0, 0.2, 0.0), Vec3::X),
+        3.5,
+        vec3(-1.0, 0.2, 0.0),
+        -Vec3::X,
+    );
+    // An edge: the centre passes 0.3 above the top face, the ball touches the edge at y = 1
+    // when (x + 1)² + 0.3² = 0.5², x = -1.4.
+    assert_hit(
+        cast(cube, vec3(-5.0, 1.3, 0.0), Vec3::X),
+        3.6,
+        vec3(-1.0, 1.0, 0.0),
+        vec3(-0.8, 0.6, 0.0),
+    );
+    // A corner: (x + 1)² + 2 · 0.3² = 0.5².
+    let reach = (0.25f32 - 0.18).sqrt();
+    assert_hit(
+        cast(cube, vec3(-5.0, 1.3, 1.3), Vec3::X),
+        4.0 - reach,
+        Vec3::new(-1.0, 1.0, 1.0),
+        vec3(-reach, 0.3, 0.3) / 0.5,
+    );
+    // Passing 0.6 above the top: a miss; starting within 0.5 of it: a hit at 0.
+    assert_eq!(cast(cube, vec3(-5.0, 1.6, 0.0), Vec3::X), None);
+    let start = vec3(0.0, 1.4, 0.0);
+    assert_hit(cast(cube, start, Vec3::X), 0.0, start, -Vec3::X);
+    // A negative radius sweeps nothing.
+    assert_eq!(
+        cast_sphere(
+            -1.0,
+            &cube,
+            &Transform::IDENTITY,
+            &ray(vec3(-5.0, 0.0, 0.0), Vec3::X)
+        ),
+        None
+    );
+}
+
+/// Random sphere casts: at the hit the centre is `radius` from the shape, and no sampled
+/// centre before it is closer; the contact point is on the surface.
+#[test]
+fn random_sphere_casts_agree_with_signed_distance() {
+    let mut rng = TestRng::new(23);
+    let mut hits = 0;
+    for case in 0..3000 {
+        let shape = match case % 3 {
+            0 => Shape::sphere(rng.range(0.2, 2.0)),
+            1 => Shape::cuboid(rng.vec3(0.2, 2.0)),
+            _ => Shape::capsule(rng.range(0.2, 1.0), rng.range(0.0, 2.0)),
+        };
+        let radius = rng.range(0.05, 1.0);
+        let axis = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
+        let pose = Transform::new(
+            rng.vec3(-2.0, 2.0),
+            Quat::from_axis_angle(axis, rng.range(0.0, 6.0)),
+        );
+        let origin = pose.position + rng.vec3(-6.0, 6.0);
+        let local = |p: Vec3| signed_distance(&shape, pose.inverse_transform_point(p));
+        if local(origin) <= radius {
+            continue;
+        }
+        let target = pose.position + rng.vec3(-2.5, 2.5);
+        let ray = Ray::new(origin, target - origin, 20.0).unwrap();
+        let hit = cast_sphere(radius, &shape, &pose, &ray);
+        let end = hit.map_or(ray.max_distance(), |hit| hit.distance);
+        for sample in 0..200 {
+            let distance = end * sample as f32 / 200.0;
+            assert!(
+                local(ray.at(distance)) > radius - 1e-4,
+                "case {case}: overlapping before the hit"
+            );
+        }
+        if let Some(hit) = hit {
+            hits += 1;
+            let center = ray.at(hit.distance);
+            assert!(
+                (local(center) - radius).abs() < 1e-4,
+                "case {case}: not touching"
+            );
+            assert!(
+                local(hit.point).abs() < 1e-4,
+                "case {case}: contact off the surface"
+            );
+            assert!((center - hit.point - radius * hit.normal).length() < 1e-4);
+        }
+    }
+    assert!(hits > 500, "{hits} hits");
+}

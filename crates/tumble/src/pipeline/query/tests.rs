@@ -3,6 +3,7 @@
 
 use super::*;
 use crate::collision::dbvt::tests::TestRng;
+use crate::collision::ray::cast_sphere;
 use crate::dynamics::body::BodyDesc;
 use crate::math::{Quat, Transform, vec3};
 use crate::pipeline::config::StepConfig;
@@ -102,6 +103,25 @@ fn queries_match_brute_force_on_random_worlds() {
                 "case {case}: closest hit"
             );
 
+            let radius = rng.range(0.0, 1.5);
+            let expected_sphere = world
+                .bodies()
+                .filter(|body| world.passes(body.index(), filter))
+                .filter_map(|body| {
+                    let i = body.index() as usize;
+                    let pose = world.poses[i].transform();
+                    let hit = cast_sphere(radius, &world.colliders[i].shape, &pose, &ray)?;
+                    Some((hit.distance, body.index(), hit))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .map(|(_, index, hit)| (index, hit.distance, hit.point, hit.normal));
+            let sphere = world.cast_sphere(radius, &ray, filter).unwrap();
+            assert_eq!(
+                sphere.map(|h| (h.body.index(), h.distance, h.point, h.normal)),
+                expected_sphere,
+                "case {case}: sphere cast"
+            );
+
             let probe = Aabb::from_center_half_extents(
                 vec3(0.0, 5.0, 0.0) + rng.vec3(-12.0, 12.0),
                 rng.vec3(0.1, 4.0),
@@ -168,6 +188,11 @@ fn bad_boxes_are_errors() {
         world.intersect_aabb(&nan, &filter, &mut found),
         Err(QueryError::AabbNotFinite { .. })
     ));
+    let ray = Ray::new(Vec3::ZERO, Vec3::X, 1.0).unwrap();
+    assert_eq!(
+        world.cast_sphere(-0.5, &ray, &filter),
+        Err(QueryError::BadRadius(-0.5))
+    );
     let inverted = Aabb::new(Vec3::ONE, Vec3::ZERO);
     assert!(matches!(
         world.intersect_aabb(&inverted, &filter, &mut found),

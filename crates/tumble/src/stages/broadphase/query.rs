@@ -20,16 +20,18 @@ impl Broadphase {
     /// `origin + t · direction`, `t` in `[0, max_distance]`, meets, with
     /// [`Dbvt::ray_cast`](crate::collision::dbvt::Dbvt::ray_cast)'s clipping contract: `visit`
     /// returns the segment's new end. The end carries from the moving tree into the fixed one.
+    /// Boxes are grown by `inflate` (m) first: 0 for a ray, the radius for a sphere cast.
     pub fn ray_cast(
         &self,
         origin: Vec3,
         direction: Vec3,
         max_distance: f32,
+        inflate: f32,
         mut visit: impl FnMut(u32) -> f32,
     ) {
         let mut end = max_distance;
         for tree in [&self.moving, &self.fixed] {
-            tree.ray_cast(origin, direction, end, |body| {
+            tree.ray_cast_inflated(origin, direction, end, inflate, |body| {
                 end = end.min(visit(body));
                 end
             });
