@@ -44,6 +44,15 @@ pub struct BenchArgs {
     /// Draw ms/step against body count (log-log), one line per engine and thread count.
     #[arg(long)]
     pub png: Option<PathBuf>,
+    /// `broadphase` only: boxes in the scene.
+    #[arg(long, default_value_t = 8192, value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+    pub count: usize,
+    /// `broadphase` only: fraction of the boxes (0..=1) that move each frame.
+    #[arg(long, default_value_t = 0.1, value_parser = parse_fraction)]
+    pub moving: f32,
+    /// `broadphase` only: timed frames per broadphase.
+    #[arg(long, default_value_t = 100, value_parser = RangedU64ValueParser::<usize>::new().range(1..))]
+    pub frames: usize,
 }
 
 impl BenchArgs {
@@ -60,6 +69,9 @@ impl BenchArgs {
             time_limit_ms: 1000.0,
             csv: None,
             png: None,
+            count: 8192,
+            moving: 0.1,
+            frames: 100,
         }
     }
 
@@ -83,6 +95,14 @@ fn parse_scale(text: &str) -> Result<f32, String> {
         Ok(scale) if scale.is_finite() && scale > 0.0 => Ok(scale),
         Ok(scale) => Err(format!("a scale must be a positive number, got {scale}")),
         Err(_) => Err(format!("{text:?} is not a number (e.g. 0.1,1,10)")),
+    }
+}
+
+fn parse_fraction(text: &str) -> Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(fraction) if (0.0..=1.0).contains(&fraction) => Ok(fraction),
+        Ok(fraction) => Err(format!("a fraction is in 0..=1, got {fraction}")),
+        Err(_) => Err(format!("{text:?} is not a number (e.g. 0.1)")),
     }
 }
 
@@ -176,6 +196,9 @@ mod tests {
             (&["falling-boxes", "--steps", "0"], "--steps"),
             (&["falling-boxes", "--time-limit-ms", "0"], "positive"),
             (&["falling-boxes", "--warmup", "many"], "--warmup"),
+            (&["broadphase", "--moving", "1.5"], "0..=1"),
+            (&["broadphase", "--count", "0"], "--count"),
+            (&["broadphase", "--frames", "0"], "--frames"),
             (&[], "<SCENES>"),
         ];
         for (line, expected) in cases {

@@ -69,6 +69,7 @@
 //! Figures a case did not produce (skipped, not available) are empty cells.
 
 pub mod args;
+pub mod broadphase;
 pub mod chart;
 pub mod engine;
 pub mod measure;
@@ -79,9 +80,13 @@ pub mod sweep;
 
 pub use args::BenchArgs;
 
-/// `tumble bench`: `prims` runs the GPU primitive benchmarks ([`prims`]); anything else is a
-/// list of scenes to sweep ([`sweep::run`]).
+/// `tumble bench`: `prims` runs the GPU primitive benchmarks ([`prims`]), `broadphase` the
+/// broadphase comparison ([`broadphase`]); anything else is a list of scenes to sweep
+/// ([`sweep::run`]).
 pub fn run(args: &BenchArgs) -> Result<(), BenchError> {
+    if args.scenes.len() == 1 && args.scenes[0] == "broadphase" {
+        return broadphase::run(args);
+    }
     if args.scenes.len() == 1 && args.scenes[0] == "prims" {
         let scale = args.scales.first().copied().unwrap_or(1.0);
         return prims::run(scale as f64).map_err(BenchError::Gpu);
@@ -100,6 +105,8 @@ pub enum BenchError {
     ThreadPool { threads: usize, message: String },
     #[error("cannot write {path}: {message}")]
     Write { path: String, message: String },
+    #[error("broadphase benchmark: {0}")]
+    Broadphase(#[from] tumble::stages::broadphase::alternatives::AabbError),
     #[error("GPU benchmark: {0}")]
     Gpu(String),
 }

@@ -6,7 +6,7 @@ use clap::{Parser, Subcommand, ValueEnum};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tumble::pipeline::devices::{Executor, StageDevices};
-use tumble::scene::{BUILTIN_SCENES, Scene, builtin};
+use tumble::scene::{BUILTIN_SCENES, RayFan, Scene, builtin};
 
 #[derive(Parser)]
 #[command(
@@ -172,9 +172,18 @@ fn run(args: &RunArgs) -> Result<(), String> {
     } else {
         "cpu".to_string()
     };
+    // The raycast scene casts its fan after every step, inside the step's profiler frame.
+    let mut fan = RayFan::for_scene(&args.scene, args.scale);
     for _ in 0..args.steps {
-        world.try_step().map_err(|e| e.to_string())?;
+        match fan.as_mut() {
+            Some(fan) => world.try_step_then(|world| {
+                fan.cast(world);
+            }),
+            None => world.try_step(),
+        }
+        .map_err(|e| e.to_string())?;
     }
+    let rays = fan.as_ref().map(RayFan::stats);
     let report = world.profiler().report();
     let stats = world.stats().clone();
     let ms_per_step = world.profiler().median_frame_ms();
@@ -192,6 +201,12 @@ fn run(args: &RunArgs) -> Result<(), String> {
             stats.contacts,
             stats.max_penetration
         );
+        if let Some(rays) = rays {
+            println!(
+                "# rays = {}  # hits = {}  time per ray = {:.3} us (median step)",
+                rays.rays, rays.hits, rays.us_per_ray
+            );
+        }
         println!(
             "batches on {device} ({} constraints per batch):",
             stats.batch_histogram.len()
@@ -211,7 +226,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             .into_iter()
             .map(|(name, ms)| (name.to_string(), ms.into()))
             .collect();
-        let summary = serde_json::json!({
+        let mut summary = serde_json::json!({
             "scene": args.scene,
             "bodies": world.body_count(),
             "steps": args.steps,
@@ -227,6 +242,11 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "kinetic_energy": world.kinetic_energy(),
             "batches": stats.batch_histogram.len(),
         });
+        if let Some(rays) = rays {
+            summary["rays"] = rays.rays.into();
+            summary["ray_hits"] = rays.hits.into();
+            summary["us_per_ray"] = rays.us_per_ray.into();
+        }
         println!("{summary}");
     } else if !args.profile {
         println!(

@@ -146,3 +146,60 @@ fn run_on_the_gpu_shows_stages_and_copies() {
         "{stdout}"
     );
 }
+
+#[test]
+fn bench_broadphase_runs_on_a_tiny_scene() {
+    let output = tumble(&[
+        "bench",
+        "broadphase",
+        "--count",
+        "200",
+        "--moving",
+        "0.5",
+        "--frames",
+        "3",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    // Every exact broadphase reports the same pair count as brute force.
+    let pairs: Vec<(&str, &str)> = text
+        .lines()
+        .filter_map(|line| {
+            let fields: Vec<&str> = line.split_whitespace().collect();
+            (fields.len() == 6 && fields[0] != "broadphase").then(|| (fields[0], fields[5]))
+        })
+        .collect();
+    let names: Vec<&str> = pairs.iter().map(|p| p.0).collect();
+    assert_eq!(names, ["dbvt", "dbvt-exact", "grid", "sap", "brute-force"]);
+    let exact: Vec<&str> = pairs[1..].iter().map(|p| p.1).collect();
+    assert!(exact.iter().all(|&count| count == exact[0]), "{text}");
+    // A flag clap rejects: its own error (with a usage hint, so not one line), no panic.
+    let refused = tumble(&["bench", "broadphase", "--moving", "2"]);
+    assert!(!refused.status.success());
+    let message = stderr(&refused);
+    assert!(
+        message.contains("0..=1") && !message.contains("panicked"),
+        "{message}"
+    );
+}
+
+#[test]
+fn raycast_scene_reports_rays_in_the_profile() {
+    let output = tumble(&[
+        "run",
+        "raycast",
+        "--scale",
+        "0.02",
+        "--steps",
+        "3",
+        "--device",
+        "cpu",
+        "--profile",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.contains("raycast"), "no raycast scope: {text}");
+    assert!(text.contains("# rays = 20  # hits = 20"), "{text}");
+    let listed = tumble(&["scenes"]);
+    assert!(String::from_utf8_lossy(&listed.stdout).contains("raycast"));
+}

@@ -20,5 +20,6 @@ pub mod stages;
 pub use dynamics::body::{BodyDesc, BodyError, BodyHandle};
 pub use dynamics::joint::{JointDesc, JointError, JointHandle, JointKind, JointState, Motor};
 pub use pipeline::config::{ConfigError, StepConfig};
+pub use pipeline::query::{QueryError, QueryFilter, RayHit};
 pub use pipeline::world::{StepStats, World};
 pub use shape::Shape;

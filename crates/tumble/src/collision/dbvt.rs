@@ -17,6 +17,10 @@
 //! - No randomness and no dependence on addresses: the same sequence of calls builds the same
 //!   tree, node for node, so broadphase output is reproducible.
 
+mod ray;
+
+pub use ray::segment_enters_aabb;
+
 use crate::math::Aabb;
 
 /// Handle to a leaf of a [`Dbvt`]. Stays valid until the proxy is removed; the index may then

@@ -40,6 +40,7 @@ use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::PairCache;
 use std::sync::Arc;
+use std::sync::OnceLock;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -92,6 +93,11 @@ impl Slot {
     pub(crate) fn is_live(&self) -> bool {
         self.state != SlotState::Free
     }
+
+    /// Whether the body was made dynamic (asleep or not).
+    pub(crate) fn is_dynamic(&self) -> bool {
+        self.state == SlotState::Dynamic
+    }
 }
 
 /// A physics world: bodies, the persistent state between steps, and the step itself.
@@ -137,6 +143,9 @@ pub struct World {
     pub(crate) refresh_resting: bool,
     /// Scratch: bodies woken or put to sleep by a call.
     pub(crate) changed_bodies: Vec<u32>,
+    /// Bodies outside their broadphase fat AABB, for exact queries (`pipeline::query`); reset
+    /// whenever bodies move, come or go.
+    pub(crate) query_escapes: OnceLock<Vec<u32>>,
 }
 
 impl World {
@@ -171,6 +180,7 @@ impl World {
             resting_pairs: Vec::new(),
             refresh_resting: false,
             changed_bodies: Vec::new(),
+            query_escapes: OnceLock::new(),
         })
     }
 
@@ -288,6 +298,7 @@ impl World {
         }
         self.islands.resize(self.slots.len());
         self.islands.reset_timer(index);
+        self.query_escapes = OnceLock::new();
         Ok(BodyHandle {
             index,
             generation: self.slots[index as usize].generation,
@@ -322,6 +333,7 @@ impl World {
             self.free_joint(joint);
         }
         self.broadphase.remove(handle.index);
+        self.query_escapes = OnceLock::new();
         let slot = &mut self.slots[i];
         slot.state = SlotState::Free;
         slot.generation = slot.generation.wrapping_add(1);
@@ -596,17 +608,37 @@ impl World {
     /// One step, reporting a failure of a GPU stage (a buffer past the adapter's limits, a
     /// lost device) instead of panicking. A failed step leaves the bodies as they were before it.
     pub fn try_step(&mut self) -> Result<(), GpuError> {
+        self.try_step_then(|_| {})
+    }
+
+    /// Advances the world by `config.dt`, then runs `after` (queries, typically) inside the
+    /// same profiler frame, so that the scopes it opens on [`Self::profiler_mut`] show in the
+    /// step's report beside the stages.
+    ///
+    /// # Panics
+    ///
+    /// As [`step`](Self::step).
+    pub fn step_then<R>(&mut self, after: impl FnOnce(&mut World) -> R) -> R {
+        self.try_step_then(after)
+            .unwrap_or_else(|error| panic!("a GPU stage failed: {error}"))
+    }
+
+    /// [`step_then`](Self::step_then), reporting a failure of a GPU stage as
+    /// [`try_step`](Self::try_step) does; `after` runs only after a step that succeeded.
+    pub fn try_step_then<R>(&mut self, after: impl FnOnce(&mut World) -> R) -> Result<R, GpuError> {
         let snapshot = self
             .devices
             .any_gpu()
             .then(|| (self.poses.clone(), self.velocities.clone()));
         self.profiler.begin_frame();
         let result = self.step_stages();
+        self.query_escapes = OnceLock::new();
+        let result = result.map(|()| after(self));
         self.profiler.end_frame();
         match result {
-            Ok(()) => {
+            Ok(value) => {
                 self.steps += 1;
-                Ok(())
+                Ok(value)
             }
             Err(error) => {
                 if let Some((poses, velocities)) = snapshot {

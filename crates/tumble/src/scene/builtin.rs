@@ -6,6 +6,7 @@ use crate::math::Vec3;
 use crate::pipeline::config::StepConfig;
 use crate::scene::format::{Scene, SceneError};
 use crate::scene::ragdoll::{RAGDOLL_HALF_SPAN, add_ragdoll, arms_along_z};
+use crate::scene::raycast::raycast;
 use crate::shape::Shape;
 
 /// Built-in scene names with a line on each.
@@ -26,6 +27,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "convex-hulls",
         "1000 barrel-like convex hulls (40 points) in 10 layers of 10 x 10 falling on a plane",
     ),
+    (
+        "raycast",
+        "about 1000 boxes, spheres and capsules at rest on a plane, a fan of 1000 rays cast each step",
+    ),
 ];
 
 /// The built-in scene `name` at `scale` (1 = the talk's size; body counts scale linearly).
@@ -38,6 +43,7 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
         "stacked-boxes" => Ok(stacked_boxes(scale)),
         "ragdolls" => Ok(ragdolls(scale)),
         "convex-hulls" => Ok(convex_hulls(scale)),
+        "raycast" => Ok(raycast(scale)),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
 }

@@ -5,6 +5,8 @@ pub mod builtin;
 pub mod format;
 pub mod landscape;
 pub mod ragdoll;
+pub mod raycast;
 
 pub use builtin::{BUILTIN_SCENES, barrel_points, builtin};
 pub use format::{Scene, SceneError, SceneFile};
+pub use raycast::RayFan;

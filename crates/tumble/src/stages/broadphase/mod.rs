@@ -46,8 +46,10 @@
 //!   and the sort and merge fix the order however the tasks were scheduled.
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
+pub mod alternatives;
 mod cpu;
 pub mod gpu;
+mod query;
 
 use crate::collision::dbvt::{Dbvt, ProxyId};
 use crate::math::{Aabb, Vec3};
