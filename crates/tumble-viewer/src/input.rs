@@ -56,6 +56,8 @@ pub enum Action {
     Profile,
     /// Tell the user something (a switch that has no effect yet).
     Notice(&'static str),
+    /// Run the solver stage on this executor from the next step.
+    Solver(Executor),
     Quit,
 }
 
@@ -81,8 +83,6 @@ const DRAG_TURN: f32 = 0.005;
 /// Distance factor per z / x press.
 const ZOOM_STEP: f32 = 0.9;
 
-const GPU_NOT_YET: &str =
-    "GPU solver not available yet: the step keeps running on the CPU (the switch is remembered)";
 const GPU_BATCHER_NOT_YET: &str =
     "GPU batcher not available yet: the step keeps running on the CPU (the switch is remembered)";
 
@@ -181,7 +181,7 @@ impl InputState {
             }
             Key::Char('u') => {
                 self.solver = self.solver.toggled();
-                self.gpu_notice(self.solver, GPU_NOT_YET)
+                Action::Solver(self.solver)
             }
             Key::Char('d') => {
                 self.batcher = self.batcher.toggled();
@@ -295,11 +295,11 @@ mod tests {
     }
 
     #[test]
-    fn u_and_d_switch_solver_and_batcher_and_say_gpu_is_not_there() {
+    fn u_switches_the_solver_and_d_the_batcher_which_is_not_on_the_gpu_yet() {
         let mut s = state();
-        assert!(matches!(s.key(Key::Char('u')), Action::Notice(_)));
+        assert_eq!(s.key(Key::Char('u')), Action::Solver(Executor::Gpu));
         assert_eq!(s.solver, Executor::Gpu);
-        assert_eq!(s.key(Key::Char('u')), Action::None);
+        assert_eq!(s.key(Key::Char('u')), Action::Solver(Executor::Cpu));
         assert_eq!(s.solver, Executor::Cpu);
         assert!(matches!(s.key(Key::Char('d')), Action::Notice(_)));
         assert_eq!((s.batcher, s.solver), (Executor::Gpu, Executor::Cpu));

@@ -19,7 +19,7 @@ use crate::camera::Camera;
 use crate::context::GpuContext;
 use crate::draw::DrawList;
 use crate::error::ViewError;
-use crate::input::{Action, HELP, InputState, Key};
+use crate::input::{Action, Executor, HELP, InputState, Key};
 use crate::renderer::{Renderer, depth_view};
 use crate::{ImageSize, ViewOptions};
 
@@ -174,14 +174,32 @@ impl App<'_> {
         match action {
             Action::None => {}
             Action::Reset => match self.scene.build() {
-                Ok(world) => self.world = world,
+                Ok(world) => {
+                    self.world = world;
+                    self.put_solver_on(self.input.solver);
+                }
                 Err(error) => self.fail(event_loop, error.into()),
             },
+            Action::Solver(executor) => self.put_solver_on(executor),
             Action::Step => self.world.step(),
             Action::Help => println!("{HELP}"),
             Action::Profile => self.print_profile(),
             Action::Notice(text) => println!("{text}"),
             Action::Quit => event_loop.exit(),
+        }
+    }
+
+    /// The talk's `u` key: the solver stage on the CPU or the GPU (the other stages stay).
+    fn put_solver_on(&mut self, executor: Executor) {
+        let mut devices = self.world.stage_devices();
+        let (on, name) = match executor {
+            Executor::Cpu => (tumble::pipeline::devices::Executor::Cpu, "CPU"),
+            Executor::Gpu => (tumble::pipeline::devices::Executor::Gpu, "GPU"),
+        };
+        devices.set(tumble::pipeline::devices::Stage::Solver, on);
+        match self.world.set_stage_devices(devices) {
+            Ok(()) => println!("solver on the {name}"),
+            Err(error) => println!("the solver stays on the CPU: {error}"),
         }
     }
 
