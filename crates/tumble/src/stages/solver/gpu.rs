@@ -2,8 +2,10 @@
 //! [`SolverBody`] and [`ContactConstraint`] arrays the CPU solves, in the CPU's order.
 //!
 //! One dispatch per batch and sweep (a dispatch is the GPU's barrier between batches), except
-//! that, as on the CPU, the overflow batch and each run of consecutive batches smaller than
-//! [`SMALL_BATCH`] are one dispatch whose first thread solves them in order. A step is
+//! that each run of consecutive batches smaller than [`SMALL_BATCH`] is one dispatch of one
+//! workgroup that walks them in order, its threads sharing each batch and meeting at a
+//! barrier after it, and the overflow batch (whose constraints may share bodies) is one
+//! dispatch whose first thread solves it in order. A step is
 //!
 //! ```text
 //!   substeps · (2 + stages · (2 + iterations)) + stages (restitution, when any contact bounces)
@@ -71,13 +73,23 @@ pub fn wgsl() -> Source {
         .snippet("solver.wgsl", SOLVER_WGSL)
 }
 
-/// Batches `first..end` solved by one dispatch: in parallel (one batch) or in order by one
-/// thread.
+/// Batches `first..end` solved by one dispatch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Stage {
     pub first: u32,
     pub end: u32,
-    pub sequential: bool,
+    pub mode: StageMode,
+}
+
+/// How a [`Stage`]'s dispatch goes through its batches; the value is `SolverParams::sequential`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum StageMode {
+    /// One batch, one thread per constraint, as many workgroups as it takes.
+    Parallel = 0,
+    /// One workgroup walks a run of small batches in order, a barrier after each.
+    Workgroup = 1,
+    /// The overflow batch: its first thread alone, in order.
+    Alone = 2,
 }
 
 /// The dispatches of one sweep, from the batch offsets (`offsets[b]..offsets[b + 1]` is batch
@@ -89,28 +101,32 @@ pub fn stages(offsets: &[u32], has_overflow: bool) -> Vec<Stage> {
     for batch in 0..batch_count {
         let size = offsets[batch as usize + 1] - offsets[batch as usize];
         let overflow = has_overflow && batch + 1 == batch_count;
-        if overflow || size < SMALL_BATCH {
+        if size < SMALL_BATCH && !overflow {
             continue;
         }
         if small_from < batch {
             stages.push(Stage {
                 first: small_from,
                 end: batch,
-                sequential: true,
+                mode: StageMode::Workgroup,
             });
         }
         small_from = batch + 1;
         stages.push(Stage {
             first: batch,
             end: batch + 1,
-            sequential: false,
+            mode: if overflow {
+                StageMode::Alone
+            } else {
+                StageMode::Parallel
+            },
         });
     }
     if small_from < batch_count {
         stages.push(Stage {
             first: small_from,
             end: batch_count,
-            sequential: true,
+            mode: StageMode::Workgroup,
         });
     }
     stages
@@ -135,7 +151,12 @@ enum Variant {
 const VARIANTS: usize = 3;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
-type Key = ([wgpu::Buffer; 3], usize, Vec<(u32, u32, bool)>, [u32; 8]);
+type Key = (
+    [wgpu::Buffer; 3],
+    usize,
+    Vec<(u32, u32, StageMode)>,
+    [u32; 8],
+);
 
 /// Bind groups for the last key: one per (stage, variant), then one for the body kernels.
 struct Bound {
@@ -283,10 +304,7 @@ impl SolverEncoder {
                 offsets.buffer().clone(),
             ],
             bodies.len(),
-            stages
-                .iter()
-                .map(|s| (s.first, s.end, s.sequential))
-                .collect(),
+            stages.iter().map(|s| (s.first, s.end, s.mode)).collect(),
             [
                 settings.dt.to_bits(),
                 settings.substeps,
@@ -308,7 +326,7 @@ impl SolverEncoder {
         let stage_groups: Vec<u32> = stages
             .iter()
             .map(|stage| {
-                if stage.sequential {
+                if stage.mode != StageMode::Parallel {
                     1
                 } else {
                     let size =
@@ -387,7 +405,7 @@ impl SolverEncoder {
             let params = SolverParams {
                 first_batch: stage.first,
                 end_batch: stage.end,
-                sequential: stage.sequential as u32,
+                sequential: stage.mode as u32,
                 ..base
             };
             // In the order of `Variant`.

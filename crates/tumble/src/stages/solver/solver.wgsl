@@ -5,8 +5,9 @@
 // offsets[b + 1]]. A dispatch covers the batches first_batch .. end_batch:
 //   - parallel (sequential == 0): one batch, one thread per constraint. The batch's
 //     constraints share no dynamic body, so no two threads touch the same body.
-//   - sequential: thread 0 alone walks the batches in order (the overflow batch, and runs
-//     of small batches that would not fill the GPU; same results as one dispatch per batch).
+//   - sequential == 1: one workgroup walks a run of small batches in order, its threads
+//     sharing each batch, a storage barrier after each (same results as one dispatch each);
+//   - sequential == 2: thread 0 alone solves the overflow batch in order.
 
 struct SolverParams {
     gravity: vec3<f32>,
@@ -174,8 +175,10 @@ fn restitution_contact(index: u32) {
     store_pair(c, pair);
 }
 
-// Constraints of this dispatch's thread: a range of one, all of them (sequential, thread 0)
-// or none.
+const WALK: u32 = 1u;
+
+// Constraints of this dispatch's thread: a range of one, all of them (the overflow batch,
+// thread 0) or none. Not for WALK dispatches, which the kernels loop over themselves.
 fn constraint_range(thread: u32) -> vec2<u32> {
     if params.sequential != 0u {
         if thread == 0u {
@@ -196,6 +199,16 @@ fn warm_start(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
+    if params.sequential == WALK {
+        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
+            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
+                index += WORKGROUP_SIZE) {
+                warm_start_contact(index);
+            }
+            storageBarrier();
+        }
+        return;
+    }
     let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
     for (var index = range.x; index < range.y; index++) {
         warm_start_contact(index);
@@ -208,6 +221,16 @@ fn solve(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
+    if params.sequential == WALK {
+        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
+            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
+                index += WORKGROUP_SIZE) {
+                solve_contact(index);
+            }
+            storageBarrier();
+        }
+        return;
+    }
     let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
     for (var index = range.x; index < range.y; index++) {
         solve_contact(index);
@@ -220,6 +243,16 @@ fn restitution(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
+    if params.sequential == WALK {
+        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
+            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
+                index += WORKGROUP_SIZE) {
+                restitution_contact(index);
+            }
+            storageBarrier();
+        }
+        return;
+    }
     let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
     for (var index = range.x; index < range.y; index++) {
         restitution_contact(index);
