@@ -214,7 +214,7 @@ impl GpuStages {
             }
         }
         let start = Instant::now();
-        *keys = self.broadphase.download_keys(context)?;
+        self.broadphase.download_keys_into(context, keys)?;
         record_copy(profiler, BROADPHASE.download, elapsed_ms(start));
         Ok(())
     }

@@ -361,6 +361,8 @@ pub struct GpuBroadphase {
     sorted_keys: GpuVec<u64>,
     /// One word: pairs found by the last run, including any past the capacity.
     count: GpuVec<u32>,
+    /// The count read back, reused.
+    count_host: Vec<u32>,
     sort: RadixSort,
     /// Dispatches before the key sort (fills, traversal) and after it (unpacking).
     cached: Option<(PairsKey, Vec<Dispatch>, Vec<Dispatch>)>,
@@ -382,6 +384,7 @@ impl GpuBroadphase {
             sorted_values: GpuVec::with_capacity(context, "sorted pair values", 0)?,
             sorted_keys: GpuVec::with_capacity(context, "sorted pair keys", 0)?,
             count: GpuVec::from_slice(context, "pair count", &[0])?,
+            count_host: Vec::with_capacity(1),
             sort: RadixSort::new(),
             cached: None,
         };
@@ -649,17 +652,29 @@ impl GpuBroadphase {
     /// Reads back the pair count of the last run (a round trip; more than the capacity after
     /// an overflow).
     pub fn pair_count(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
-        Ok(self.count.download(context)?[0] as usize)
+        self.count.download_into(context, &mut self.count_host)?;
+        Ok(self.count_host[0] as usize)
     }
 
     /// Reads back the last run's sorted keys, without the padding (the run must not have
     /// overflowed: see [`Self::check_capacity`]).
     pub fn download_keys(&mut self, context: &GpuContext) -> Result<Vec<u64>, GpuError> {
+        let mut keys = Vec::new();
+        self.download_keys_into(context, &mut keys)?;
+        Ok(keys)
+    }
+
+    /// [`Self::download_keys`] into a vector the caller reuses (no allocation per step).
+    pub fn download_keys_into(
+        &mut self,
+        context: &GpuContext,
+        keys: &mut Vec<u64>,
+    ) -> Result<(), GpuError> {
         let count = self.pair_count(context)?;
         debug_assert!(count <= self.capacity(), "the run overflowed");
-        let mut keys = self.sorted_keys.download(context)?;
+        self.sorted_keys.download_into(context, keys)?;
         keys.truncate(count);
-        Ok(keys)
+        Ok(())
     }
 
     /// Depth of the dynamic tree's deepest leaf (root: 0), read back: for tests and stats.
