@@ -41,15 +41,44 @@ struct ColliderData {
     params: vec4<f32>,
 }
 
-// v rotated by the unit quaternion q.
-fn quat_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    let t = 2.0 * cross(q.xyz, v);
-    return v + q.w * t + cross(q.xyz, t);
+// Quaternion and dot-product helpers written in glam's order of operations, so that a kernel
+// rounds as the CPU stage it twins (WGSL's dot may sum in another order).
+
+// a · b summed x, y, z.
+fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
 }
 
-// v rotated by the inverse of the unit quaternion q.
-fn quat_rotate_inverse(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    return quat_rotate(vec4<f32>(-q.xyz, q.w), v);
+// glam's Quat * Vec3: v (w² - b·b) + b (2 v·b) + (b × v)(2 w), b = q.xyz.
+fn quat_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let b = q.xyz;
+    return v * (q.w * q.w - dot3(b, b)) + b * (dot3(v, b) * 2.0) + cross(b, v) * (q.w * 2.0);
+}
+
+// The inverse rotation of a unit quaternion.
+fn quat_conjugate(q: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(-q.xyz, q.w);
+}
+
+// glam's Mat3::from_quat.
+fn mat3_from_quat(q: vec4<f32>) -> mat3x3<f32> {
+    let x2 = q.x + q.x;
+    let y2 = q.y + q.y;
+    let z2 = q.z + q.z;
+    let xx = q.x * x2;
+    let xy = q.x * y2;
+    let xz = q.x * z2;
+    let yy = q.y * y2;
+    let yz = q.y * z2;
+    let zz = q.z * z2;
+    let wx = q.w * x2;
+    let wy = q.w * y2;
+    let wz = q.w * z2;
+    return mat3x3<f32>(
+        vec3<f32>(1.0 - (yy + zz), xy + wz, xz - wy),
+        vec3<f32>(xy - wz, 1.0 - (xx + zz), yz + wx),
+        vec3<f32>(xz + wy, yz - wx, 1.0 - (xx + yy)),
+    );
 }
 
 // The product a * b (b applied first).

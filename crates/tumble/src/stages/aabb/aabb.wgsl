@@ -18,35 +18,11 @@ struct AabbParams {
 // math::Aabb is (min, max) of three f32 each, 24 bytes with no padding: 6 floats per body.
 @group(0) @binding(4) var<storage, read_write> aabbs: array<f32>;
 
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
-// glam's Quat * Vec3: v (w² - b·b) + b (2 b·v) + (b × v)(2 w), b = q.xyz.
-fn glam_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    let b = q.xyz;
-    return v * (q.w * q.w - dot3(b, b)) + b * (dot3(b, v) * 2.0) + cross(b, v) * (q.w * 2.0);
-}
-
 // Half extents along the world axes of a box with `half` extents rotated by q: the absolute
 // columns of glam's Mat3::from_quat weighted by the half extents.
 fn box_extent(q: vec4<f32>, half: vec3<f32>) -> vec3<f32> {
-    let x2 = q.x + q.x;
-    let y2 = q.y + q.y;
-    let z2 = q.z + q.z;
-    let xx = q.x * x2;
-    let xy = q.x * y2;
-    let xz = q.x * z2;
-    let yy = q.y * y2;
-    let yz = q.y * z2;
-    let zz = q.z * z2;
-    let wx = q.w * x2;
-    let wy = q.w * y2;
-    let wz = q.w * z2;
-    let x_axis = vec3<f32>(1.0 - (yy + zz), xy + wz, xz - wy);
-    let y_axis = vec3<f32>(xy - wz, 1.0 - (xx + zz), yz + wx);
-    let z_axis = vec3<f32>(xz + wy, yz - wx, 1.0 - (xx + yy));
-    return abs(x_axis) * half.x + abs(y_axis) * half.y + abs(z_axis) * half.z;
+    let m = mat3_from_quat(q);
+    return abs(m[0]) * half.x + abs(m[1]) * half.y + abs(m[2]) * half.z;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -71,7 +47,7 @@ fn world_aabbs(
             high = pose.position + extent;
         }
         case SHAPE_CAPSULE: {
-            let axis = glam_rotate(q, vec3<f32>(0.0, collider.params.y, 0.0));
+            let axis = quat_rotate(q, vec3<f32>(0.0, collider.params.y, 0.0));
             let extent = abs(axis) + vec3<f32>(collider.params.x);
             low = pose.position - extent;
             high = pose.position + extent;
@@ -83,7 +59,7 @@ fn world_aabbs(
         }
         default: {
             // SHAPE_PLANE: a huge box, bounded on an axis the normal is aligned with.
-            let n = glam_rotate(q, collider.params.xyz);
+            let n = quat_rotate(q, collider.params.xyz);
             let point_on_plane = pose.position + n * collider.params.w;
             low = vec3<f32>(-PLANE_AABB_EXTENT);
             high = vec3<f32>(PLANE_AABB_EXTENT);

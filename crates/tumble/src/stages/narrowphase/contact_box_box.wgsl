@@ -19,8 +19,8 @@ var<private> clipped_count: u32;
 fn box_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margin: f32) {
     let half_a = a.xyz;
     let half_b = b.xyz;
-    let rotation_a = matrix_from_quat(pose_a.rotation);
-    let rotation_b = matrix_from_quat(pose_b.rotation);
+    let rotation_a = mat3_from_quat(pose_a.rotation);
+    let rotation_b = mat3_from_quat(pose_b.rotation);
     let to_b = transpose(rotation_b);
     // A in B's frame: axes the columns of `rotation`, centre `translation`.
     var rotation = mat_mat(to_b, rotation_a);

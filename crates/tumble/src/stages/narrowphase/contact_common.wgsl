@@ -19,48 +19,14 @@ var<private> out: Manifold;
 // Candidate points of box pairs before reduction: 8 box vertices, or 8 clipped vertices.
 var<private> candidates: array<ContactPoint, 8>;
 
-fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
-    return a.x * b.x + a.y * b.y + a.z * b.z;
-}
-
 fn element_sum(v: vec3<f32>) -> f32 {
     return v.x + v.y + v.z;
 }
 
-// glam's Quat * Vec3: v (w² - |q|²) + q (2 v·q) + (q × v) 2w.
-fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    let b = q.xyz;
-    return v * (q.w * q.w - dot3(b, b)) + b * (dot3(v, b) * 2.0) + cross(b, v) * (q.w * 2.0);
-}
-
-fn conjugate(q: vec4<f32>) -> vec4<f32> {
-    return vec4<f32>(-q.xyz, q.w);
-}
 
 // Transform::inverse_transform_point.
 fn to_local(pose: BodyPose, point: vec3<f32>) -> vec3<f32> {
-    return rotate(conjugate(pose.rotation), point - pose.position);
-}
-
-// glam's Mat3::from_quat.
-fn matrix_from_quat(q: vec4<f32>) -> mat3x3<f32> {
-    let x2 = q.x + q.x;
-    let y2 = q.y + q.y;
-    let z2 = q.z + q.z;
-    let xx = q.x * x2;
-    let xy = q.x * y2;
-    let xz = q.x * z2;
-    let yy = q.y * y2;
-    let yz = q.y * z2;
-    let zz = q.z * z2;
-    let wx = q.w * x2;
-    let wy = q.w * y2;
-    let wz = q.w * z2;
-    return mat3x3<f32>(
-        vec3<f32>(1.0 - (yy + zz), xy + wz, xz - wy),
-        vec3<f32>(xy - wz, 1.0 - (xx + zz), yz + wx),
-        vec3<f32>(xz + wy, yz - wx, 1.0 - (xx + yy)),
-    );
+    return quat_rotate(quat_conjugate(pose.rotation), point - pose.position);
 }
 
 // glam's Mat3 * Vec3: the columns weighted by v, summed x, y, z.

@@ -35,12 +35,12 @@ fn sphere_sphere(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose,
 }
 
 fn sphere_capsule(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margin: f32) {
-    let half_axis = rotate(pose_b.rotation, vec3<f32>(0.0, b.y, 0.0));
+    let half_axis = quat_rotate(pose_b.rotation, vec3<f32>(0.0, b.y, 0.0));
     let start = pose_b.position - half_axis;
     let delta = 2.0 * half_axis;
     let t = closest_parameter_to_point(pose_a.position, start, delta);
     // A centre on the capsule's axis: sideways along the capsule's local x.
-    let fallback_normal = rotate(pose_b.rotation, vec3<f32>(1.0, 0.0, 0.0));
+    let fallback_normal = quat_rotate(pose_b.rotation, vec3<f32>(1.0, 0.0, 0.0));
     ball_ball(pose_a.position, a.x, start + delta * t, b.x, fallback_normal, margin);
 }
 
@@ -76,14 +76,14 @@ fn sphere_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, ma
         }
         normal_local = sign_or_positive(center[axis]) * axis_vector(axis);
     }
-    let normal = rotate(pose_b.rotation, normal_local);
+    let normal = quat_rotate(pose_b.rotation, normal_local);
     out.normal = normal;
     push_contact(pose_a.position - normal * radius, normal, separation, 0u);
 }
 
 // The plane in world space: (unit normal, offset), solid where normal · x <= offset.
 fn world_plane(plane: vec4<f32>, pose: BodyPose) -> vec4<f32> {
-    let normal = rotate(pose.rotation, plane.xyz);
+    let normal = quat_rotate(pose.rotation, plane.xyz);
     return vec4<f32>(normal, plane.w + dot3(normal, pose.position));
 }
 
@@ -103,7 +103,7 @@ fn capsule_plane(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose,
     let plane = world_plane(b, pose_b);
     let normal = plane.xyz;
     out.normal = normal;
-    let half_axis = rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0));
+    let half_axis = quat_rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0));
     let end_count = select(2u, 1u, a.y <= POINT_SEGMENT_HALF_HEIGHT);
     let ends = array<vec3<f32>, 2>(pose_a.position - half_axis, pose_a.position + half_axis);
     for (var id = 0u; id < end_count; id++) {
@@ -125,7 +125,7 @@ fn box_plane(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, mar
     let plane = world_plane(b, pose_b);
     let normal = plane.xyz;
     let half = a.xyz;
-    let rotation = matrix_from_quat(pose_a.rotation);
+    let rotation = mat3_from_quat(pose_a.rotation);
     let reach = mat_vec(transpose(rotation), normal) * half;
     let center_height = dot3(normal, pose_a.position) - plane.w;
     if center_height - element_sum(abs(reach)) >= margin {
@@ -146,10 +146,10 @@ fn box_plane(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, mar
 }
 
 fn capsule_capsule(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margin: f32) {
-    let half_axis_a = rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0));
+    let half_axis_a = quat_rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0));
     let start_a = pose_a.position - half_axis_a;
     let delta_a = 2.0 * half_axis_a;
-    let half_axis_b = rotate(pose_b.rotation, vec3<f32>(0.0, b.y, 0.0));
+    let half_axis_b = quat_rotate(pose_b.rotation, vec3<f32>(0.0, b.y, 0.0));
     let start_b = pose_b.position - half_axis_b;
     let delta_b = 2.0 * half_axis_b;
     let st = closest_parameters_between_segments(start_a, delta_a, start_b, delta_b);
@@ -176,9 +176,9 @@ fn capsule_capsule(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPos
         let across = axes_cross / sqrt(cross_length_squared);
         normal = across * sign_or_positive(dot3(across, pose_a.position - pose_b.position));
     } else if b.y > POINT_SEGMENT_HALF_HEIGHT {
-        normal = rotate(pose_b.rotation, vec3<f32>(1.0, 0.0, 0.0));
+        normal = quat_rotate(pose_b.rotation, vec3<f32>(1.0, 0.0, 0.0));
     } else {
-        normal = rotate(pose_a.rotation, vec3<f32>(1.0, 0.0, 0.0));
+        normal = quat_rotate(pose_a.rotation, vec3<f32>(1.0, 0.0, 0.0));
     }
 
     // Parallel capsules lying along each other: two points, the ends of the overlap.
@@ -217,9 +217,9 @@ fn capsule_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, m
     }
     let half = b.xyz;
     let center = to_local(pose_b, pose_a.position);
-    let half_axis = rotate(
-        conjugate(pose_b.rotation),
-        rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0)),
+    let half_axis = quat_rotate(
+        quat_conjugate(pose_b.rotation),
+        quat_rotate(pose_a.rotation, vec3<f32>(0.0, a.y, 0.0)),
     );
     let start = center - half_axis;
     let delta = 2.0 * half_axis;
@@ -243,10 +243,10 @@ fn capsule_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, m
             // Beside an edge or a corner: one point.
             let distance = sqrt(distance_squared);
             let normal_local = offset / distance;
-            let normal = rotate(pose_b.rotation, normal_local);
+            let normal = quat_rotate(pose_b.rotation, normal_local);
             out.normal = normal;
             let surface_a = pose_b.position
-                + rotate(pose_b.rotation, point - normal_local * radius);
+                + quat_rotate(pose_b.rotation, point - normal_local * radius);
             push_contact(surface_a, normal, distance - radius, 0u);
         }
         return;
@@ -311,9 +311,9 @@ fn capsule_in_box(
         let st = closest_parameters_between_segments(start, delta, edge_start, edge_delta);
         let point = start + delta * st.x;
         let separation = dot3(point - (edge_start + edge_delta * st.y), edge_normal) - radius;
-        let normal = rotate(pose_b.rotation, edge_normal);
+        let normal = quat_rotate(pose_b.rotation, edge_normal);
         out.normal = normal;
-        let surface_a = pose_b.position + rotate(pose_b.rotation, point - edge_normal * radius);
+        let surface_a = pose_b.position + quat_rotate(pose_b.rotation, point - edge_normal * radius);
         push_contact(surface_a, normal, separation, 0u);
         return;
     }
@@ -354,7 +354,7 @@ fn capsule_on_face(
         high = fallback_parameter;
     }
     let normal_local = face_sign * axis_vector(face_axis);
-    let normal = rotate(pose_b.rotation, normal_local);
+    let normal = quat_rotate(pose_b.rotation, normal_local);
     out.normal = normal;
     let parameters = array<f32, 2>(low, high);
     let count = select(1u, 2u, high > low);
@@ -363,7 +363,7 @@ fn capsule_on_face(
         let separation = face_sign * point[face_axis] - half[face_axis] - radius;
         if separation < margin {
             let surface_a = pose_b.position
-                + rotate(pose_b.rotation, point - normal_local * radius);
+                + quat_rotate(pose_b.rotation, point - normal_local * radius);
             push_contact(surface_a, normal, separation, id);
         }
     }

@@ -109,9 +109,9 @@ fn solve_contact(index: u32) {
         var separation = c.points[i].separation;
         if params.moved != 0u {
             let moved = (pair[0].delta_position
-                + rotate_like_cpu(pair[0].delta_rotation, c.points[i].anchor_a))
+                + quat_rotate(pair[0].delta_rotation, c.points[i].anchor_a))
                 - (pair[1].delta_position
-                + rotate_like_cpu(pair[1].delta_rotation, c.points[i].anchor_b));
+                + quat_rotate(pair[1].delta_rotation, c.points[i].anchor_b));
             separation = dot(n, moved) + c.points[i].adjusted_separation;
             contacts[index].points[i].separation = separation;
         }
@@ -193,26 +193,51 @@ fn constraint_range(thread: u32) -> vec2<u32> {
     return vec2<u32>(0u, 0u);
 }
 
+// What a sweep does to each of its constraints.
+const WARM_START: u32 = 0u;
+const SOLVE: u32 = 1u;
+const RESTITUTION: u32 = 2u;
+
+fn apply_sweep(kind: u32, index: u32) {
+    switch kind {
+        case WARM_START: {
+            warm_start_contact(index);
+        }
+        case SOLVE: {
+            solve_contact(index);
+        }
+        default: {
+            restitution_contact(index);
+        }
+    }
+}
+
+// One sweep of this dispatch's batches (see the top of the file), by thread `local` of its
+// workgroup, `thread` of the dispatch.
+fn sweep(kind: u32, local: u32, thread: u32) {
+    if params.sequential == WALK {
+        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
+            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
+                index += WORKGROUP_SIZE) {
+                apply_sweep(kind, index);
+            }
+            storageBarrier();
+        }
+        return;
+    }
+    let range = constraint_range(thread);
+    for (var index = range.x; index < range.y; index++) {
+        apply_sweep(kind, index);
+    }
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn warm_start(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if params.sequential == WALK {
-        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
-            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                index += WORKGROUP_SIZE) {
-                warm_start_contact(index);
-            }
-            storageBarrier();
-        }
-        return;
-    }
-    let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
-    for (var index = range.x; index < range.y; index++) {
-        warm_start_contact(index);
-    }
+    sweep(WARM_START, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -221,20 +246,7 @@ fn solve(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if params.sequential == WALK {
-        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
-            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                index += WORKGROUP_SIZE) {
-                solve_contact(index);
-            }
-            storageBarrier();
-        }
-        return;
-    }
-    let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
-    for (var index = range.x; index < range.y; index++) {
-        solve_contact(index);
-    }
+    sweep(SOLVE, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -243,20 +255,7 @@ fn restitution(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if params.sequential == WALK {
-        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
-            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                index += WORKGROUP_SIZE) {
-                restitution_contact(index);
-            }
-            storageBarrier();
-        }
-        return;
-    }
-    let range = constraint_range(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
-    for (var index = range.x; index < range.y; index++) {
-        restitution_contact(index);
-    }
+    sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
 }
 
 // Gravity into the velocities of the dynamic bodies.

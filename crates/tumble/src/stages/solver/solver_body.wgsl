@@ -20,13 +20,6 @@ fn static_solver_body() -> SolverBody {
         vec4<f32>(0.0, 0.0, 0.0, 1.0));
 }
 
-// glam's Quat * Vec3 (the CPU's rotation of an anchor), term by term.
-fn rotate_like_cpu(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
-    let b = q.xyz;
-    let b2 = dot(b, b);
-    return v * (q.w * q.w - b2) + b * (dot(v, b) * 2.0) + cross(b, v) * (q.w * 2.0);
-}
-
 // integrate::clamp_rotation: ω scaled down to turn at most MAX_ROTATION_PER_STEP in dt.
 fn clamp_rotation(angular_velocity: vec3<f32>, dt: f32) -> vec3<f32> {
     let angle = length(angular_velocity) * dt;
