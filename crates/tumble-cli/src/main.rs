@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::{BUILTIN_SCENES, RayFan, Scene, builtin};
+use tumble::stages::batching::Batcher;
 
 #[derive(Parser)]
 #[command(
@@ -59,6 +60,10 @@ struct RunArgs {
     /// Per-stage devices, e.g. `broadphase=gpu,solver=cpu` (overrides --device per stage).
     #[arg(long)]
     stages: Option<String>,
+    /// How constraints are batched for the solver: `colors` (greedy coloring) or `rounds`
+    /// (the talk's kSetupBatches); both give the same batches on the CPU and the GPU.
+    #[arg(long, default_value = "colors")]
+    batcher: String,
     /// Steps to run.
     #[arg(long, default_value_t = 300)]
     steps: u32,
@@ -153,6 +158,10 @@ fn run(args: &RunArgs) -> Result<(), String> {
         return Err("--explain is for the particles scene".into());
     }
     let devices = stage_devices(args)?;
+    let batcher: Batcher = args
+        .batcher
+        .parse()
+        .map_err(|e| format!("--batcher: {e}"))?;
     if let Some(threads) = args.threads {
         if threads == 0 {
             return Err("--threads must be at least 1".into());
@@ -167,6 +176,11 @@ fn run(args: &RunArgs) -> Result<(), String> {
     world
         .set_stage_devices(devices)
         .map_err(|e| e.to_string())?;
+    let config = tumble::StepConfig {
+        batcher,
+        ..*world.config()
+    };
+    world.set_config(config).map_err(|e| e.to_string())?;
     let device = if devices.any_gpu() {
         devices.to_string()
     } else {
@@ -208,8 +222,9 @@ fn run(args: &RunArgs) -> Result<(), String> {
             );
         }
         println!(
-            "batches on {device} ({} constraints per batch):",
-            stats.batch_histogram.len()
+            "{} batches by {} on {device} (constraints per batch):",
+            stats.batch_histogram.len(),
+            batcher
         );
         for (batch, count) in stats.batch_histogram.iter().enumerate() {
             println!("{batch:4} : {count}");
@@ -241,6 +256,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "max_penetration": stats.max_penetration,
             "kinetic_energy": world.kinetic_energy(),
             "batches": stats.batch_histogram.len(),
+            "batcher": batcher.to_string(),
         });
         if let Some(rays) = rays {
             summary["rays"] = rays.rays.into();

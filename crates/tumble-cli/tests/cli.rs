@@ -61,6 +61,10 @@ fn bad_input_is_a_one_line_error_with_non_zero_exit() {
         &["run", "falling-boxes", "--stages", "warp=cpu"],
         "unknown stage",
     );
+    assert_user_error(
+        &["run", "falling-boxes", "--batcher", "greedy"],
+        "unknown batcher",
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -135,14 +139,21 @@ fn run_on_the_gpu_shows_stages_and_copies() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let stdout = String::from_utf8_lossy(&output.stdout);
-    for line in ["-- narrowphase", "copy to gpu [copy]", "copy to cpu [copy]"] {
+    for line in [
+        "-- narrowphase",
+        "-- batching",
+        "copy to gpu [copy]",
+        "copy to cpu [copy]",
+    ] {
         assert!(
             stdout.contains(line),
             "no {line:?} in the profile: {stdout}"
         );
     }
     assert!(
-        stdout.contains("batches on aabb=gpu,broadphase=gpu,narrowphase=gpu,solver=gpu"),
+        stdout.contains(
+            "batches by colors on aabb=gpu,broadphase=gpu,narrowphase=gpu,batching=gpu,solver=gpu"
+        ),
         "{stdout}"
     );
 }

@@ -2,6 +2,8 @@
 //! map is unit-tested. The window (window.rs) translates winit events into [`Key`]s and mouse
 //! calls, and carries out the returned [`Action`]s.
 
+use tumble::stages::batching::Batcher;
+
 use crate::camera::Camera;
 use crate::draw::DrawSettings;
 
@@ -54,10 +56,10 @@ pub enum Action {
     Help,
     /// Print the profile report now (and keep printing while `profile` is on).
     Profile,
-    /// Tell the user something (a switch that has no effect yet).
-    Notice(&'static str),
-    /// Run the solver stage on this executor from the next step.
+    /// Run the solver stage (and its batching) on this executor from the next step.
     Solver(Executor),
+    /// Batch constraints with this batcher from the next step.
+    Batcher(Batcher),
     Quit,
 }
 
@@ -70,8 +72,8 @@ tumble view keys:
   p            profile: print the stage timings, pair and contact counts, batch histogram
   c            draw contact points and normals
   b            constraint batches: all in colours / one batch at a time / off
-  u            solver on CPU / GPU
-  d            batcher on CPU / GPU
+  u            solver (and its batching) on CPU / GPU
+  d            batcher: greedy colors / the talk's rounds
   w            wireframe / solid
   h            this help
   q, escape    quit
@@ -83,9 +85,6 @@ const DRAG_TURN: f32 = 0.005;
 /// Distance factor per z / x press.
 const ZOOM_STEP: f32 = 0.9;
 
-const GPU_BATCHER_NOT_YET: &str =
-    "GPU batcher not available yet: the step keeps running on the CPU (the switch is remembered)";
-
 /// The viewer's state as the keys and mouse change it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct InputState {
@@ -96,7 +95,7 @@ pub struct InputState {
     pub wireframe: bool,
     pub batches: BatchView,
     pub solver: Executor,
-    pub batcher: Executor,
+    pub batcher: Batcher,
     /// Batches of the last step, for cycling through single batches with `b`.
     pub batch_count: usize,
     /// Where the mouse button went down or the cursor last was while dragging (pixels).
@@ -114,7 +113,7 @@ impl InputState {
             wireframe: false,
             batches: BatchView::Off,
             solver: Executor::Cpu,
-            batcher: Executor::Cpu,
+            batcher: Batcher::default(),
             batch_count: 0,
             drag_from: None,
         }
@@ -184,8 +183,8 @@ impl InputState {
                 Action::Solver(self.solver)
             }
             Key::Char('d') => {
-                self.batcher = self.batcher.toggled();
-                self.gpu_notice(self.batcher, GPU_BATCHER_NOT_YET)
+                self.batcher = self.batcher.next();
+                Action::Batcher(self.batcher)
             }
             Key::Char('h') => Action::Help,
             Key::Char(_) => Action::None,
@@ -210,13 +209,6 @@ impl InputState {
     fn turn(&mut self, yaw: f32, pitch: f32) -> Action {
         self.camera.orbit(yaw, pitch);
         Action::None
-    }
-
-    fn gpu_notice(&self, executor: Executor, notice: &'static str) -> Action {
-        match executor {
-            Executor::Gpu => Action::Notice(notice),
-            Executor::Cpu => Action::None,
-        }
     }
 }
 
@@ -295,16 +287,16 @@ mod tests {
     }
 
     #[test]
-    fn u_switches_the_solver_and_d_the_batcher_which_is_not_on_the_gpu_yet() {
+    fn u_switches_the_solver_and_d_the_batcher() {
         let mut s = state();
         assert_eq!(s.key(Key::Char('u')), Action::Solver(Executor::Gpu));
         assert_eq!(s.solver, Executor::Gpu);
         assert_eq!(s.key(Key::Char('u')), Action::Solver(Executor::Cpu));
         assert_eq!(s.solver, Executor::Cpu);
-        assert!(matches!(s.key(Key::Char('d')), Action::Notice(_)));
-        assert_eq!((s.batcher, s.solver), (Executor::Gpu, Executor::Cpu));
-        s.key(Key::Char('d'));
-        assert_eq!(s.batcher, Executor::Cpu);
+        assert_eq!(s.key(Key::Char('d')), Action::Batcher(Batcher::Rounds));
+        assert_eq!((s.batcher, s.solver), (Batcher::Rounds, Executor::Cpu));
+        assert_eq!(s.key(Key::Char('d')), Action::Batcher(Batcher::Colors));
+        assert_eq!(s.batcher, Batcher::Colors);
     }
 
     #[test]

@@ -177,6 +177,7 @@ impl App<'_> {
                 Ok(world) => {
                     self.world = world;
                     self.put_solver_on(self.input.solver);
+                    self.use_batcher(self.input.batcher);
                 }
                 Err(error) => self.fail(event_loop, error.into()),
             },
@@ -184,7 +185,7 @@ impl App<'_> {
             Action::Step => self.world.step(),
             Action::Help => println!("{HELP}"),
             Action::Profile => self.print_profile(),
-            Action::Notice(text) => println!("{text}"),
+            Action::Batcher(batcher) => self.use_batcher(batcher),
             Action::Quit => event_loop.exit(),
         }
     }
@@ -196,10 +197,23 @@ impl App<'_> {
             Executor::Cpu => (tumble::pipeline::devices::Executor::Cpu, "CPU"),
             Executor::Gpu => (tumble::pipeline::devices::Executor::Gpu, "GPU"),
         };
+        devices.set(tumble::pipeline::devices::Stage::Batching, on);
         devices.set(tumble::pipeline::devices::Stage::Solver, on);
         match self.world.set_stage_devices(devices) {
             Ok(()) => println!("solver on the {name}"),
-            Err(error) => println!("the solver stays on the CPU: {error}"),
+            Err(error) => println!("the solver stays where it was: {error}"),
+        }
+    }
+
+    /// The talk's `d` key: the batcher from the next step.
+    fn use_batcher(&mut self, batcher: tumble::stages::batching::Batcher) {
+        let config = tumble::StepConfig {
+            batcher,
+            ..*self.world.config()
+        };
+        match self.world.set_config(config) {
+            Ok(()) => println!("batcher: {batcher}"),
+            Err(error) => println!("the batcher stays: {error}"),
         }
     }
 

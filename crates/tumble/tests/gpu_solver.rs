@@ -9,7 +9,7 @@ use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use tumble::math::{Quat, Vec3};
 use tumble::pipeline::config::Softness;
 use tumble::shape::Shape;
-use tumble::stages::batching::{Coloring, color_constraints, group_by_batch};
+use tumble::stages::batching::{Batcher, Coloring, color_constraints, group_by_batch};
 use tumble::stages::constraints::{
     ContactConstraint, RowInputs, build_constraints, world_inverse_inertia,
 };
@@ -41,7 +41,13 @@ struct Problem {
     has_overflow: bool,
 }
 
-fn problem(seed: u64, body_count: usize, pair_count: usize, hub: usize) -> Problem {
+fn problem(
+    seed: u64,
+    body_count: usize,
+    pair_count: usize,
+    hub: usize,
+    batcher: Batcher,
+) -> Problem {
     let mut random = Random::new(seed);
     let h = 1.0 / 60.0;
     let mut poses = Vec::new();
@@ -133,6 +139,7 @@ fn problem(seed: u64, body_count: usize, pair_count: usize, hub: usize) -> Probl
     color_constraints(
         constraints.iter().map(|c| (c.body_a, c.body_b)),
         body_count,
+        batcher,
         &mut coloring,
     );
     let (mut contacts, mut offsets) = (Vec::new(), Vec::new());
@@ -185,27 +192,41 @@ fn cpu_solve(
 }
 
 /// How far the CPU's own impulses move (in `close`'s measure) when every input velocity moves
-/// by one ulp: the problem's conditioning, the yardstick for another executor's rounding.
+/// by one ulp: the problem's conditioning, the yardstick for another executor's rounding. The
+/// worst of four patterns of nudges (all up, all down, and up or down by body parity either
+/// way), since one pattern can happen to cancel along a chain of constraints.
 fn cpu_sensitivity(problem: &Problem, settings: SolverSettings, cpu: &[ContactConstraint]) -> f32 {
-    let nudged: Vec<SolverBody> = problem
-        .bodies
-        .iter()
-        .map(|body| SolverBody {
-            linear_velocity: body.linear_velocity.map(f32::next_up),
-            angular_velocity: body.angular_velocity.map(f32::next_up),
-            ..*body
-        })
-        .collect();
-    let (_, moved) = cpu_solve(problem, nudged, settings);
     let mut worst = 0.0f32;
-    for (a, b) in moved.iter().zip(cpu) {
-        for (p, q) in a.points.iter().zip(&b.points) {
-            for (x, y) in [
-                (p.normal.impulse, q.normal.impulse),
-                (p.tangent[0].impulse, q.tangent[0].impulse),
-                (p.tangent[1].impulse, q.tangent[1].impulse),
-            ] {
-                worst = worst.max((x - y).abs() / y.abs().max(1.0));
+    for pattern in 0..4 {
+        let nudged: Vec<SolverBody> = problem
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(index, body)| {
+                let up = match pattern {
+                    0 => true,
+                    1 => false,
+                    2 => index % 2 == 0,
+                    _ => index % 2 == 1,
+                };
+                let nudge = |x: f32| if up { x.next_up() } else { x.next_down() };
+                SolverBody {
+                    linear_velocity: body.linear_velocity.map(nudge),
+                    angular_velocity: body.angular_velocity.map(nudge),
+                    ..*body
+                }
+            })
+            .collect();
+        let (_, moved) = cpu_solve(problem, nudged, settings);
+        for (a, b) in moved.iter().zip(cpu) {
+            for (p, q) in a.points.iter().zip(&b.points) {
+                for (x, y) in [
+                    (p.normal.impulse, q.normal.impulse),
+                    (p.tangent[0].impulse, q.tangent[0].impulse),
+                    (p.tangent[1].impulse, q.tangent[1].impulse),
+                ] {
+                    worst = worst.max((x - y).abs() / y.abs().max(1.0));
+                }
             }
         }
     }
@@ -287,23 +308,25 @@ fn one_iteration() -> SolverSettings {
 
 #[test]
 fn one_iteration_matches_cpu_on_random_contacts() {
-    for (seed, &(bodies, pairs)) in [(1, 0), (2, 1), (10, 30), (101, 257), (3001, 6000)]
-        .iter()
-        .enumerate()
-    {
-        let problem = problem(seed as u64, bodies, pairs, 0);
-        check(
-            &problem,
-            one_iteration(),
-            1e-5,
-            &format!("{bodies} bodies, {pairs} pairs"),
-        );
+    for batcher in Batcher::ALL {
+        for (seed, &(bodies, pairs)) in [(1, 0), (2, 1), (10, 30), (101, 257), (3001, 6000)]
+            .iter()
+            .enumerate()
+        {
+            let problem = problem(seed as u64, bodies, pairs, 0, batcher);
+            check(
+                &problem,
+                one_iteration(),
+                1e-5,
+                &format!("{bodies} bodies, {pairs} pairs, {batcher}"),
+            );
+        }
     }
 }
 
 #[test]
 fn overflow_batch_matches_cpu() {
-    let problem = problem(7, 200, 300, 150);
+    let problem = problem(7, 200, 300, 150, Batcher::Colors);
     assert!(problem.has_overflow, "the hub overflows the 64 colors");
     check(&problem, one_iteration(), 1e-5, "hub of 150 contacts");
 }

@@ -116,3 +116,39 @@ fn the_solver_on_the_gpu_follows_the_cpu() {
 fn the_whole_step_on_the_gpu_follows_the_cpu() {
     follows_the_cpu(&Stage::ALL);
 }
+
+#[test]
+fn rows_on_the_gpu_follow_the_cpu() {
+    follows_the_cpu(&[Stage::Constraints]);
+}
+
+/// Both batchers give the GPU the CPU's colors, so with only the batching on the GPU the two
+/// worlds stay bitwise the same.
+#[test]
+fn batching_on_the_gpu_gives_the_cpu_step_exactly() {
+    let _turn = gpu_common::context();
+    for batcher in tumble::stages::batching::Batcher::ALL {
+        let mut cpu = world_on(&[]);
+        let mut gpu = world_on(&[Stage::Batching]);
+        for world in [&mut cpu, &mut gpu] {
+            let config = StepConfig {
+                batcher,
+                ..*world.config()
+            };
+            world.set_config(config).unwrap();
+        }
+        let bodies: Vec<BodyHandle> = cpu.bodies().collect();
+        for _ in 0..60 {
+            cpu.step();
+            gpu.try_step().unwrap();
+        }
+        assert_eq!(cpu.stats().batch_histogram, gpu.stats().batch_histogram);
+        assert!(
+            cpu.stats().batch_histogram.len() > 1,
+            "{batcher}: no batches to compare"
+        );
+        for &body in &bodies {
+            assert_eq!(cpu.pose(body), gpu.pose(body), "{batcher}");
+        }
+    }
+}

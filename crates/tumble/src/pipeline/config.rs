@@ -1,6 +1,7 @@
 //! Step parameters: what the scene file sets and the tunables of the solver, with units.
 
 use crate::math::Vec3;
+use crate::stages::batching::Batcher;
 
 /// How the world steps. The first four fields come from the scene file; the rest are the
 /// solver's tunables, with defaults that suit metre-sized bodies at 60 Hz.
@@ -42,6 +43,10 @@ pub struct StepConfig {
     /// Whether resting islands go to sleep (see [`crate::dynamics::island`]). Default true;
     /// benchmarks turn it off to time the whole scene.
     pub sleeping: bool,
+    /// How constraints are put into batches for the parallel solver (the talk's `d` key);
+    /// both batchers give the same batches on the CPU and the GPU. Default
+    /// [`Batcher::Colors`].
+    pub batcher: Batcher,
 }
 
 impl Default for StepConfig {
@@ -60,6 +65,7 @@ impl Default for StepConfig {
             restitution_threshold: 1.0,
             aabb_margin: 0.1,
             sleeping: true,
+            batcher: Batcher::Colors,
         }
     }
 }

@@ -30,14 +30,18 @@ pub enum Stage {
     Aabb,
     Broadphase,
     Narrowphase,
+    Constraints,
+    Batching,
     Solver,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 4] = [
+    pub const ALL: [Stage; 6] = [
         Stage::Aabb,
         Stage::Broadphase,
         Stage::Narrowphase,
+        Stage::Constraints,
+        Stage::Batching,
         Stage::Solver,
     ];
 
@@ -46,6 +50,8 @@ impl Stage {
             Stage::Aabb => "aabb",
             Stage::Broadphase => "broadphase",
             Stage::Narrowphase => "narrowphase",
+            Stage::Constraints => "constraints",
+            Stage::Batching => "batching",
             Stage::Solver => "solver",
         }
     }
@@ -62,7 +68,9 @@ pub struct StageDevices {
 pub enum StageDevicesError {
     #[error("{0:?} is not stage=device (e.g. broadphase=gpu)")]
     NotAnAssignment(String),
-    #[error("unknown stage {0:?}; stages are aabb, broadphase, narrowphase, solver")]
+    #[error(
+        "unknown stage {0:?}; stages are aabb, broadphase, narrowphase, constraints, batching, solver"
+    )]
     UnknownStage(String),
     #[error("unknown device {device:?} for {stage}; use cpu or gpu")]
     UnknownDevice { stage: String, device: String },

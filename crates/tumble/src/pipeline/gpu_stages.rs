@@ -1,14 +1,17 @@
 use std::time::Instant;
 
-use crate::dynamics::body::{BodyPose, BodyVelocity, Collider, ColliderData};
+use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::math::Aabb;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
+use crate::stages::batching::gpu::GpuBatching;
+use crate::stages::batching::{Batcher, Coloring};
 use crate::stages::broadphase::gpu::GpuBroadphase;
-use crate::stages::constraints::ContactConstraint;
+use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
+use crate::stages::constraints::{ContactConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact};
 use crate::stages::solver::gpu::GpuSolver;
@@ -34,6 +37,18 @@ const BROADPHASE: StageSpans = StageSpans {
     kernel: &["broadphase", "kernels"],
     wait: &["broadphase", "encode, submit and wait"],
     download: &["broadphase", "copy to cpu"],
+};
+const CONSTRAINTS: StageSpans = StageSpans {
+    upload: &["constraints", "copy to gpu"],
+    kernel: &["constraints", "kernels"],
+    wait: &["constraints", "encode, submit and wait"],
+    download: &["constraints", "copy to cpu"],
+};
+const BATCHING: StageSpans = StageSpans {
+    upload: &["batching", "copy to gpu"],
+    kernel: &["batching", "kernels"],
+    wait: &["batching", "encode, submit and wait"],
+    download: &["batching", "copy to cpu"],
 };
 const SOLVER: StageSpans = StageSpans {
     upload: &["solver", "copy to gpu"],
@@ -74,6 +89,12 @@ pub(crate) struct GpuStages {
     aabbs: GpuVec<Aabb>,
     broadphase: GpuBroadphase,
     narrowphase: GpuNarrowphase,
+    rows: GpuRows,
+    /// The rows' inputs on the device: every manifold slot's key and contact, the masses.
+    row_keys: GpuVec<u64>,
+    row_contacts: GpuVec<PairContact>,
+    masses: GpuVec<BodyMass>,
+    batching: GpuBatching,
     solver: GpuSolver,
     /// The solver's bodies, constraints in batch order and batch offsets on the device.
     solver_bodies: GpuVec<SolverBody>,
@@ -110,6 +131,11 @@ impl GpuStages {
             aabbs: GpuVec::with_capacity(&context, "aabbs", 0)?,
             broadphase: GpuBroadphase::new(&context)?,
             narrowphase: GpuNarrowphase::new(&context),
+            rows: GpuRows::new(&context)?,
+            row_keys: GpuVec::with_capacity(&context, "row keys", 0)?,
+            row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
+            masses: GpuVec::with_capacity(&context, "masses", 0)?,
+            batching: GpuBatching::new(&context)?,
             solver: GpuSolver::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
@@ -278,6 +304,77 @@ impl GpuStages {
 }
 
 impl GpuStages {
+    /// Stage 5 on the GPU for contacts:
+    /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract, the
+    /// manifold slots given as `keys` and `contacts` (pairs, then children).
+    pub fn build_constraints(
+        &mut self,
+        profiler: &mut Profiler,
+        keys: &[u64],
+        contacts: &[PairContact],
+        inputs: &RowInputs,
+        out: &mut Vec<ContactConstraint>,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        self.row_keys.upload(context, keys)?;
+        self.row_contacts.upload(context, contacts)?;
+        self.masses.upload(context, inputs.masses)?;
+        let bodies = BodyInputs {
+            poses: inputs.poses,
+            velocities: inputs.velocities,
+            colliders: inputs.colliders,
+        };
+        upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
+        record_copy(profiler, CONSTRAINTS.upload, elapsed_ms(start));
+        let device_inputs = GpuRowInputs {
+            keys: &self.row_keys,
+            contacts: &self.row_contacts,
+            poses: &self.bodies.poses,
+            velocities: &self.bodies.velocities,
+            masses: &self.masses,
+            colliders: &self.bodies.colliders,
+            softness: inputs.softness,
+            static_softness: inputs.static_softness,
+        };
+        let rows = &mut self.rows;
+        run_pass(
+            context,
+            &mut self.profiler,
+            profiler,
+            &CONSTRAINTS,
+            |pass| rows.encode(context, pass, &device_inputs),
+        )?;
+        let start = Instant::now();
+        self.rows.read_back(context, out)?;
+        record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
+        Ok(())
+    }
+
+    /// Stage 6 on the GPU: [`color_constraints`](crate::stages::batching::color_constraints)'s
+    /// contract (the same colors); the host lays the constraints out by batch.
+    pub fn color_constraints(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: impl Iterator<Item = (u32, u32)>,
+        body_count: usize,
+        batcher: Batcher,
+        coloring: &mut Coloring,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        self.batching.upload(context, bodies)?;
+        record_copy(profiler, BATCHING.upload, elapsed_ms(start));
+        let batching = &mut self.batching;
+        run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
+            batching.encode(context, pass, body_count, batcher)
+        })?;
+        let start = Instant::now();
+        self.batching.read_back(context, coloring)?;
+        record_copy(profiler, BATCHING.download, elapsed_ms(start));
+        Ok(())
+    }
+
     /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract for contacts
     /// (the caller keeps steps with joints on the CPU: joint rows have no kernel yet).
     pub fn solve(

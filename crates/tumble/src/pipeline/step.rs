@@ -23,6 +23,9 @@ pub(crate) struct StepScratch {
     /// Which bodies a GPU broadphase puts in its static tree.
     is_static: Vec<bool>,
     pair_keys: Vec<u64>,
+    /// Every manifold slot's key and contact (pairs, then children), for GPU rows.
+    slot_keys: Vec<u64>,
+    slot_contacts: Vec<narrowphase::PairContact>,
     inverse_inertia: Vec<Mat3>,
     contacts: Vec<ContactConstraint>,
     joints: Vec<JointConstraint>,
@@ -179,13 +182,39 @@ impl World {
             softness,
             static_softness,
         };
-        build_constraints(
-            self.pairs.keys(),
-            self.pairs.values(),
-            &self.children,
-            &inputs,
-            &mut scratch.contacts,
-        );
+        match (self.devices.get(Stage::Constraints), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) => {
+                // The GPU reads every manifold slot from one array: pairs, then children.
+                scratch.slot_keys.clear();
+                scratch.slot_keys.extend_from_slice(self.pairs.keys());
+                scratch
+                    .slot_keys
+                    .extend(self.children.keys().iter().map(|&(key, _)| key));
+                scratch.slot_contacts.clear();
+                scratch.slot_contacts.extend_from_slice(self.pairs.values());
+                scratch
+                    .slot_contacts
+                    .extend_from_slice(self.children.values());
+                let built = gpu.build_constraints(
+                    profiler,
+                    &scratch.slot_keys,
+                    &scratch.slot_contacts,
+                    &inputs,
+                    &mut scratch.contacts,
+                );
+                if built.is_err() {
+                    profiler.end();
+                }
+                built?;
+            }
+            _ => build_constraints(
+                self.pairs.keys(),
+                self.pairs.values(),
+                &self.children,
+                &inputs,
+                &mut scratch.contacts,
+            ),
+        }
         build_joint_constraints(
             &self.joints,
             &self.poses,
@@ -211,35 +240,55 @@ impl World {
         profiler.end();
 
         // 6. Batching: joints and contacts colored together, then laid out batch after batch.
-        profiler.scope("batching", || {
-            let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
-            let bodies = bodies.chain(scratch.contacts.iter().map(|c| (c.body_a, c.body_b)));
-            color_constraints(bodies, self.poses.len(), &mut scratch.coloring);
-            let (joint_colors, contact_colors) =
-                scratch.coloring.colors.split_at(scratch.joints.len());
-            let coloring = &scratch.coloring;
-            group_by_batch(
-                &scratch.joints,
-                joint_colors,
-                coloring,
-                &mut scratch.batched_joints,
-                &mut scratch.joint_offsets,
-            );
-            group_by_batch(
-                &scratch.contacts,
-                contact_colors,
-                coloring,
-                &mut scratch.batched_contacts,
-                &mut scratch.contact_offsets,
-            );
-            // Which batch each pair's manifold went to, for the viewer's colored batches.
-            self.pair_batches.clear();
-            self.pair_batches
-                .resize(self.pairs.len() + self.children.len(), NO_BATCH);
-            for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
-                self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
+        profiler.begin("batching");
+        let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
+        let bodies = bodies.chain(scratch.contacts.iter().map(|c| (c.body_a, c.body_b)));
+        let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
+                profiler,
+                bodies,
+                self.poses.len(),
+                config.batcher,
+                &mut scratch.coloring,
+            ),
+            _ => {
+                color_constraints(
+                    bodies,
+                    self.poses.len(),
+                    config.batcher,
+                    &mut scratch.coloring,
+                );
+                Ok(())
             }
-        });
+        };
+        if colored.is_err() {
+            profiler.end();
+        }
+        colored?;
+        let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(scratch.joints.len());
+        let coloring = &scratch.coloring;
+        group_by_batch(
+            &scratch.joints,
+            joint_colors,
+            coloring,
+            &mut scratch.batched_joints,
+            &mut scratch.joint_offsets,
+        );
+        group_by_batch(
+            &scratch.contacts,
+            contact_colors,
+            coloring,
+            &mut scratch.batched_contacts,
+            &mut scratch.contact_offsets,
+        );
+        // Which batch each pair's manifold went to, for the viewer's colored batches.
+        self.pair_batches.clear();
+        self.pair_batches
+            .resize(self.pairs.len() + self.children.len(), NO_BATCH);
+        for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
+            self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
+        }
+        profiler.end();
 
         // 7. Solver: the soft step's sub-steps over the batches.
         profiler.begin("solver");

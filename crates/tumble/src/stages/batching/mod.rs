@@ -2,24 +2,105 @@
 //! the constraints of one batch share no dynamic body and can be solved in parallel. Contacts
 //! and joints are colored together: a batch holds both kinds.
 //!
-//! Greedy coloring in constraint order: each constraint takes the lowest color that none of its
-//! dynamic bodies has used yet (per-body 64-bit color masks, as Box2D v3's constraint graph).
-//! This is exactly the talk's `kSetupBatches` scheme run deterministically: round k walks the
-//! unassigned constraints in order and a constraint joins batch k when both its bodies are still
-//! free in that round — by induction a constraint lands in round k iff k is the lowest color
-//! unused by the earlier constraints on its bodies. Batch sizes therefore fall off like the
-//! histograms on the talk's screens (0: 1064, 1: 909, ...).
+//! Both batchers (the talk's `d` key, [`Batcher`]) work in rounds that a GPU runs as two
+//! dispatches each, and the CPU executor here runs the same rounds, so both executors give
+//! the same batches. In a round every constraint not yet batched claims its dynamic bodies,
+//! and a constraint wins when it has the highest priority (the lowest [`priority`] value) on
+//! each of them — the talk's per-body locks, made deterministic. Winners share no body, so
+//! they are batched together:
+//! - [`Batcher::Rounds`] (the talk's `kSetupBatches`): round k's winners are batch k.
+//! - [`Batcher::Colors`]: a winner takes the lowest color that none of its bodies has yet
+//!   (per-body 64-bit masks, as Box2D v3's constraint graph), so later rounds fill earlier
+//!   batches. This is greedy coloring in priority order (when a constraint wins, every
+//!   constraint before it on its bodies has a color), so it needs far fewer batches.
+//!
+//! Priorities are a bijective hash of the constraint index: in index order (pair keys,
+//! spatially sorted) chains of constraints sharing bodies would let one constraint in a
+//! chain win per round; hashed, a round batches most of what it could.
 //!
 //! Guarantees: no two constraints of a normal batch share a dynamic body (static bodies,
 //! [`STATIC_BODY`], never conflict); every constraint gets a batch; the result depends only on
-//! the constraint order. A constraint whose bodies have used all [`MAX_COLORS`] colors goes to
-//! a final overflow batch, which the solver walks sequentially (still Gauss-Seidel, just not
-//! parallel).
+//! the constraint order and the batcher. A constraint still unbatched after [`MAX_ROUNDS`]
+//! rounds, or whose bodies have used all [`MAX_COLORS`] colors, goes to a final overflow
+//! batch, which the solver walks sequentially (still Gauss-Seidel, just not parallel).
+
+pub mod gpu;
+
+use std::fmt;
+use std::str::FromStr;
 
 use crate::stages::constraints::STATIC_BODY;
 
 /// Colors tracked per body (bits of a `u64` mask).
 pub const MAX_COLORS: usize = 64;
+
+/// Rounds before the constraints still unbatched go to the overflow batch. `Rounds` makes
+/// one batch a round, so it is the same limit as [`MAX_COLORS`].
+pub const MAX_ROUNDS: usize = MAX_COLORS;
+
+/// How constraints are put into batches (the talk's `d` key).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Batcher {
+    /// The talk's `kSetupBatches`: batch k holds round k's winners.
+    Rounds,
+    /// Greedy coloring with per-body color masks: a winner takes its bodies' lowest free color.
+    #[default]
+    Colors,
+}
+
+impl Batcher {
+    pub const ALL: [Batcher; 2] = [Batcher::Rounds, Batcher::Colors];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Batcher::Rounds => "rounds",
+            Batcher::Colors => "colors",
+        }
+    }
+
+    /// The other batcher (the viewer's `d` key).
+    pub fn next(self) -> Self {
+        match self {
+            Batcher::Rounds => Batcher::Colors,
+            Batcher::Colors => Batcher::Rounds,
+        }
+    }
+}
+
+impl fmt::Display for Batcher {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A batcher name that is none of [`Batcher::ALL`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown batcher {0:?}; batchers are rounds, colors")]
+pub struct UnknownBatcher(pub String);
+
+impl FromStr for Batcher {
+    type Err = UnknownBatcher;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        Batcher::ALL
+            .into_iter()
+            .find(|batcher| batcher.name() == name)
+            .ok_or_else(|| UnknownBatcher(name.to_owned()))
+    }
+}
+
+/// A constraint's priority in the rounds (lower wins): a bijective 32-bit hash of its index
+/// (xor-shifts and odd multipliers, each invertible), so no two constraints tie. The WGSL
+/// twin is `priority` in `batching.wgsl`.
+#[inline]
+pub fn priority(index: u32) -> u32 {
+    let mut x = index;
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
 
 /// The color of every constraint, and how many constraints each color has.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -32,8 +113,12 @@ pub struct Coloring {
     pub has_overflow: bool,
     /// Constraints per batch: the talk's batch histogram.
     pub histogram: Vec<u32>,
-    /// Per-body color mask, kept to avoid allocation per step.
+    /// Scratch kept to avoid allocation per step: the constraints' bodies, the per-body
+    /// color masks and locks, the constraints not yet batched.
+    bodies: Vec<[u32; 2]>,
     masks: Vec<u64>,
+    locks: Vec<u32>,
+    remaining: Vec<u32>,
 }
 
 impl Coloring {
@@ -46,55 +131,104 @@ impl Coloring {
             color as usize
         }
     }
+
+    /// Sets the batch count, overflow flag and histogram from `colors` (whichever executor
+    /// wrote them). Colors below [`MAX_COLORS`] are used without gaps: both batchers only
+    /// ever take color k when some constraint already has color k − 1.
+    pub fn count_batches(&mut self) {
+        let mut counts = [0u32; MAX_COLORS + 1];
+        for &color in &self.colors {
+            counts[color as usize] += 1;
+        }
+        let used_colors = counts[..MAX_COLORS]
+            .iter()
+            .rposition(|&n| n > 0)
+            .map_or(0, |c| c + 1);
+        debug_assert!(counts[..used_colors].iter().all(|&n| n > 0), "a color gap");
+        self.has_overflow = counts[MAX_COLORS] > 0;
+        self.batch_count = used_colors + self.has_overflow as usize;
+        self.histogram.clear();
+        self.histogram.extend_from_slice(&counts[..used_colors]);
+        if self.has_overflow {
+            self.histogram.push(counts[MAX_COLORS]);
+        }
+    }
 }
 
 /// CPU executor: colors constraints given as (body A, body B) in solve order; bodies are
-/// indexed below `body_count` or are [`STATIC_BODY`].
+/// indexed below `body_count` or are [`STATIC_BODY`]. The rounds of the module docs, one
+/// after the other; within a round the winners are independent, so walking them in order
+/// gives what the GPU's parallel threads give.
 pub fn color_constraints(
     bodies: impl Iterator<Item = (u32, u32)>,
     body_count: usize,
+    batcher: Batcher,
     coloring: &mut Coloring,
 ) {
-    coloring.masks.clear();
-    coloring.masks.resize(body_count, 0);
-    coloring.colors.clear();
-    let mut counts = [0u32; MAX_COLORS + 1];
-    let overflow = MAX_COLORS as u8;
-    for (a, b) in bodies {
-        let mask_of = |masks: &[u64], body: u32| {
-            if body == STATIC_BODY {
-                0
-            } else {
-                masks[body as usize]
-            }
-        };
-        let used = mask_of(&coloring.masks, a) | mask_of(&coloring.masks, b);
-        let color = if used == u64::MAX {
-            overflow
-        } else {
-            (!used).trailing_zeros() as u8
-        };
-        if color != overflow {
-            for body in [a, b] {
-                if body != STATIC_BODY {
-                    coloring.masks[body as usize] |= 1 << color;
-                }
+    const UNBATCHED: u8 = u8::MAX;
+    const OVERFLOW: u8 = MAX_COLORS as u8;
+    let Coloring {
+        colors,
+        bodies: pairs,
+        masks,
+        locks,
+        remaining,
+        ..
+    } = coloring;
+    pairs.clear();
+    pairs.extend(bodies.map(|(a, b)| [a, b]));
+    colors.clear();
+    colors.resize(pairs.len(), UNBATCHED);
+    masks.clear();
+    masks.resize(body_count, 0);
+    locks.clear();
+    locks.resize(body_count, u32::MAX);
+    remaining.clear();
+    remaining.extend(0..pairs.len() as u32);
+    let dynamic = |pair: [u32; 2]| pair.into_iter().filter(|&body| body != STATIC_BODY);
+
+    for round in 0..MAX_ROUNDS {
+        if remaining.is_empty() {
+            break;
+        }
+        for &c in remaining.iter() {
+            for body in dynamic(pairs[c as usize]) {
+                let lock = &mut locks[body as usize];
+                *lock = (*lock).min(priority(c));
             }
         }
-        coloring.colors.push(color);
-        counts[color as usize] += 1;
+        for &c in remaining.iter() {
+            let pair = pairs[c as usize];
+            if !dynamic(pair).all(|body| locks[body as usize] == priority(c)) {
+                continue;
+            }
+            colors[c as usize] = match batcher {
+                Batcher::Rounds => round as u8,
+                Batcher::Colors => {
+                    let used = dynamic(pair).fold(0, |used, body| used | masks[body as usize]);
+                    if used == u64::MAX {
+                        OVERFLOW
+                    } else {
+                        let color = (!used).trailing_zeros();
+                        for body in dynamic(pair) {
+                            masks[body as usize] |= 1 << color;
+                        }
+                        color as u8
+                    }
+                }
+            };
+        }
+        for &c in remaining.iter() {
+            for body in dynamic(pairs[c as usize]) {
+                locks[body as usize] = u32::MAX;
+            }
+        }
+        remaining.retain(|&c| colors[c as usize] == UNBATCHED);
     }
-    let used_colors = counts[..MAX_COLORS]
-        .iter()
-        .rposition(|&n| n > 0)
-        .map_or(0, |c| c + 1);
-    coloring.has_overflow = counts[MAX_COLORS] > 0;
-    coloring.batch_count = used_colors + coloring.has_overflow as usize;
-    coloring.histogram.clear();
-    coloring.histogram.extend_from_slice(&counts[..used_colors]);
-    if coloring.has_overflow {
-        coloring.histogram.push(counts[MAX_COLORS]);
+    for &c in remaining.iter() {
+        colors[c as usize] = OVERFLOW;
     }
+    coloring.count_batches();
 }
 
 /// Lays `items` out batch after batch (a stable counting sort by batch): batch `i` becomes
@@ -154,81 +288,165 @@ mod tests {
             .collect()
     }
 
+    fn random_edges(state: &mut u64, bodies: usize, count: usize) -> Vec<(u32, u32)> {
+        (0..count)
+            .map(|_| {
+                let a = (next(state) % bodies as u64) as u32;
+                // A quarter of the constraints are against a static body; none of a body with itself.
+                let b = (next(state) % bodies as u64) as u32;
+                if next(state).is_multiple_of(4) || a == b {
+                    (a, STATIC_BODY)
+                } else {
+                    (a, b)
+                }
+            })
+            .collect()
+    }
+
     #[test]
     fn talk_example_four_bodies() {
         // The slide: constraints 1 (A,B), 2 (B,C), 3 (C,D), 4 (A,D) → batches {1,3} and {2,4}.
         let edges = [(0, 1), (1, 2), (2, 3), (0, 3)];
         let mut coloring = Coloring::default();
-        color_constraints(edges.into_iter(), 4, &mut coloring);
+        color_constraints(edges.into_iter(), 4, Batcher::Colors, &mut coloring);
         assert_eq!(batches_of(&coloring), [vec![0, 2], vec![1, 3]]);
         assert_eq!(coloring.histogram, [2, 2]);
     }
 
     #[test]
-    fn random_graphs_batches_share_no_dynamic_body() {
-        let mut state = 0x9e37_79b9_7f4a_7c15;
-        for &(bodies, count) in &[
-            (1usize, 0usize),
-            (2, 1),
-            (10, 200),
-            (1000, 5000),
-            (20_000, 100_000),
-            (200_000, 1_000_000),
-        ] {
-            let edges: Vec<(u32, u32)> = (0..count)
-                .map(|_| {
-                    let a = (next(&mut state) % bodies as u64) as u32;
-                    // A quarter of the constraints are against a static body; none of a body with itself.
-                    let b = (next(&mut state) % bodies as u64) as u32;
-                    if next(&mut state).is_multiple_of(4) || a == b {
-                        (a, STATIC_BODY)
-                    } else {
-                        (a, b)
-                    }
-                })
-                .collect();
+    fn priorities_are_distinct() {
+        let mut seen: Vec<u32> = (0..1 << 20).map(priority).collect();
+        seen.sort_unstable();
+        assert!(seen.windows(2).all(|w| w[0] < w[1]));
+    }
+
+    /// `Colors` is sequential greedy coloring in priority order when nothing overflows.
+    #[test]
+    fn colors_equal_greedy_coloring_in_priority_order() {
+        let mut state = 0x2545_f491_4f6c_dd1d;
+        for &(bodies, count) in &[(10usize, 30usize), (1000, 3000), (5000, 20_000)] {
+            let edges = random_edges(&mut state, bodies, count);
             let mut coloring = Coloring::default();
-            color_constraints(edges.iter().copied(), bodies, &mut coloring);
-            let batches = batches_of(&coloring);
-            assert_eq!(
-                batches.iter().map(Vec::len).collect::<Vec<_>>(),
-                coloring
-                    .histogram
-                    .iter()
-                    .map(|&n| n as usize)
-                    .collect::<Vec<_>>()
+            color_constraints(
+                edges.iter().copied(),
+                bodies,
+                Batcher::Colors,
+                &mut coloring,
             );
-            let mut seen = vec![false; count];
-            for (batch, members) in batches.iter().enumerate() {
-                let is_overflow = coloring.has_overflow && batch + 1 == batches.len();
-                let mut used = std::collections::HashSet::new();
-                for &c in members {
-                    assert!(!seen[c], "constraint in two batches");
-                    seen[c] = true;
-                    for body in [edges[c].0, edges[c].1] {
-                        assert!(
-                            is_overflow || body == STATIC_BODY || used.insert(body),
-                            "body {body} twice in batch {batch}"
-                        );
+            assert!(!coloring.has_overflow);
+            let mut order: Vec<u32> = (0..count as u32).collect();
+            order.sort_by_key(|&c| priority(c));
+            let mut masks = vec![0u64; bodies];
+            for c in order {
+                let (a, b) = edges[c as usize];
+                let mask = |body: u32| {
+                    if body == STATIC_BODY {
+                        0
+                    } else {
+                        masks[body as usize]
                     }
+                };
+                let color = (!(mask(a) | mask(b))).trailing_zeros();
+                assert_eq!(coloring.colors[c as usize] as u32, color, "constraint {c}");
+                for body in [a, b].into_iter().filter(|&body| body != STATIC_BODY) {
+                    masks[body as usize] |= 1 << color;
                 }
-                assert!(
-                    members.windows(2).all(|w| w[0] < w[1]),
-                    "a batch keeps constraint order"
-                );
             }
-            assert!(seen.iter().all(|&s| s), "every constraint gets a batch");
         }
     }
 
     #[test]
+    fn random_graphs_batches_share_no_dynamic_body() {
+        let mut state = 0x9e37_79b9_7f4a_7c15;
+        for batcher in Batcher::ALL {
+            for &(bodies, count) in &[
+                (1usize, 0usize),
+                (2, 1),
+                (10, 200),
+                (1000, 5000),
+                (20_000, 100_000),
+                (200_000, 1_000_000),
+            ] {
+                let edges = random_edges(&mut state, bodies, count);
+                let mut coloring = Coloring::default();
+                color_constraints(edges.iter().copied(), bodies, batcher, &mut coloring);
+                check_batches(&edges, &coloring);
+            }
+        }
+    }
+
+    /// The guarantees of the module docs, for any coloring of `edges`.
+    fn check_batches(edges: &[(u32, u32)], coloring: &Coloring) {
+        let batches = batches_of(coloring);
+        assert_eq!(
+            batches.iter().map(Vec::len).collect::<Vec<_>>(),
+            coloring
+                .histogram
+                .iter()
+                .map(|&n| n as usize)
+                .collect::<Vec<_>>()
+        );
+        let mut seen = vec![false; edges.len()];
+        for (batch, members) in batches.iter().enumerate() {
+            assert!(!members.is_empty(), "batch {batch} is empty");
+            let is_overflow = coloring.has_overflow && batch + 1 == batches.len();
+            let mut used = std::collections::HashSet::new();
+            for &c in members {
+                assert!(!seen[c], "constraint in two batches");
+                seen[c] = true;
+                for body in [edges[c].0, edges[c].1] {
+                    assert!(
+                        is_overflow || body == STATIC_BODY || used.insert(body),
+                        "body {body} twice in batch {batch}"
+                    );
+                }
+            }
+            assert!(
+                members.windows(2).all(|w| w[0] < w[1]),
+                "a batch keeps constraint order"
+            );
+        }
+        assert!(seen.iter().all(|&s| s), "every constraint gets a batch");
+    }
+
+    #[test]
     fn a_body_with_more_than_64_constraints_overflows_into_a_sequential_batch() {
+        // All 70 share body 0: one wins each round, and the 6 of lowest priority are left.
         let edges: Vec<(u32, u32)> = (1..=70).map(|other| (0, other)).collect();
-        let mut coloring = Coloring::default();
-        color_constraints(edges.into_iter(), 71, &mut coloring);
-        assert!(coloring.has_overflow);
-        assert_eq!(coloring.batch_count, 65);
-        assert_eq!(coloring.histogram.iter().sum::<u32>(), 70);
-        assert_eq!(batches_of(&coloring)[64], [64, 65, 66, 67, 68, 69]);
+        let mut by_priority: Vec<usize> = (0..70).collect();
+        by_priority.sort_by_key(|&c| priority(c as u32));
+        let mut last_six = by_priority[64..].to_vec();
+        last_six.sort_unstable();
+        for batcher in Batcher::ALL {
+            let mut coloring = Coloring::default();
+            color_constraints(edges.iter().copied(), 71, batcher, &mut coloring);
+            assert!(coloring.has_overflow);
+            assert_eq!(coloring.batch_count, 65);
+            assert_eq!(coloring.histogram.iter().sum::<u32>(), 70);
+            assert_eq!(batches_of(&coloring)[64], last_six);
+            check_batches(&edges, &coloring);
+        }
+    }
+
+    #[test]
+    fn colors_need_fewer_batches_than_rounds() {
+        let mut state = 0x1234_5678_9abc_def1;
+        let edges = random_edges(&mut state, 20_000, 100_000);
+        let batches = |batcher| {
+            let mut coloring = Coloring::default();
+            color_constraints(edges.iter().copied(), 20_000, batcher, &mut coloring);
+            coloring.batch_count
+        };
+        let (rounds, colors) = (batches(Batcher::Rounds), batches(Batcher::Colors));
+        assert!(colors < rounds, "colors {colors}, rounds {rounds}");
+    }
+
+    #[test]
+    fn batcher_names_round_trip() {
+        for batcher in Batcher::ALL {
+            assert_eq!(batcher.name().parse(), Ok(batcher));
+            assert_ne!(batcher.next(), batcher);
+        }
+        assert!("greedy".parse::<Batcher>().is_err());
     }
 }

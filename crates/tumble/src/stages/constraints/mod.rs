@@ -2,6 +2,7 @@
 //! the joints ([`joint`]). Both are solved together by the same batched solver.
 
 pub mod contact;
+pub mod gpu;
 pub mod joint;
 
 pub use contact::{

@@ -1,0 +1,163 @@
+// Batching rounds (see `stages/batching/mod.rs`): in each round every unbatched constraint
+// claims its dynamic bodies with its priority (atomicMin into the round's half of `locks`),
+// then the constraints that hold all their bodies' locks are batched. The constants
+// MAX_COLORS, STATIC_BODY and the batcher ids come from Rust.
+
+struct BatchParams {
+    count: u32,
+    body_count: u32,
+    round: u32,
+    batcher: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: BatchParams;
+// Per constraint: its two bodies (STATIC_BODY for a static one).
+@group(0) @binding(1) var<storage, read> bodies: array<vec2<u32>>;
+// Per constraint: its color, UNBATCHED until a round batches it, MAX_COLORS for overflow.
+@group(0) @binding(2) var<storage, read_write> colors: array<u32>;
+// Two halves of body_count locks: round r claims half r % 2 and resets the other half for
+// round r + 1, so no dispatch both claims and clears one lock.
+@group(0) @binding(3) var<storage, read_write> locks: array<atomic<u32>>;
+// Per body: the colors its constraints have (low word, high word).
+@group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
+// Constraints per color (MAX_COLORS + 1 with the overflow), then the batched count.
+@group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
+
+const UNBATCHED: u32 = 0xffffffffu;
+const NO_LOCK: u32 = 0xffffffffu;
+const BATCHED_SLOT: u32 = MAX_COLORS + 1u;
+
+// Twin of `priority` in `mod.rs`: a bijective hash of the constraint index.
+fn priority(index: u32) -> u32 {
+    var x = index;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    return x ^ (x >> 16u);
+}
+
+fn thread_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + id.x;
+}
+
+// Every round's kernels return at once when all constraints have a batch: the rounds are
+// encoded up to MAX_ROUNDS, most of them usually find nothing left.
+fn all_batched() -> bool {
+    return atomicLoad(&counts[BATCHED_SLOT]) == params.count;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn start(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let i = thread_index(id, workgroup, groups);
+    if i < params.count {
+        colors[i] = UNBATCHED;
+    }
+    if i < params.body_count {
+        atomicStore(&locks[i], NO_LOCK);
+        atomicStore(&locks[params.body_count + i], NO_LOCK);
+        masks[i] = vec2<u32>(0u);
+    }
+    if i <= BATCHED_SLOT {
+        atomicStore(&counts[i], 0u);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn claim(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let i = thread_index(id, workgroup, groups);
+    if all_batched() || i >= params.count || colors[i] != UNBATCHED {
+        return;
+    }
+    let half = (params.round % 2u) * params.body_count;
+    let pair = bodies[i];
+    let p = priority(i);
+    for (var k = 0u; k < 2u; k++) {
+        if pair[k] != STATIC_BODY {
+            atomicMin(&locks[half + pair[k]], p);
+        }
+    }
+}
+
+// The lowest color in neither mask, or MAX_COLORS when all 64 are taken.
+fn lowest_free_color(used: vec2<u32>) -> u32 {
+    if used.x != 0xffffffffu {
+        return firstTrailingBit(~used.x);
+    }
+    if used.y != 0xffffffffu {
+        return 32u + firstTrailingBit(~used.y);
+    }
+    return MAX_COLORS;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn commit(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let i = thread_index(id, workgroup, groups);
+    if all_batched() || i >= params.count || colors[i] != UNBATCHED {
+        return;
+    }
+    let half = (params.round % 2u) * params.body_count;
+    let next_half = params.body_count - half;
+    let pair = bodies[i];
+    let p = priority(i);
+    var won = true;
+    for (var k = 0u; k < 2u; k++) {
+        if pair[k] != STATIC_BODY {
+            won = won && atomicLoad(&locks[half + pair[k]]) == p;
+            atomicStore(&locks[next_half + pair[k]], NO_LOCK);
+        }
+    }
+    if !won {
+        return;
+    }
+    // Winners share no body, so only this thread reads and writes these masks.
+    var color = params.round;
+    if params.batcher == BATCHER_COLORS {
+        var used = vec2<u32>(0u);
+        for (var k = 0u; k < 2u; k++) {
+            if pair[k] != STATIC_BODY {
+                used |= masks[pair[k]];
+            }
+        }
+        color = lowest_free_color(used);
+        if color < MAX_COLORS {
+            var bit = vec2<u32>(0u);
+            bit[color / 32u] = 1u << (color % 32u);
+            for (var k = 0u; k < 2u; k++) {
+                if pair[k] != STATIC_BODY {
+                    masks[pair[k]] |= bit;
+                }
+            }
+        }
+    }
+    colors[i] = color;
+    atomicAdd(&counts[color], 1u);
+    atomicAdd(&counts[BATCHED_SLOT], 1u);
+}
+
+// After the last round: what is left goes to the overflow batch.
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn finish(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let i = thread_index(id, workgroup, groups);
+    if i >= params.count || colors[i] != UNBATCHED {
+        return;
+    }
+    colors[i] = MAX_COLORS;
+    atomicAdd(&counts[MAX_COLORS], 1u);
+}

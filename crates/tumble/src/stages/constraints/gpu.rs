@@ -1,0 +1,201 @@
+//! GPU executor of the contact rows: [`build_constraints`](super::build_constraints)'s contract
+//! for contacts (joints stay CPU rows), with the kernels of `rows.wgsl`: flag the slots that get
+//! a constraint, scan the flags into places (the CPU's order), build each constraint at its
+//! place. Three dispatch groups; the constraint count stays on the device (the scan's last
+//! entry) until a caller reads it.
+
+use bytemuck::{Pod, Zeroable};
+
+use super::{CONTACT_CONSTRAINT_WGSL, ContactConstraint};
+use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity, ColliderData};
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
+};
+use crate::gpu::prims::scan::{Scan, ScanKind};
+use crate::pipeline::config::Softness;
+use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
+
+const WGSL: &str = include_str!("rows.wgsl");
+const BINDINGS: [Binding; 9] = [
+    Binding::Uniform,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+];
+
+/// Mirrors `RowParams` in `rows.wgsl`: each softness as (bias rate, mass scale, impulse
+/// scale, unused).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct RowParams {
+    pub softness: [f32; 4],
+    pub static_softness: [f32; 4],
+    pub slot_count: u32,
+    pub padding: [u32; 3],
+}
+
+fn softness_vec(softness: Softness) -> [f32; 4] {
+    [
+        softness.bias_rate,
+        softness.mass_scale,
+        softness.impulse_scale,
+        0.0,
+    ]
+}
+
+pub fn wgsl() -> Source {
+    Source::new()
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
+        .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
+        .snippet("rows.wgsl", WGSL)
+}
+
+/// The device inputs of the rows: one key and manifold per slot (pairs, then children), and
+/// the body arrays.
+pub struct GpuRowInputs<'a> {
+    pub keys: &'a GpuVec<u64>,
+    pub contacts: &'a GpuVec<PairContact>,
+    pub poses: &'a GpuVec<BodyPose>,
+    pub velocities: &'a GpuVec<BodyVelocity>,
+    pub masses: &'a GpuVec<BodyMass>,
+    pub colliders: &'a GpuVec<ColliderData>,
+    pub softness: Softness,
+    pub static_softness: Softness,
+}
+
+/// What the cached dispatches were built for: the buffers bound and the parameters.
+type RowKey = ([wgpu::Buffer; 9], usize, [u32; 12]);
+
+#[derive(Debug)]
+pub struct GpuRows {
+    flags: GpuVec<u32>,
+    /// Exclusive scan of the flags: each constraint's place; entry `slots` is the count.
+    places: GpuVec<u32>,
+    /// One per slot at most; the first `count` are the constraints.
+    pub constraints: GpuVec<ContactConstraint>,
+    scan: Scan,
+    cached: Option<(RowKey, [Dispatch; 2])>,
+    host_places: Vec<u32>,
+}
+
+impl GpuRows {
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            flags: GpuVec::with_capacity(context, "row flags", 0)?,
+            places: GpuVec::with_capacity(context, "row places", 0)?,
+            constraints: GpuVec::with_capacity(context, "contact constraints", 0)?,
+            scan: Scan::new(),
+            cached: None,
+            host_places: Vec::new(),
+        })
+    }
+
+    /// Encodes the rows of every slot of `inputs` into `constraints` (room for one per slot).
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        inputs: &GpuRowInputs,
+    ) -> Result<(), GpuError> {
+        let slots = inputs.keys.len();
+        debug_assert_eq!(inputs.contacts.len(), slots, "one manifold per key");
+        self.flags.resize(context, slots + 1)?;
+        self.places.resize(context, slots + 1)?;
+        self.constraints.resize(context, slots)?;
+        let buffers = [
+            inputs.keys.buffer().clone(),
+            inputs.contacts.buffer().clone(),
+            inputs.masses.buffer().clone(),
+            inputs.poses.buffer().clone(),
+            inputs.velocities.buffer().clone(),
+            inputs.colliders.buffer().clone(),
+            self.flags.buffer().clone(),
+            self.places.buffer().clone(),
+            self.constraints.buffer().clone(),
+        ];
+        let params = RowParams {
+            softness: softness_vec(inputs.softness),
+            static_softness: softness_vec(inputs.static_softness),
+            slot_count: slots as u32,
+            padding: [0; 3],
+        };
+        let words: [u32; 12] = bytemuck::cast(params);
+        let key = (buffers, slots, words);
+        if self
+            .cached
+            .as_ref()
+            .is_none_or(|(cached, _)| *cached != key)
+        {
+            let dispatches = self.dispatches(context, inputs, params);
+            self.cached = Some((key, dispatches));
+        }
+        let Some((_, [flag, build])) = &self.cached else {
+            unreachable!("cached above")
+        };
+        flag.encode(pass);
+        self.scan.encode(
+            context,
+            pass,
+            &self.flags,
+            &mut self.places,
+            ScanKind::Exclusive,
+        )?;
+        build.encode(pass);
+        Ok(())
+    }
+
+    fn dispatches(
+        &self,
+        context: &GpuContext,
+        inputs: &GpuRowInputs,
+        params: RowParams,
+    ) -> [Dispatch; 2] {
+        let source = wgsl();
+        let slots = UniformSlots::new(context, "row params", &[params]);
+        let bind = |entry: &str, places: &GpuVec<u32>| {
+            let kernel = Kernel::new(context, &format!("rows {entry}"), &source, entry, &BINDINGS);
+            let group = kernel.bind(
+                context,
+                &[
+                    slots.binding(0),
+                    inputs.keys.whole(),
+                    inputs.contacts.whole(),
+                    inputs.masses.whole(),
+                    places.whole(),
+                    inputs.poses.whole(),
+                    inputs.velocities.whole(),
+                    inputs.colliders.whole(),
+                    self.constraints.whole(),
+                ],
+            );
+            // `flag` also writes the closing 0 past the last slot.
+            let threads = params.slot_count as usize + 1;
+            kernel.dispatch(group, workgroups_for(threads, WORKGROUP_SIZE))
+        };
+        [bind("flag", &self.flags), bind("build", &self.places)]
+    }
+
+    /// Reads the built constraints back (after the encoded pass ran) into `out`.
+    pub fn read_back(
+        &mut self,
+        context: &GpuContext,
+        out: &mut Vec<ContactConstraint>,
+    ) -> Result<(), GpuError> {
+        self.places.download_into(context, &mut self.host_places)?;
+        let count = self.host_places.last().copied().unwrap_or(0) as usize;
+        let slots = self.constraints.len();
+        // The vector's length becomes the count, so only the constraints come back.
+        self.constraints.resize(context, count)?;
+        let result = self.constraints.download_into(context, out);
+        self.constraints.resize(context, slots)?;
+        result
+    }
+}

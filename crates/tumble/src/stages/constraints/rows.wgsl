@@ -1,0 +1,160 @@
+// Contact rows on the GPU: the twin of build_constraints in contact.rs (read its docs for the
+// formulas). One thread per manifold slot (pairs, then children): `flag` marks the slots
+// that get a constraint, an exclusive scan of the flags gives each one its place (the CPU's
+// order), and `build` writes it there.
+
+// Softness as (bias_rate, mass_scale, impulse_scale, unused): a struct member of a uniform
+// block would be padded to 16 bytes anyway.
+struct RowParams {
+    softness: vec4<f32>,
+    static_softness: vec4<f32>,
+    slot_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: RowParams;
+// Per slot: the pair key (body a in the high word, b in the low) and its manifold.
+@group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
+@group(0) @binding(2) var<storage, read> contacts: array<PairContact>;
+@group(0) @binding(3) var<storage, read> masses: array<BodyMass>;
+// `flag`: 1 where a slot gets a constraint (slot_count + 1 entries, the last 0). `build`: their
+// exclusive scan, so entry slot_count is the number of constraints.
+@group(0) @binding(4) var<storage, read_write> places: array<u32>;
+@group(0) @binding(5) var<storage, read> poses: array<BodyPose>;
+@group(0) @binding(6) var<storage, read> velocities: array<BodyVelocity>;
+@group(0) @binding(7) var<storage, read> colliders: array<ColliderData>;
+@group(0) @binding(8) var<storage, read_write> constraints: array<ContactConstraint>;
+
+fn slot_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + id.x;
+}
+
+// Keys are u64 little-endian: word 0 is the low half (body b), word 1 the high (body a).
+fn slot_bodies(slot: u32) -> vec2<u32> {
+    let key = keys[slot];
+    return vec2<u32>(key.y, key.x);
+}
+
+// A manifold with points where at least one body moves (a sleeping body has no mass).
+fn has_constraint(slot: u32) -> bool {
+    let bodies = slot_bodies(slot);
+    let resting = masses[bodies.x].inverse_mass == 0.0 && masses[bodies.y].inverse_mass == 0.0;
+    return contacts[slot].manifold.count > 0u && !resting;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn flag(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let slot = slot_index(id, workgroup, groups);
+    if slot < params.slot_count {
+        places[slot] = select(0u, 1u, has_constraint(slot));
+    } else if slot == params.slot_count {
+        places[slot] = 0u;
+    }
+}
+
+// Twin of math.rs tangent_basis (Duff et al. 2017).
+fn tangent_basis(n: vec3<f32>) -> array<vec3<f32>, 2> {
+    // copysign(1, n.z): -0 counts as negative, as in Rust.
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
+    );
+}
+
+// R diag(inverse_inertia) Rᵀ: the world-frame inverse inertia (zero for static bodies).
+fn world_inverse_inertia(body: u32) -> mat3x3<f32> {
+    let r = mat3_from_quat(poses[body].rotation);
+    let d = masses[body].inverse_inertia;
+    let scaled = mat3x3<f32>(r[0] * d.x, r[1] * d.y, r[2] * d.z);
+    return scaled * transpose(r);
+}
+
+fn make_row(
+    direction: vec3<f32>,
+    r_a: vec3<f32>,
+    r_b: vec3<f32>,
+    inertia_a: mat3x3<f32>,
+    inertia_b: mat3x3<f32>,
+    inverse_masses: f32,
+    impulse: f32,
+) -> Row {
+    var row: Row;
+    row.arm_a = cross(r_a, direction);
+    row.arm_b = cross(r_b, direction);
+    row.angular_a = inertia_a * row.arm_a;
+    row.angular_b = inertia_b * row.arm_b;
+    let k = inverse_masses + dot3(row.arm_a, row.angular_a) + dot3(row.arm_b, row.angular_b);
+    row.mass = select(0.0, 1.0 / k, k > 0.0);
+    row.impulse = impulse;
+    return row;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn build(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let slot = slot_index(id, workgroup, groups);
+    if slot >= params.slot_count || !has_constraint(slot) {
+        return;
+    }
+    let bodies = slot_bodies(slot);
+    let a = bodies.x;
+    let b = bodies.y;
+    let contact = contacts[slot];
+    let mass_a = masses[a].inverse_mass;
+    let mass_b = masses[b].inverse_mass;
+    let normal = contact.manifold.normal;
+    let tangents = tangent_basis(normal);
+    var c: ContactConstraint;
+    c.body_a = select(STATIC_BODY, a, mass_a > 0.0);
+    c.body_b = select(STATIC_BODY, b, mass_b > 0.0);
+    c.pair = slot;
+    c.point_count = contact.manifold.count;
+    c.normal = normal;
+    c.friction = sqrt(colliders[a].friction * colliders[b].friction);
+    c.tangent1 = tangents[0];
+    c.restitution = max(colliders[a].restitution, colliders[b].restitution);
+    c.tangent2 = tangents[1];
+    c.inverse_mass_a = mass_a;
+    c.inverse_mass_b = mass_b;
+    var softness = params.softness;
+    if mass_a == 0.0 || mass_b == 0.0 {
+        softness = params.static_softness;
+    }
+    c.softness = Softness(softness.x, softness.y, softness.z);
+    let center_a = poses[a].position;
+    let center_b = poses[b].position;
+    let inertia_a = world_inverse_inertia(a);
+    let inertia_b = world_inverse_inertia(b);
+    let va = velocities[a];
+    let vb = velocities[b];
+    for (var i = 0u; i < contact.manifold.count; i++) {
+        let point = contact.manifold.points[i];
+        let warm = contact.impulses[i];
+        let r_a = point.position - center_a;
+        let r_b = point.position - center_b;
+        var p: ConstraintPoint;
+        p.normal = make_row(normal, r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.normal);
+        p.tangent[0] = make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.tangent[0]);
+        p.tangent[1] = make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.tangent[1]);
+        p.anchor_a = r_a;
+        p.anchor_b = r_b;
+        p.adjusted_separation = point.separation - dot3(normal, r_a - r_b);
+        p.separation = point.separation;
+        p.approach_velocity = dot3(normal, va.linear - vb.linear) + dot3(p.normal.arm_a, va.angular)
+            - dot3(p.normal.arm_b, vb.angular);
+        c.points[i] = p;
+    }
+    constraints[places[slot]] = c;
+}

@@ -1,0 +1,102 @@
+//! GPU batching against the CPU executor: the same colors, bit for bit, for both batchers on
+//! random constraint graphs of edge sizes, and the batches' guarantees on the GPU's output.
+
+mod gpu_common;
+
+use tumble::stages::batching::gpu::GpuBatching;
+use tumble::stages::batching::{Batcher, Coloring, MAX_COLORS, color_constraints};
+use tumble::stages::constraints::STATIC_BODY;
+
+/// Deterministic pseudo-random numbers (xorshift).
+fn next(state: &mut u64) -> u64 {
+    *state ^= *state << 13;
+    *state ^= *state >> 7;
+    *state ^= *state << 17;
+    *state
+}
+
+/// `count` constraints among `bodies` bodies; a quarter against a static body.
+fn random_edges(state: &mut u64, bodies: usize, count: usize) -> Vec<(u32, u32)> {
+    (0..count)
+        .map(|_| {
+            let a = (next(state) % bodies as u64) as u32;
+            let b = (next(state) % bodies as u64) as u32;
+            if next(state).is_multiple_of(4) || a == b {
+                (STATIC_BODY, a)
+            } else {
+                (a, b)
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn gpu_colors_equal_cpu_colors() {
+    let context = gpu_common::context();
+    let mut gpu = GpuBatching::new(&context).unwrap();
+    let mut state = 0x9e37_79b9_7f4a_7c15;
+    // A star of 70 constraints on body 0 overflows (one wins per round).
+    let star: Vec<(u32, u32)> = (1..=70).map(|other| (0, other)).collect();
+    let mut graphs = vec![(71, star)];
+    for &(bodies, count) in &[
+        (1usize, 0usize),
+        (1, 1),
+        (2, 1),
+        (10, 255),
+        (100, 257),
+        (3000, 12_001),
+        (50_000, 200_003),
+    ] {
+        graphs.push((bodies, random_edges(&mut state, bodies, count)));
+    }
+    for batcher in Batcher::ALL {
+        for (bodies, edges) in &graphs {
+            let mut cpu = Coloring::default();
+            color_constraints(edges.iter().copied(), *bodies, batcher, &mut cpu);
+            let mut from_gpu = Coloring::default();
+            gpu.run(
+                &context,
+                edges.iter().copied(),
+                *bodies,
+                batcher,
+                &mut from_gpu,
+            )
+            .unwrap();
+            let size = edges.len();
+            assert_eq!(from_gpu.colors.len(), size, "{batcher} {size}");
+            if let Some(i) = (0..size).find(|&i| from_gpu.colors[i] != cpu.colors[i]) {
+                panic!(
+                    "{batcher}, {size} constraints: constraint {i} colored {} on the GPU, {} on the CPU",
+                    from_gpu.colors[i], cpu.colors[i]
+                );
+            }
+            assert_eq!(from_gpu.histogram, cpu.histogram, "{batcher} {size}");
+            assert_eq!(from_gpu.has_overflow, cpu.has_overflow);
+            // The colors are valid batches: no dynamic body twice in a normal batch.
+            let mut owner = vec![u8::MAX; *bodies];
+            for color in 0..MAX_COLORS as u8 {
+                for (i, &(a, b)) in edges.iter().enumerate() {
+                    if from_gpu.colors[i] != color {
+                        continue;
+                    }
+                    for body in [a, b].into_iter().filter(|&body| body != STATIC_BODY) {
+                        assert_ne!(owner[body as usize], color, "body {body} twice in {color}");
+                        owner[body as usize] = color;
+                    }
+                }
+            }
+        }
+    }
+    // The star overflows with both batchers.
+    let mut star = Coloring::default();
+    gpu.run(
+        &context,
+        graphs[0].1.iter().copied(),
+        71,
+        Batcher::Colors,
+        &mut star,
+    )
+    .unwrap();
+    assert!(star.has_overflow);
+    assert_eq!(star.histogram.last(), Some(&6));
+}
