@@ -177,9 +177,18 @@ impl Bvh {
     /// one when it found a hit at that distance (closest hit: farther boxes are then skipped).
     /// `t` is in units of `direction`'s length; `direction` need not be unit but must not be
     /// zero (callers validate it).
-    pub fn ray(
+    pub fn ray(&self, origin: Vec3, direction: Vec3, max_t: f32, hit: impl FnMut(u32, f32) -> f32) {
+        self.sweep(origin, Vec3::ZERO, direction, max_t, hit);
+    }
+
+    /// [`Bvh::ray`] for a box of `half_extents` (m) centred on `origin` moving along
+    /// `direction`: the box meets a node's box exactly when its centre's ray meets that box
+    /// grown by `half_extents` (their Minkowski sum), so this is the ray walk over grown boxes
+    /// (a swept-AABB query that visits nearer nodes first and prunes behind a hit).
+    pub fn sweep(
         &self,
         origin: Vec3,
+        half_extents: Vec3,
         direction: Vec3,
         max_t: f32,
         mut hit: impl FnMut(u32, f32) -> f32,
@@ -189,14 +198,15 @@ impl Bvh {
         };
         let inverse = direction.recip();
         let mut max_t = max_t;
-        if ray_box_entry(origin, inverse, &root.aabb(), max_t).is_none() {
+        let grown = |node: &BvhNode| Aabb::new(node.min - half_extents, node.max + half_extents);
+        if ray_box_entry(origin, inverse, &grown(root), max_t).is_none() {
             return;
         }
         let mut stack = vec![0u32];
         while let Some(index) = stack.pop() {
             let node = &self.nodes[index as usize];
             // Rechecked on pop: a hit found since the push may have moved max_t in front.
-            if ray_box_entry(origin, inverse, &node.aabb(), max_t).is_none() {
+            if ray_box_entry(origin, inverse, &grown(node), max_t).is_none() {
                 continue;
             }
             if node.is_leaf() {
@@ -209,9 +219,9 @@ impl Bvh {
             let left = node.first;
             let right = left + 1;
             let enter_left =
-                ray_box_entry(origin, inverse, &self.nodes[left as usize].aabb(), max_t);
+                ray_box_entry(origin, inverse, &grown(&self.nodes[left as usize]), max_t);
             let enter_right =
-                ray_box_entry(origin, inverse, &self.nodes[right as usize].aabb(), max_t);
+                ray_box_entry(origin, inverse, &grown(&self.nodes[right as usize]), max_t);
             match (enter_left, enter_right) {
                 (Some(l), Some(r)) => {
                     // The farther child goes under the nearer one on the stack.

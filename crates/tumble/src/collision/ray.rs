@@ -1,4 +1,5 @@
-//! Rays, and exact ray casts and sphere casts ([`cast_sphere`]) against single shapes.
+//! Rays, and exact ray casts, sphere casts ([`cast_sphere`]) and shape casts ([`cast_shape`])
+//! against single shapes.
 //!
 //! A [`Ray`] is the half-line `origin + t · direction` for `0 <= t <= max_distance`, with a unit
 //! `direction`, so `t` is a distance in metres. [`cast_ray`] intersects it with one shape at one
@@ -19,8 +20,10 @@
 //! back); [`cast_ray`] dispatches on the shape in one `match`, where convex hulls and meshes
 //! join when they land.
 
+mod shape_cast;
 mod sphere_cast;
 
+pub use shape_cast::{CastError, ShapeSweep, cast_shape};
 pub use sphere_cast::cast_sphere;
 
 use crate::math::{Transform, Vec3};

@@ -1,5 +1,5 @@
-//! Scene queries on [`World`]: ray casts (closest hit, all hits), sphere casts and box overlap,
-//! through the broadphase trees, with a [`QueryFilter`].
+//! Scene queries on [`World`]: ray casts (closest hit, all hits), sphere and shape casts and box
+//! overlap, through the broadphase trees, with a [`QueryFilter`].
 //!
 //! ```
 //! use tumble::{BodyDesc, QueryFilter, Shape, StepConfig, World, collision::ray::Ray, math::Vec3};
@@ -26,9 +26,11 @@
 //! Determinism: ties are broken by body index. Closest hit: the smallest distance, then the
 //! lowest index; all hits: sorted by (distance, index); box query: by index.
 
-use crate::collision::ray::{Ray, ShapeHit, cast_ray, cast_sphere};
+use crate::collision::ray::{
+    CastError, Ray, ShapeHit, ShapeSweep, cast_ray, cast_shape, cast_sphere,
+};
 use crate::dynamics::body::BodyHandle;
-use crate::math::{Aabb, Vec3};
+use crate::math::{Aabb, Transform, Vec3};
 use crate::pipeline::world::World;
 use crate::shape::Shape;
 
@@ -98,7 +100,7 @@ impl std::fmt::Debug for QueryFilter<'_> {
     }
 }
 
-/// A ray's hit on a body.
+/// A ray's (or a swept shape's) hit on a body.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayHit {
     pub body: BodyHandle,
@@ -119,8 +121,8 @@ pub enum QueryError {
     AabbInverted { min: Vec3, max: Vec3 },
     #[error("sphere cast radius {0} must be finite and >= 0")]
     BadRadius(f32),
-    #[error("sphere casts against convex hulls and triangle meshes are not supported yet")]
-    SphereCastUnsupportedShape,
+    #[error(transparent)]
+    Cast(#[from] CastError),
 }
 
 impl World {
@@ -142,14 +144,6 @@ impl World {
         if !(radius.is_finite() && radius >= 0.0) {
             return Err(QueryError::BadRadius(radius));
         }
-        let unsupported = |shape: &Shape| matches!(shape, Shape::ConvexHull(_) | Shape::TriMesh(_));
-        if self
-            .colliders
-            .iter()
-            .any(|collider| unsupported(&collider.shape))
-        {
-            return Err(QueryError::SphereCastUnsupportedShape);
-        }
         Ok(self.closest(ray, radius, |index, ray| {
             if !self.passes(index, filter) {
                 return None;
@@ -164,6 +158,56 @@ impl World {
                 normal: hit.normal,
             })
         }))
+    }
+
+    /// Sweeps convex `shape` (sphere, capsule, box or convex hull) from `pose` along
+    /// `direction` (any non-zero length) for at most `max_distance` (m), without turning;
+    /// returns the first body it touches (`distance`: how far the shape travelled; `point`: the
+    /// contact; `normal`: the body's outward normal there), ties to the lower body index. A
+    /// shape that already touches a body at the start hits it at 0, at `pose.position`, with
+    /// the normal `-direction`. See [`cast_shape`] for the method.
+    ///
+    /// ```
+    /// use tumble::{BodyDesc, QueryFilter, Shape, StepConfig, World};
+    /// use tumble::math::{Transform, Vec3};
+    ///
+    /// let mut world = World::new(StepConfig::default()).unwrap();
+    /// world.add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0))).unwrap();
+    /// let crate_box = Shape::cuboid(Vec3::splat(0.5));
+    /// let start = Transform::from_position(Vec3::new(0.0, 3.0, 0.0));
+    /// let hit = world
+    ///     .cast_shape(&crate_box, &start, -Vec3::Y, 10.0, &QueryFilter::default())
+    ///     .unwrap()
+    ///     .unwrap();
+    /// assert_eq!(hit.distance, 2.5);
+    /// ```
+    pub fn cast_shape(
+        &self,
+        shape: &Shape,
+        pose: &Transform,
+        direction: Vec3,
+        max_distance: f32,
+        filter: &QueryFilter,
+    ) -> Result<Option<RayHit>, QueryError> {
+        let sweep = ShapeSweep::new(shape, pose, direction, max_distance)?;
+        // The broadphase walk is a ray walk over boxes grown by the shape's bounding radius:
+        // the swept shape stays within that distance of its path.
+        Ok(
+            self.closest(sweep.path(), sweep.bounding_radius(), |index, path| {
+                if !self.passes(index, filter) {
+                    return None;
+                }
+                let i = index as usize;
+                let sweep = sweep.with_max_distance(path.max_distance());
+                let hit = cast_shape(&sweep, &self.colliders[i].shape, &self.poses[i].transform())?;
+                Some(RayHit {
+                    body: self.handle_of(index),
+                    distance: hit.distance,
+                    point: hit.point,
+                    normal: hit.normal,
+                })
+            }),
+        )
     }
 
     /// The smallest (distance, index) hit of `hit_of` (which applies the filter) over the

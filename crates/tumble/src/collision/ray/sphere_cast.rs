@@ -6,6 +6,7 @@
 //! edges (their end balls are the rounded corners), and from outside the first entry into a
 //! union is the first entry into any of its parts.
 
+use super::shape_cast::{ShapeSweep, cast_shape};
 use super::{
     INSIDE, LocalHit, Ray, ShapeHit, cylinder_side_hit, ray_capsule, ray_cuboid, ray_plane,
     ray_sphere,
@@ -17,9 +18,9 @@ use crate::shape::{Capsule, Cuboid, Plane, Shape, Sphere};
 /// with `shape` at `pose`: `distance` is how far the centre travelled, `point` the contact
 /// point on the shape's surface, `normal` the shape's outward normal there. A ball that
 /// already touches or overlaps the shape at the ray's origin hits at distance 0, at the
-/// origin, with the normal `-direction` (as a ray from inside does). `None` for a miss, for
-/// a negative or non-finite radius (no ball to sweep), and for convex hulls and triangle meshes
-/// (not supported yet).
+/// origin, with the normal `-direction` (as a ray from inside does). `None` for a miss and for
+/// a negative or non-finite radius (no ball to sweep). Convex hulls and triangle meshes have no
+/// closed form here and go through [`cast_shape`].
 pub fn cast_sphere(radius: f32, shape: &Shape, pose: &Transform, ray: &Ray) -> Option<ShapeHit> {
     if !(radius.is_finite() && radius >= 0.0) {
         return None;
@@ -51,9 +52,11 @@ pub fn cast_sphere(radius: f32, shape: &Shape, pose: &Transform, ray: &Ray) -> O
             direction,
         ),
         Shape::Cuboid(c) => rounded_box_hit(c, radius, origin, direction),
-        // Not swept yet (that needs GJK-based conservative advancement):
-        // `World::cast_sphere` refuses worlds that hold these shapes.
-        Shape::ConvexHull(_) | Shape::TriMesh(_) => return None,
+        // No closed form: the general shape cast (conservative advancement on GJK).
+        Shape::ConvexHull(_) | Shape::TriMesh(_) => {
+            let ball = Sphere { radius };
+            return cast_shape(&ShapeSweep::ball(&ball, ray), shape, pose);
+        }
     }?;
     if hit.distance > ray.max_distance {
         return None;

@@ -3,13 +3,13 @@
 
 use super::*;
 use crate::collision::dbvt::tests::TestRng;
-use crate::collision::ray::cast_sphere;
+use crate::collision::ray::{RayError, cast_sphere};
 use crate::dynamics::body::BodyDesc;
 use crate::math::{Quat, Transform, vec3};
 use crate::pipeline::config::StepConfig;
 use crate::shape::Shape;
 
-/// A ground plane, a static box and `count` random spheres, boxes and capsules in the air,
+/// A ground plane, a static box and `count` random spheres, boxes, capsules and hulls in the air,
 /// thrown and spun fast, stepped `steps` times; a third of them then removed.
 fn random_world(rng: &mut TestRng, count: usize, steps: usize) -> World {
     let mut world = World::new(StepConfig::default()).unwrap();
@@ -21,10 +21,11 @@ fn random_world(rng: &mut TestRng, count: usize, steps: usize) -> World {
         .unwrap();
     let mut handles = Vec::new();
     for index in 0..count {
-        let shape = match index % 3 {
+        let shape = match index % 4 {
             0 => Shape::sphere(rng.range(0.2, 1.0)),
             1 => Shape::cuboid(rng.vec3(0.2, 1.0)),
-            _ => Shape::capsule(rng.range(0.2, 0.6), rng.range(0.1, 1.0)),
+            2 => Shape::capsule(rng.range(0.2, 0.6), rng.range(0.1, 1.0)),
+            _ => Shape::convex_hull(&crate::scene::barrel_points()).unwrap(),
         };
         let axis = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
         let body = BodyDesc::dynamic(shape)
@@ -122,6 +123,40 @@ fn queries_match_brute_force_on_random_worlds() {
                 "case {case}: sphere cast"
             );
 
+            let swept = [
+                Shape::sphere(rng.range(0.1, 1.0)),
+                Shape::cuboid(rng.vec3(0.1, 1.0)),
+                Shape::capsule(rng.range(0.1, 0.5), rng.range(0.0, 1.0)),
+                Shape::convex_hull(&crate::scene::barrel_points()).unwrap(),
+            ];
+            let shape = &swept[case % swept.len()];
+            let axis = rng.vec3(-1.0, 1.0).normalize_or(Vec3::X);
+            let start = Transform::new(
+                ray.origin(),
+                Quat::from_axis_angle(axis, rng.range(0.0, 6.0)),
+            );
+            let (direction, max) = (ray.direction(), ray.max_distance());
+            let sweep = ShapeSweep::new(shape, &start, direction, max).unwrap();
+            let expected_shape = world
+                .bodies()
+                .filter(|body| world.passes(body.index(), filter))
+                .filter_map(|body| {
+                    let i = body.index() as usize;
+                    let pose = world.poses[i].transform();
+                    let hit = cast_shape(&sweep, &world.colliders[i].shape, &pose)?;
+                    Some((hit.distance, body.index(), hit))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+                .map(|(_, index, hit)| (index, hit.distance, hit.point, hit.normal));
+            let cast = world
+                .cast_shape(shape, &start, direction, max, filter)
+                .unwrap();
+            assert_eq!(
+                cast.map(|h| (h.body.index(), h.distance, h.point, h.normal)),
+                expected_shape,
+                "case {case}: shape cast"
+            );
+
             let probe = Aabb::from_center_half_extents(
                 vec3(0.0, 5.0, 0.0) + rng.vec3(-12.0, 12.0),
                 rng.vec3(0.1, 4.0),
@@ -192,6 +227,18 @@ fn bad_boxes_are_errors() {
     assert_eq!(
         world.cast_sphere(-0.5, &ray, &filter),
         Err(QueryError::BadRadius(-0.5))
+    );
+    let unit = Shape::cuboid(Vec3::ONE);
+    let at = Transform::IDENTITY;
+    assert_eq!(
+        world.cast_shape(&unit, &at, Vec3::ZERO, 1.0, &filter),
+        Err(QueryError::Cast(CastError::Path(RayError::ZeroDirection)))
+    );
+    assert_eq!(
+        world.cast_shape(&Shape::sphere(0.0), &at, Vec3::X, 1.0, &filter),
+        Err(QueryError::Cast(CastError::DegenerateShape(
+            crate::shape::ShapeKind::Sphere
+        )))
     );
     let inverted = Aabb::new(Vec3::ONE, Vec3::ZERO);
     assert!(matches!(
