@@ -139,6 +139,7 @@ fn problem(
     color_constraints(
         constraints.iter().map(|c| (c.body_a, c.body_b)),
         body_count,
+        0,
         batcher,
         &mut coloring,
     );

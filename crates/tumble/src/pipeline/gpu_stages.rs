@@ -358,6 +358,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         bodies: impl Iterator<Item = (u32, u32)>,
         body_count: usize,
+        ordered: usize,
         batcher: Batcher,
         coloring: &mut Coloring,
     ) -> Result<(), GpuError> {
@@ -367,7 +368,7 @@ impl GpuStages {
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
         let batching = &mut self.batching;
         run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-            batching.encode(context, pass, body_count, batcher)
+            batching.encode(context, pass, body_count, ordered, batcher)
         })?;
         let start = Instant::now();
         self.batching.read_back(context, coloring)?;

@@ -8,6 +8,11 @@ struct BatchParams {
     body_count: u32,
     round: u32,
     batcher: u32,
+    // The first `ordered` constraints (joints) rank by index.
+    ordered: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BatchParams;
@@ -27,14 +32,19 @@ const UNBATCHED: u32 = 0xffffffffu;
 const NO_LOCK: u32 = 0xffffffffu;
 const BATCHED_SLOT: u32 = MAX_COLORS + 1u;
 
-// Twin of `priority` in `mod.rs`: a bijective hash of the constraint index.
+// Twin of `priority` in `mod.rs`: joints by index, then a bijective 31-bit hash above 2^31.
 fn priority(index: u32) -> u32 {
-    var x = index;
+    if index < params.ordered {
+        return index;
+    }
+    let low_31 = 0x7fffffffu;
+    var x = index & low_31;
     x ^= x >> 16u;
-    x *= 0x7feb352du;
+    x = (x * 0x7feb352du) & low_31;
     x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    return x ^ (x >> 16u);
+    x = (x * 0x846ca68bu) & low_31;
+    x ^= x >> 16u;
+    return 0x80000000u | x;
 }
 
 fn thread_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
