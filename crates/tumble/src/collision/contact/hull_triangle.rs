@@ -22,6 +22,12 @@
 //! 2 % (steadier manifolds on a mesh, and the face that coplanar triangles merge on), then an
 //! edge pair only if it beats the best face by 5 % and 0.5 mm.
 //!
+//! A face contact clips the other polyhedron's face most anti-parallel to the reference face
+//! against the reference's side planes (`hull.rs`). That face can lie beside the reference
+//! face while another part of the polyhedron overlaps it; when the clip leaves nothing, the
+//! other's deepest vertex along the axis is the one point, so an overlap the axes found is
+//! never dropped.
+//!
 //! # Internal edges
 //!
 //! As for boxes (`triangle.rs`): on the front side, when the chosen axis is not the triangle's
@@ -42,14 +48,16 @@
 //! | edge–edge | `2 << 10` · hull edge mod 256 `<< 2` · triangle edge |
 //!
 //! A clip feature is the incident loop position `k < 32` of an unclipped vertex, else
-//! `32 | (2 · side plane + 1 if leaving) mod 32` for a cut (`hull.rs`'s clip ids, shortened).
+//! `32 | (2 · side plane + 1 if leaving) mod 32` for a cut (`hull.rs`'s clip ids, shortened),
+//! or `63` with the reference face in bits 6–9 for the single deepest vertex of a face contact
+//! whose clip left nothing.
 
 use super::hull::{
     CROSSING_BIT, EDGE_CONTACT_BIT, Polyhedron, REFERENCE_IS_A_BIT, edge_contact, face_contact,
     face_query,
 };
 use super::triangle::{FACE_RELATIVE_TOLERANCE, Feature};
-use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater};
+use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater, push_contact};
 use crate::collision::manifold::{ContactPoint, Manifold};
 use crate::math::{Transform, Vec3};
 use crate::shape::ConvexHull;
@@ -64,6 +72,10 @@ const ON_EDGE_FRACTION: f32 = 1.0e-4;
 /// Bits 10–11 of an id: which axis made the contact (module docs).
 const HULL_REFERENCE_KIND: u32 = 1 << 10;
 const EDGE_KIND: u32 = 2 << 10;
+
+/// Clip feature of the single point made when clipping leaves none (see `contact_on_axis`):
+/// one no clip makes for a triangle reference, and the only point of its manifold.
+const DEEPEST_VERTEX_FEATURE: u32 = 63;
 
 /// Face 0 runs `0 → 1 → 2` about the front normal, face 1 the other way about the back one.
 const TRIANGLE_FACE_VERTICES: [u32; 6] = [0, 1, 2, 0, 2, 1];
@@ -189,7 +201,7 @@ pub(crate) fn hull_triangle(
         out.push(ContactPoint::new(
             hull_pose.transform_point(point.position),
             point.separation,
-            compact_id(point.id),
+            point.id,
         ));
     }
 }
@@ -270,8 +282,8 @@ fn edge_query(hull: &Polyhedron, triangle: &Triangle) -> Option<(f32, usize, usi
     best
 }
 
-/// The contact points for `axis`, in the hull's frame, normal from the triangle to the hull;
-/// ids as `hull.rs` makes them.
+/// The contact points for `axis`, in the hull's frame, normal from the triangle to the hull,
+/// with the ids of the module docs.
 fn contact_on_axis(
     hull: &Polyhedron,
     triangle: &Polyhedron,
@@ -280,7 +292,8 @@ fn contact_on_axis(
     out: &mut Manifold,
 ) {
     let same_frame = Transform::IDENTITY;
-    match axis {
+    // (reference, its face, the other polyhedron) of a face contact.
+    let (reference, face, other) = match axis {
         Axis::TriangleFace(face) => {
             face_contact(
                 triangle,
@@ -294,26 +307,70 @@ fn contact_on_axis(
             );
             // Made with B as the reference: normal from A to B; flip to B → A.
             *out = out.flipped();
+            (triangle, face, hull)
         }
-        Axis::HullFace(face) => face_contact(
-            hull,
-            &same_frame,
-            face,
-            triangle,
-            &same_frame,
-            true,
-            margin,
-            out,
-        ),
-        Axis::Edges(hull_edge, triangle_edge, axis) => edge_contact(
-            hull,
-            &same_frame,
-            triangle,
-            &same_frame,
-            (hull_edge, triangle_edge, axis),
-            out,
-        ),
+        Axis::HullFace(face) => {
+            face_contact(
+                hull,
+                &same_frame,
+                face,
+                triangle,
+                &same_frame,
+                true,
+                margin,
+                out,
+            );
+            (hull, face, triangle)
+        }
+        Axis::Edges(hull_edge, triangle_edge, axis) => {
+            edge_contact(
+                hull,
+                &same_frame,
+                triangle,
+                &same_frame,
+                (hull_edge, triangle_edge, axis),
+                out,
+            );
+            (hull, 0, triangle)
+        }
+    };
+    let count = out.count as usize;
+    for point in &mut out.points[..count] {
+        point.id = compact_id(point.id);
     }
+    if count > 0 || matches!(axis, Axis::Edges(..)) {
+        return;
+    }
+    // The incident face (the other's face most anti-parallel to the reference) can miss the
+    // reference face's prism while another part of the other polyhedron overlaps it: clipping
+    // leaves nothing though the axis says they overlap. The other's deepest vertex along the
+    // axis then gives one point at the axis's separation (on the axis of least penetration it
+    // lies over the reference face: the origin projects inside the closest face of the
+    // Minkowski difference).
+    let reference_face = reference.faces[face];
+    let deepest = other.support(-reference_face.normal);
+    let separation = reference_face.normal.dot(deepest) - reference_face.offset;
+    if separation >= margin {
+        return;
+    }
+    // Normal from the triangle to the hull: the reference face's normal when it is the
+    // triangle's, its opposite when it is the hull's.
+    let (normal, on_hull, kind) = match axis {
+        Axis::TriangleFace(_) => (reference_face.normal, deepest, 0),
+        _ => (
+            -reference_face.normal,
+            deepest - reference_face.normal * separation,
+            HULL_REFERENCE_KIND,
+        ),
+    };
+    out.normal = normal;
+    push_contact(
+        out,
+        on_hull,
+        normal,
+        separation,
+        kind | (((face as u32) & 15) << 6) | DEEPEST_VERTEX_FEATURE,
+    );
 }
 
 /// The triangle feature `point` (on the triangle) lies on, within [`ON_EDGE_FRACTION`].
