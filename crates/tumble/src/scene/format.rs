@@ -824,7 +824,6 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::ZeroNormal => "shape.plane.normal".into(),
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
-        BodyError::HullAndMesh => format!("shape.{shape_name}"),
     }
 }
 
