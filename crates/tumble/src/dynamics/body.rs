@@ -354,11 +354,6 @@ pub enum BodyError {
     DynamicPlane,
     #[error("a triangle mesh is static only (mass 0); use a convex shape for moving bodies")]
     DynamicTriMesh,
-    #[error(
-        "convex hulls and triangle meshes do not collide with each other yet; a world holds one \
-         kind or the other"
-    )]
-    HullAndMesh,
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

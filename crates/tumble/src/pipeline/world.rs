@@ -210,20 +210,6 @@ impl World {
         {
             return Err(BodyError::DuplicateName(name.clone()));
         }
-        let hull = |shape: &Shape| matches!(shape, Shape::ConvexHull(_));
-        let mesh = |shape: &Shape| matches!(shape, Shape::TriMesh(_));
-        let live_colliders = self
-            .colliders
-            .iter()
-            .zip(&self.slots)
-            .filter(|(_, slot)| slot.is_live());
-        // No hull-triangle pair function yet: refuse the mix rather than let hulls fall
-        // through meshes.
-        if (hull(&desc.shape) && live_colliders.clone().any(|(c, _)| mesh(&c.shape)))
-            || (mesh(&desc.shape) && live_colliders.clone().any(|(c, _)| hull(&c.shape)))
-        {
-            return Err(BodyError::HullAndMesh);
-        }
         let dynamic = !desc.is_static();
         // A hull's body frame is its principal centroid frame: compose it with the desc's pose
         // and keep the hull in that frame, so the body (and a dump of it) has the COM pose.
