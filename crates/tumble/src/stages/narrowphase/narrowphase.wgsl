@@ -105,6 +105,11 @@ fn collide_ordered(
     pose_b: BodyPose,
     margin: f32,
 ) {
+    // Hulls and meshes are host work (`narrowphase::gpu_pair`); without this their kinds
+    // would alias primitive pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5).
+    if b.kind > SHAPE_PLANE {
+        return;
+    }
     let pair = a.kind * 4u + b.kind;
     switch pair {
         case 0u: { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
