@@ -47,7 +47,7 @@ pub fn wgsl() -> Source {
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,
-/// counts), constraint count, body count, ordered count, batcher.
+/// batched count), constraint count, body count, ordered count, batcher.
 type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
 
 /// The GPU batching of one world, its buffers reused from step to step.
@@ -59,8 +59,8 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
-    /// Constraints per color, then the batched count.
-    counts: GpuVec<u32>,
+    /// How many constraints have a batch (the rounds' early exit).
+    batched: GpuVec<u32>,
     cached: Option<(BatchKey, Vec<Dispatch>)>,
     /// Host scratch: the bodies to upload, the colors read back.
     host_bodies: Vec<[u32; 2]>,
@@ -74,7 +74,7 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
-            counts: GpuVec::from_slice(context, "batching counts", &[0; MAX_COLORS + 2])?,
+            batched: GpuVec::from_slice(context, "batched count", &[0])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
@@ -100,7 +100,7 @@ impl GpuBatching {
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
-            self.counts.buffer().clone(),
+            self.batched.buffer().clone(),
         ];
         let key = (buffers, count, body_count, ordered, batcher);
         if self
@@ -166,13 +166,12 @@ impl GpuBatching {
                     self.colors.whole(),
                     self.locks.whole(),
                     self.masks.whole(),
-                    self.counts.whole(),
+                    self.batched.whole(),
                 ],
             )
         };
         let groups = workgroups_for(count, WORKGROUP_SIZE);
-        let start_groups =
-            workgroups_for(count.max(body_count).max(MAX_COLORS + 2), WORKGROUP_SIZE);
+        let start_groups = workgroups_for(count.max(body_count).max(1), WORKGROUP_SIZE);
         let mut dispatches = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
             dispatches.push(claim.dispatch(bind(&claim, round), groups));
