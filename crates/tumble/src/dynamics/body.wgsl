@@ -88,3 +88,15 @@ fn quat_mul(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
         a.w * b.w - dot(a.xyz, b.xyz),
     );
 }
+
+// Twin of math.rs tangent_basis (Duff et al. 2017).
+fn tangent_basis(n: vec3<f32>) -> array<vec3<f32>, 2> {
+    // copysign(1, n.z): -0 counts as negative, as in Rust.
+    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
+    );
+}

@@ -53,31 +53,132 @@ pub struct AngularRow {
     pub error: f32,
 }
 
-/// A joint as the solver sees it during one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
+// Layout: `JointFrame` and `JointConstraint` are repr(C) + Pod with WGSL twins in
+// `joint_constraint.wgsl` (checked by tests/gpu_layout.rs), so both executors solve the same
+// array. Each vec3 shares its 16 bytes with a scalar, as in the contact rows; the joint kind
+// is a number and its options flags, since a Rust enum has no WGSL twin. The inverse inertias
+// stay glam `Mat3`s (36 bytes, columns packed), which WGSL reads as `array<f32, 9>`: its
+// mat3x3 would pad each column to 16 bytes.
+
+/// [`JointFrame::kind`] of a point joint: no angular rows.
+pub const JOINT_POINT: u32 = 0;
+/// [`JointFrame::kind`] of a hinge: two alignment rows, a motor row, two limit rows.
+pub const JOINT_HINGE: u32 = 1;
+/// [`JointFrame::kind`] of a cone-twist: a swing limit row and two twist limit rows.
+pub const JOINT_CONE_TWIST: u32 = 2;
+/// [`JointFrame::kind`] of a fixed joint: three rows on the rotation error.
+pub const JOINT_FIXED: u32 = 3;
+/// [`JointFrame::flags`]: the hinge has angle limits (`lower`, `upper`).
+pub const HAS_LIMITS: u32 = 1;
+/// [`JointFrame::flags`]: the hinge has a motor (`target_speed`, `max_torque`).
+pub const HAS_MOTOR: u32 = 2;
+
+/// A [`Joint`] as the solver reads it: its kind and options flattened, everything in the
+/// bodies' frames. 128 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct JointFrame {
+    /// Anchor in each body's frame (m).
+    pub local_anchor_a: Vec3,
+    /// [`JOINT_POINT`], [`JOINT_HINGE`], [`JOINT_CONE_TWIST`] or [`JOINT_FIXED`].
+    pub kind: u32,
+    pub local_anchor_b: Vec3,
+    /// [`HAS_LIMITS`] | [`HAS_MOTOR`] (hinges only).
+    pub flags: u32,
+    /// The hinge or twist axis in each body's frame; X for point and fixed joints.
+    pub local_axis_a: Vec3,
+    /// Lower angle limit (rad): the hinge's limits or the cone-twist's twist limits.
+    pub lower: f32,
+    pub local_axis_b: Vec3,
+    /// Upper angle limit (rad).
+    pub upper: f32,
+    /// Angle zero is where these two directions, ⊥ the axis, coincide.
+    pub local_reference_a: Vec3,
+    /// Largest swing of a cone-twist (rad).
+    pub swing_limit: f32,
+    pub local_reference_b: Vec3,
+    /// Hinge motor: relative angular speed of B about the axis to reach (rad/s).
+    pub target_speed: f32,
+    /// B's orientation relative to A at creation, q_a⁻¹ q_b (the fixed joint holds it).
+    pub relative_rotation: Quat,
+    /// Hinge motor: largest torque (N m).
+    pub max_torque: f32,
+    pub _pad: [f32; 3],
+}
+const _: () = assert!(size_of::<JointFrame>() == 128);
+
+impl From<&Joint> for JointFrame {
+    fn from(joint: &Joint) -> Self {
+        let mut frame = Self {
+            local_anchor_a: joint.local_anchor_a,
+            local_anchor_b: joint.local_anchor_b,
+            local_axis_a: joint.local_axis_a,
+            local_axis_b: joint.local_axis_b,
+            local_reference_a: joint.local_reference_a,
+            local_reference_b: joint.local_reference_b,
+            relative_rotation: joint.relative_rotation,
+            ..Self::default()
+        };
+        match joint.kind {
+            JointKind::Point => frame.kind = JOINT_POINT,
+            JointKind::Fixed => frame.kind = JOINT_FIXED,
+            JointKind::Hinge { limits, motor, .. } => {
+                frame.kind = JOINT_HINGE;
+                if let Some((lower, upper)) = limits {
+                    frame.flags |= HAS_LIMITS;
+                    (frame.lower, frame.upper) = (lower, upper);
+                }
+                if let Some(motor) = motor {
+                    frame.flags |= HAS_MOTOR;
+                    (frame.target_speed, frame.max_torque) = (motor.target_speed, motor.max_torque);
+                }
+            }
+            JointKind::ConeTwist {
+                swing_limit,
+                twist_limits: (lower, upper),
+                ..
+            } => {
+                frame.kind = JOINT_CONE_TWIST;
+                frame.swing_limit = swing_limit;
+                (frame.lower, frame.upper) = (lower, upper);
+            }
+        }
+        frame
+    }
+}
+
+/// A joint as the solver sees it during one step. 320 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct JointConstraint {
-    pub body_a: u32,
-    pub body_b: u32,
-    /// Index of the joint in the world, to store impulses back.
-    pub joint: u32,
-    pub inverse_mass_a: f32,
-    pub inverse_mass_b: f32,
-    pub inverse_inertia_a: Mat3,
-    pub inverse_inertia_b: Mat3,
     /// The joint in the bodies' frames.
-    pub frame: Joint,
+    pub frame: JointFrame,
     /// Body rotations at the start of the step.
     pub rotation_a: Quat,
     pub rotation_b: Quat,
     /// x_b − x_a at the start of the step (m).
     pub center_offset: Vec3,
-    pub softness: Softness,
-    /// Accumulated impulses: point part (N s) and angular rows (N m s).
+    pub inverse_mass_a: f32,
+    /// Accumulated impulse of the point part (N s).
     pub point_impulse: Vec3,
-    pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    pub inverse_mass_b: f32,
+    pub body_a: u32,
+    pub body_b: u32,
+    /// Index of the joint in the world, to store impulses back.
+    pub joint: u32,
     /// Largest point impulse per sub-step (N s): infinite for joints, max_force · h for a drag.
     pub max_point_impulse: f32,
+    pub softness: Softness,
+    /// Accumulated impulses of the angular rows (N m s).
+    pub angular_impulse: [f32; MAX_ANGULAR_ROWS],
+    pub inverse_inertia_a: Mat3,
+    pub inverse_inertia_b: Mat3,
+    pub _pad: [f32; 2],
 }
+const _: () = assert!(size_of::<JointConstraint>() == 320);
+
+/// WGSL twins of [`JointFrame`] and [`JointConstraint`].
+pub const JOINT_CONSTRAINT_WGSL: &str = include_str!("joint_constraint.wgsl");
 
 /// The `joint` index of the drag constraint (it is no joint of the world).
 pub const DRAG_JOINT: u32 = u32::MAX;
@@ -109,21 +210,16 @@ pub fn drag_constraint(
     h: f32,
 ) -> JointConstraint {
     let body = drag.body as usize;
-    let frame = Joint {
-        kind: JointKind::Point,
-        body_a: STATIC_BODY,
-        body_b: drag.body,
+    let frame = JointFrame {
         local_anchor_a: drag.target,
+        kind: JOINT_POINT,
         local_anchor_b: drag.local_anchor,
         local_axis_a: Vec3::X,
         local_axis_b: Vec3::X,
         local_reference_a: Vec3::Y,
         local_reference_b: Vec3::Y,
         relative_rotation: Quat::IDENTITY,
-        break_impulse: None,
-        broken: false,
-        point_impulse: drag.impulse,
-        angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+        ..JointFrame::default()
     };
     JointConstraint {
         body_a: STATIC_BODY,
@@ -142,6 +238,7 @@ pub fn drag_constraint(
         point_impulse: drag.impulse,
         angular_impulse: [0.0; MAX_ANGULAR_ROWS],
         max_point_impulse: drag.max_force * h,
+        _pad: [0.0; 2],
     }
 }
 
@@ -182,7 +279,7 @@ pub fn build_joint_constraints(
             inverse_mass_b: mass_b,
             inverse_inertia_a: inverse_inertia[ia],
             inverse_inertia_b: inverse_inertia[ib],
-            frame: joint,
+            frame: JointFrame::from(&joint),
             rotation_a: poses[ia].rotation,
             rotation_b: poses[ib].rotation,
             center_offset: poses[ib].position - poses[ia].position,
@@ -190,6 +287,7 @@ pub fn build_joint_constraints(
             point_impulse: joint.point_impulse,
             angular_impulse: joint.angular_impulse,
             max_point_impulse: f32::INFINITY,
+            _pad: [0.0; 2],
         });
     }
 }
@@ -220,8 +318,7 @@ impl JointConstraint {
         let axis_a = q_a * joint.local_axis_a;
         let axis_b = q_b * joint.local_axis_b;
         match joint.kind {
-            JointKind::Point => {}
-            JointKind::Fixed => {
+            JOINT_FIXED => {
                 // Rotation taking where B should be (q_a · q_rel) to where it is: θ ≈ 2 · vec(q_err).
                 let mut rotation_error = q_b * (q_a * joint.relative_rotation).inverse();
                 if rotation_error.w < 0.0 {
@@ -232,16 +329,16 @@ impl JointConstraint {
                     rows[i] = equality(direction, angle[i]);
                 }
             }
-            JointKind::Hinge { limits, motor, .. } => {
+            JOINT_HINGE => {
                 let (b1, b2) = tangent_basis(axis_b);
                 rows[0] = equality(b1.cross(axis_a), axis_a.dot(b1));
                 rows[1] = equality(b2.cross(axis_a), axis_a.dot(b2));
                 // The motor before the limits: Gauss-Seidel favours the row solved last, and a
                 // motor driving into a limit must not push past it (Box2D orders them so too).
-                if let Some(motor) = motor {
+                if joint.flags & HAS_MOTOR != 0 {
                     let kind = RowKind::Motor {
-                        target_speed: motor.target_speed,
-                        max_impulse: motor.max_torque * h,
+                        target_speed: joint.target_speed,
+                        max_impulse: joint.max_torque * h,
                     };
                     rows[2] = AngularRow {
                         kind,
@@ -249,40 +346,38 @@ impl JointConstraint {
                         error: 0.0,
                     };
                 }
-                if let Some(limits) = limits
+                if joint.flags & HAS_LIMITS != 0
                     && let Some([lower_row, upper_row]) =
-                        twist_limit_rows(joint, q_a, q_b, axis_a, axis_b, limits)
+                        twist_limit_rows(joint, q_a, q_b, axis_a, axis_b)
                 {
                     rows[3] = lower_row;
                     rows[4] = upper_row;
                 }
             }
-            JointKind::ConeTwist {
-                swing_limit,
-                twist_limits,
-                ..
-            } => {
+            JOINT_CONE_TWIST => {
                 let swing_axis = axis_a.cross(axis_b);
                 let sin_swing = swing_axis.length();
                 if sin_swing > 1e-6 {
                     let swing = sin_swing.atan2(axis_a.dot(axis_b));
                     // Swinging further turns B's axis away from A's about a × b.
-                    rows[0] = limit(-swing_axis / sin_swing, swing_limit - swing);
+                    rows[0] = limit(-swing_axis / sin_swing, joint.swing_limit - swing);
                 }
                 if let Some([lower_row, upper_row]) =
-                    twist_limit_rows(joint, q_a, q_b, axis_a, axis_b, twist_limits)
+                    twist_limit_rows(joint, q_a, q_b, axis_a, axis_b)
                 {
                     rows[1] = lower_row;
                     rows[2] = upper_row;
                 }
             }
+            // JOINT_POINT: the point part alone.
+            _ => {}
         }
         rows
     }
 }
 
-/// The two limit rows on the twist angle φ (lower, then upper), or `None` where φ is undefined
-/// (the axes opposite).
+/// The two limit rows on the twist angle φ between `joint.lower` and `joint.upper` (lower row,
+/// then upper), or `None` where φ is undefined (the axes opposite).
 ///
 /// φ does not change at the rate `a·Δω`: turning B about its own axis b changes it as fast as
 /// turning about a, and turning about n = a × b (pure swing) not at all. Hence
@@ -292,13 +387,13 @@ impl JointConstraint {
 /// swung cone-twist (a shoulder at 1.5 rad) measured its twist rate wrongly, and its limit rows
 /// pumped energy into the limb: ragdoll arms kept flailing on the ground.
 fn twist_limit_rows(
-    joint: &Joint,
+    joint: &JointFrame,
     q_a: Quat,
     q_b: Quat,
     axis_a: Vec3,
     axis_b: Vec3,
-    (lower, upper): (f32, f32),
 ) -> Option<[AngularRow; 2]> {
+    let (lower, upper) = (joint.lower, joint.upper);
     let one_plus_cos = 1.0 + axis_a.dot(axis_b);
     if one_plus_cos < 1e-3 {
         return None;
@@ -321,7 +416,7 @@ fn twist_limit_rows(
 
 /// Rotation of B relative to A about the axis (rad, in (−π, π]), zero at creation: B's
 /// reference direction is first swung back onto A's axis, then compared with A's.
-fn twist_angle(joint: &Joint, q_a: Quat, q_b: Quat, axis_a: Vec3, axis_b: Vec3) -> f32 {
+fn twist_angle(joint: &JointFrame, q_a: Quat, q_b: Quat, axis_a: Vec3, axis_b: Vec3) -> f32 {
     let reference_a = q_a * joint.local_reference_a;
     let reference_b = Quat::from_rotation_arc(axis_b, axis_a) * (q_b * joint.local_reference_b);
     reference_a
@@ -358,17 +453,16 @@ mod tests {
             twist_limits: (-3.0, 3.0),
         };
         let desc = JointDesc::new(kind, handle(0), handle(1), Vec3::ZERO);
-        let joint = Joint::new(
+        let joint = JointFrame::from(&Joint::new(
             &desc,
             (Vec3::ZERO, Quat::IDENTITY),
             (Vec3::ZERO, Quat::IDENTITY),
-        );
+        ));
         let q_a = Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.2, 0.5);
         for swing in [0.0, 0.7, 1.5, 2.5] {
             let q_b = Quat::from_rotation_z(swing) * Quat::from_rotation_x(0.4) * q_a;
             let (axis_a, axis_b) = (q_a * joint.local_axis_a, q_b * joint.local_axis_b);
-            let [lower_row, _] =
-                twist_limit_rows(&joint, q_a, q_b, axis_a, axis_b, (-3.0, 3.0)).unwrap();
+            let [lower_row, _] = twist_limit_rows(&joint, q_a, q_b, axis_a, axis_b).unwrap();
             for omega in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -1.0, 0.7)] {
                 let epsilon = 1e-3;
                 let turned = Quat::from_scaled_axis(omega * epsilon) * q_b;

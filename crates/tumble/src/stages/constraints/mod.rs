@@ -10,8 +10,8 @@ pub use contact::{
     world_inverse_inertia,
 };
 pub use joint::{
-    AngularRow, DRAG_JOINT, Drag, JointConstraint, RowKind, build_joint_constraints,
-    drag_constraint,
+    AngularRow, DRAG_JOINT, Drag, JOINT_CONSTRAINT_WGSL, JointConstraint, JointFrame, RowKind,
+    build_joint_constraints, drag_constraint,
 };
 
 /// Body index of a constraint's static side: such a body has zero velocity and infinite mass.

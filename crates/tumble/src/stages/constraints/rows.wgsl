@@ -58,18 +58,6 @@ fn flag(
     }
 }
 
-// Twin of math.rs tangent_basis (Duff et al. 2017).
-fn tangent_basis(n: vec3<f32>) -> array<vec3<f32>, 2> {
-    // copysign(1, n.z): -0 counts as negative, as in Rust.
-    let sign = select(1.0, -1.0, (bitcast<u32>(n.z) & 0x80000000u) != 0u);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    return array<vec3<f32>, 2>(
-        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
-    );
-}
-
 // R diag(inverse_inertia) Rᵀ: the world-frame inverse inertia (zero for static bodies).
 fn world_inverse_inertia(body: u32) -> mat3x3<f32> {
     let r = mat3_from_quat(poses[body].rotation);
