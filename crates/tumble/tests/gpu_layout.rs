@@ -425,10 +425,13 @@ fn contact_constraint_structs_match_rust() {
 fn solver_structs_match_rust() {
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
+    use tumble::stages::constraints::{
+        ConstraintPoint, ContactConstraint, JointConstraint, JointFrame, Row,
+    };
     use tumble::stages::solver::SolverBody;
     use tumble::stages::solver::gpu::{SolverParams, wgsl};
-    check(
+    // AngularRow, JointPose and JointMasses are the joint kernels' locals.
+    check_with_gpu_only(
         wgsl(),
         vec![
             rust_layout!(BodyPose {
@@ -515,7 +518,43 @@ fn solver_structs_match_rust() {
                 restitution_threshold,
                 body_count
             }),
+            rust_layout!(JointFrame {
+                local_anchor_a,
+                kind,
+                local_anchor_b,
+                flags,
+                local_axis_a,
+                lower,
+                local_axis_b,
+                upper,
+                local_reference_a,
+                swing_limit,
+                local_reference_b,
+                target_speed,
+                relative_rotation,
+                max_torque,
+                _pad
+            }),
+            rust_layout!(JointConstraint {
+                frame,
+                rotation_a,
+                rotation_b,
+                center_offset,
+                inverse_mass_a,
+                point_impulse,
+                inverse_mass_b,
+                body_a,
+                body_b,
+                joint,
+                max_point_impulse,
+                softness,
+                angular_impulse,
+                inverse_inertia_a,
+                inverse_inertia_b,
+                _pad
+            }),
         ],
+        &["AngularRow", "JointPose", "JointMasses"],
     );
 }
 

@@ -1,17 +1,19 @@
-//! GPU solver parity: the soft step on random contact sets, GPU against the CPU's `solve`,
-//! over the same batches.
+//! GPU solver parity: the soft step on random contact and joint sets, GPU against the CPU's
+//! `solve`, over the same batches.
 
 mod gpu_common;
 
 use gpu_common::{Random, context};
 use tumble::collision::manifold::ContactPoint;
 use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
-use tumble::math::{Quat, Vec3};
+use tumble::dynamics::joint::{Joint, JointKind, MAX_ANGULAR_ROWS, Motor};
+use tumble::math::{Quat, Vec3, tangent_basis};
 use tumble::pipeline::config::Softness;
 use tumble::shape::Shape;
 use tumble::stages::batching::{Batcher, Coloring, color_constraints, group_by_batch};
 use tumble::stages::constraints::{
-    ContactConstraint, RowInputs, build_constraints, world_inverse_inertia,
+    ContactConstraint, Drag, JointConstraint, RowInputs, build_constraints,
+    build_joint_constraints, drag_constraint, world_inverse_inertia,
 };
 use tumble::stages::integrate::prepare_bodies;
 use tumble::stages::narrowphase::PairContact;
@@ -33,12 +35,24 @@ fn vector(random: &mut Random, extent: f32) -> Vec3 {
 
 /// A random world of `body_count` bodies (a fifth static) and `pair_count` manifolds between
 /// random bodies, plus `hub` manifolds on body 0 (more than 64 force the overflow batch),
-/// turned into contact rows as the step builds them, colored and batched.
+/// turned into contact rows as the step builds them, plus the `joints` joints of
+/// [`random_joints`], colored and batched together as the step does.
+#[derive(Clone)]
 struct Problem {
     bodies: Vec<SolverBody>,
     contacts: Vec<ContactConstraint>,
     offsets: Vec<u32>,
+    joints: Vec<JointConstraint>,
+    joint_offsets: Vec<u32>,
     has_overflow: bool,
+}
+
+/// How many joints of a problem, and how many of them on body 0 (with the contact hub, they
+/// land in the overflow batch).
+#[derive(Clone, Copy, Default)]
+struct Joints {
+    count: usize,
+    hub: usize,
 }
 
 fn problem(
@@ -46,6 +60,7 @@ fn problem(
     body_count: usize,
     pair_count: usize,
     hub: usize,
+    joints: Joints,
     batcher: Batcher,
 ) -> Problem {
     let mut random = Random::new(seed);
@@ -118,6 +133,40 @@ fn problem(
     }
     let mut inverse_inertia = Vec::new();
     world_inverse_inertia(&poses, &masses, &mut inverse_inertia);
+    let mut joint_constraints = Vec::new();
+    if joints.count > 0 {
+        let world_joints = random_joints(&mut random, &poses, &masses, joints);
+        build_joint_constraints(
+            &world_joints,
+            &poses,
+            &masses,
+            &inverse_inertia,
+            Softness::new(60.0, 2.0, h),
+            &mut joint_constraints,
+        );
+        // A drag on the last dynamic body, with a pull small enough to clamp.
+        if let Some(body) = (0..body_count)
+            .rev()
+            .find(|&b| masses[b].inverse_mass > 0.0)
+        {
+            let drag = Drag {
+                body: body as u32,
+                local_anchor: Vec3::new(0.1, 0.2, -0.1),
+                target: poses[body].position + Vec3::new(0.5, 0.3, 0.0),
+                max_force: 20.0,
+                impulse: Vec3::new(0.05, 0.1, 0.0),
+            };
+            let softness = Softness::new(5.0, 0.7, h);
+            joint_constraints.push(drag_constraint(
+                &drag,
+                &poses,
+                &masses,
+                &inverse_inertia,
+                softness,
+                h,
+            ));
+        }
+    }
     let inputs = RowInputs {
         poses: &poses,
         velocities: &velocities,
@@ -135,21 +184,34 @@ fn problem(
         &inputs,
         &mut constraints,
     );
+    // As the step colors them: joints first (kept in order), then contacts.
     let mut coloring = Coloring::default();
     color_constraints(
-        constraints.iter().map(|c| (c.body_a, c.body_b)),
+        joint_constraints
+            .iter()
+            .map(|j| (j.body_a, j.body_b))
+            .chain(constraints.iter().map(|c| (c.body_a, c.body_b))),
         body_count,
-        0,
+        joint_constraints.len(),
         batcher,
         &mut coloring,
     );
+    let (joint_colors, contact_colors) = coloring.colors.split_at(joint_constraints.len());
     let (mut contacts, mut offsets) = (Vec::new(), Vec::new());
     group_by_batch(
         &constraints,
-        &coloring.colors,
+        contact_colors,
         &coloring,
         &mut contacts,
         &mut offsets,
+    );
+    let (mut joints, mut joint_offsets) = (Vec::new(), Vec::new());
+    group_by_batch(
+        &joint_constraints,
+        joint_colors,
+        &coloring,
+        &mut joints,
+        &mut joint_offsets,
     );
     let mut bodies = Vec::new();
     prepare_bodies(&velocities, &masses, &mut bodies);
@@ -157,8 +219,100 @@ fn problem(
         bodies,
         contacts,
         offsets,
+        joints,
+        joint_offsets,
         has_overflow: coloring.has_overflow,
     }
+}
+
+/// `joints.count` joints of every kind: a chain of point joints through the first bodies, then
+/// hinges with limits and a motor, cone-twists, fixed joints and point joints between random
+/// bodies, the first `joints.hub` of them on body 0. Each is created at poses turned from
+/// the problem's by up to about 0.6 rad, so that the solver meets angle errors and limits
+/// pushed past, with random warm-start impulses.
+fn random_joints(
+    random: &mut Random,
+    poses: &[BodyPose],
+    masses: &[BodyMass],
+    joints: Joints,
+) -> Vec<Option<Joint>> {
+    let body_count = poses.len() as u32;
+    let chain = (joints.count / 4).min(body_count.saturating_sub(1) as usize);
+    let mut out = Vec::new();
+    for index in 0..joints.count {
+        let (a, b) = if index < joints.hub {
+            (0, 1 + random.below(body_count - 1))
+        } else if index < joints.hub + chain {
+            let link = (index - joints.hub) as u32;
+            (link, link + 1)
+        } else {
+            (random.below(body_count), random.below(body_count))
+        };
+        if a == b
+            || (masses[a as usize].inverse_mass == 0.0 && masses[b as usize].inverse_mass == 0.0)
+        {
+            continue;
+        }
+        let axis = vector(random, 1.0).normalize_or(Vec3::X);
+        let kind = match index % 5 {
+            0 => JointKind::Hinge {
+                axis,
+                limits: Some((uniform(random, -0.6, 0.0), uniform(random, 0.0, 0.6))),
+                motor: Some(Motor {
+                    target_speed: uniform(random, -2.0, 2.0),
+                    max_torque: uniform(random, 0.5, 20.0),
+                }),
+            },
+            1 => JointKind::Hinge {
+                axis,
+                limits: Some((-0.3, 0.3)),
+                motor: None,
+            },
+            2 => JointKind::ConeTwist {
+                axis,
+                swing_limit: uniform(random, 0.2, 1.0),
+                twist_limits: (uniform(random, -0.5, 0.0), uniform(random, 0.0, 0.5)),
+            },
+            3 => JointKind::Fixed,
+            _ => JointKind::Point,
+        };
+        // The poses at creation: each body turned from its current pose.
+        let turned = |random: &mut Random, body: u32| {
+            let turn = vector(random, 0.35);
+            Quat::from_scaled_axis(turn) * poses[body as usize].rotation
+        };
+        let (rotation_a, rotation_b) = (turned(random, a), turned(random, b));
+        let (position_a, position_b) = (poses[a as usize].position, poses[b as usize].position);
+        let anchor = 0.5 * (position_a + position_b) + vector(random, 0.2);
+        let joint_axis = match kind {
+            JointKind::Hinge { axis, .. } | JointKind::ConeTwist { axis, .. } => axis,
+            JointKind::Point | JointKind::Fixed => Vec3::X,
+        };
+        // As Joint::new does, from these poses.
+        let (reference, _) = tangent_basis(joint_axis);
+        let (inverse_a, inverse_b) = (rotation_a.inverse(), rotation_b.inverse());
+        let mut angular_impulse = [0.0; MAX_ANGULAR_ROWS];
+        for impulse in &mut angular_impulse {
+            *impulse = uniform(random, 0.0, 0.05);
+        }
+        out.push(Some(Joint {
+            kind,
+            body_a: a,
+            body_b: b,
+            local_anchor_a: inverse_a * (anchor - position_a),
+            local_anchor_b: inverse_b * (anchor - position_b),
+            local_axis_a: inverse_a * joint_axis,
+            local_axis_b: inverse_b * joint_axis,
+            local_reference_a: inverse_a * reference,
+            local_reference_b: inverse_b * reference,
+            relative_rotation: inverse_a * rotation_b,
+            break_impulse: None,
+            broken: false,
+            point_impulse: vector(random, 0.1),
+            angular_impulse,
+        }));
+    }
+    out
 }
 
 fn close(gpu: f32, cpu: f32, tolerance: f32) -> bool {
@@ -170,65 +324,103 @@ fn close3(gpu: Vec3, cpu: Vec3, tolerance: f32) -> bool {
 }
 
 /// `problem` solved on the CPU from `bodies`.
-fn cpu_solve(
-    problem: &Problem,
-    mut bodies: Vec<SolverBody>,
-    settings: SolverSettings,
-) -> (Vec<SolverBody>, Vec<ContactConstraint>) {
+fn cpu_solve(problem: &Problem, mut bodies: Vec<SolverBody>, settings: SolverSettings) -> Solved {
     let mut contacts = problem.contacts.clone();
-    // No joints: every batch's joint range is empty.
-    let joint_offsets = vec![0; problem.offsets.len()];
+    let mut joints = problem.joints.clone();
     solve(
         &mut bodies,
         &mut Batched {
             contacts: &mut contacts,
             contact_offsets: &problem.offsets,
-            joints: &mut [],
-            joint_offsets: &joint_offsets,
+            joints: &mut joints,
+            joint_offsets: &problem.joint_offsets,
             has_overflow: problem.has_overflow,
         },
         settings,
     );
-    (bodies, contacts)
+    Solved {
+        bodies,
+        contacts,
+        joints,
+    }
 }
 
-/// How far the CPU's own impulses move (in `close`'s measure) when every input velocity moves
-/// by one ulp: the problem's conditioning, the yardstick for another executor's rounding. The
-/// worst of four patterns of nudges (all up, all down, and up or down by body parity either
-/// way), since one pattern can happen to cancel along a chain of constraints.
-fn cpu_sensitivity(problem: &Problem, settings: SolverSettings, cpu: &[ContactConstraint]) -> f32 {
+/// What a solve leaves: the bodies and the constraints with their impulses.
+struct Solved {
+    bodies: Vec<SolverBody>,
+    contacts: Vec<ContactConstraint>,
+    joints: Vec<JointConstraint>,
+}
+
+impl Solved {
+    /// Every impulse of the solve, contacts then joints, in one order for both executors.
+    fn impulses(&self) -> Vec<f32> {
+        let mut out = Vec::new();
+        for c in &self.contacts {
+            for p in &c.points {
+                out.extend([p.normal.impulse, p.tangent[0].impulse, p.tangent[1].impulse]);
+            }
+        }
+        for j in &self.joints {
+            out.extend(j.point_impulse.to_array());
+            out.extend(j.angular_impulse);
+        }
+        out
+    }
+}
+
+/// How far the CPU's own impulses move (in `close`'s measure) when every input velocity, and
+/// every joint's step-start rotations, move by one ulp: the problem's conditioning, the
+/// yardstick for another executor's rounding. The worst of four patterns of nudges (all up,
+/// all down, and up or down by index parity either way), since one pattern can happen to
+/// cancel along a chain of constraints.
+///
+/// Why rotations: a joint rebuilds its angles from whole rotations at every sweep, and a
+/// limit row turns its angle error e into the bias e / h (speculative) or `bias_rate` · e, so
+/// a rounding of 1e-7 rad in the angle moves its impulse by about 6e-6 · mass at 60 Hz — far
+/// more than one ulp of the velocities does. Contacts only add small displacements to a
+/// fixed separation, so this adds nothing for them.
+fn cpu_sensitivity(problem: &Problem, settings: SolverSettings, cpu: &Solved) -> f32 {
+    let cpu = cpu.impulses();
     let mut worst = 0.0f32;
     for pattern in 0..4 {
+        let up = |index: usize| match pattern {
+            0 => true,
+            1 => false,
+            2 => index.is_multiple_of(2),
+            _ => !index.is_multiple_of(2),
+        };
+        let nudge = |up: bool| move |x: f32| if up { x.next_up() } else { x.next_down() };
         let nudged: Vec<SolverBody> = problem
             .bodies
             .iter()
             .enumerate()
-            .map(|(index, body)| {
-                let up = match pattern {
-                    0 => true,
-                    1 => false,
-                    2 => index % 2 == 0,
-                    _ => index % 2 == 1,
-                };
-                let nudge = |x: f32| if up { x.next_up() } else { x.next_down() };
-                SolverBody {
-                    linear_velocity: body.linear_velocity.map(nudge),
-                    angular_velocity: body.angular_velocity.map(nudge),
-                    ..*body
+            .map(|(index, body)| SolverBody {
+                linear_velocity: body.linear_velocity.map(nudge(up(index))),
+                angular_velocity: body.angular_velocity.map(nudge(up(index))),
+                ..*body
+            })
+            .collect();
+        let joints = problem
+            .joints
+            .iter()
+            .enumerate()
+            .map(|(index, joint)| {
+                let rotate = |q: Quat| Quat::from_array(q.to_array().map(nudge(up(index))));
+                JointConstraint {
+                    rotation_a: rotate(joint.rotation_a),
+                    rotation_b: rotate(joint.rotation_b),
+                    ..*joint
                 }
             })
             .collect();
-        let (_, moved) = cpu_solve(problem, nudged, settings);
-        for (a, b) in moved.iter().zip(cpu) {
-            for (p, q) in a.points.iter().zip(&b.points) {
-                for (x, y) in [
-                    (p.normal.impulse, q.normal.impulse),
-                    (p.tangent[0].impulse, q.tangent[0].impulse),
-                    (p.tangent[1].impulse, q.tangent[1].impulse),
-                ] {
-                    worst = worst.max((x - y).abs() / y.abs().max(1.0));
-                }
-            }
+        let nudged_problem = Problem {
+            joints,
+            ..problem.clone()
+        };
+        let moved = cpu_solve(&nudged_problem, nudged, settings).impulses();
+        for (x, y) in moved.iter().zip(&cpu) {
+            worst = worst.max((x - y).abs() / y.abs().max(1.0));
         }
     }
     worst
@@ -242,28 +434,29 @@ fn cpu_sensitivity(problem: &Problem, settings: SolverSettings, cpu: &[ContactCo
 fn check(problem: &Problem, settings: SolverSettings, tolerance: f32, what: &str) {
     let context = context();
     let mut solver = GpuSolver::new(&context).expect("solver");
-    let (cpu_bodies, cpu_contacts) = cpu_solve(problem, problem.bodies.clone(), settings);
-    let sensitivity = cpu_sensitivity(problem, settings, &cpu_contacts);
+    let cpu = cpu_solve(problem, problem.bodies.clone(), settings);
+    let sensitivity = cpu_sensitivity(problem, settings, &cpu);
     // Eight: measured GPU/CPU differences on the 6000-pair set were 3.4 and 6.7 times the
     // sensitivity with two batch layouts of the same problem (lavapipe). An open question
     // (issue 7's note): whether that is rounding alone or the small-batch workgroup walk.
     let tolerance = tolerance.max(8.0 * sensitivity);
     let (mut gpu_bodies, mut gpu_contacts) = (problem.bodies.clone(), problem.contacts.clone());
-    let joint_offsets = vec![0; problem.offsets.len()];
+    let mut gpu_joints = problem.joints.clone();
     solver
         .run(
             &mut gpu_bodies,
             &mut Batched {
                 contacts: &mut gpu_contacts,
                 contact_offsets: &problem.offsets,
-                joints: &mut [],
-                joint_offsets: &joint_offsets,
+                joints: &mut gpu_joints,
+                joint_offsets: &problem.joint_offsets,
                 has_overflow: problem.has_overflow,
             },
             settings,
         )
         .expect("GPU solve");
-    for (index, (gpu, cpu)) in gpu_contacts.iter().zip(&cpu_contacts).enumerate() {
+    let (cpu_bodies, cpu_contacts) = (&cpu.bodies, &cpu.contacts);
+    for (index, (gpu, cpu)) in gpu_contacts.iter().zip(cpu_contacts).enumerate() {
         for (point, (g, c)) in gpu.points.iter().zip(&cpu.points).enumerate() {
             let pairs = [
                 (g.normal.impulse, c.normal.impulse),
@@ -281,7 +474,28 @@ fn check(problem: &Problem, settings: SolverSettings, tolerance: f32, what: &str
             }
         }
     }
-    for (index, (g, c)) in gpu_bodies.iter().zip(&cpu_bodies).enumerate() {
+    for (index, (g, c)) in gpu_joints.iter().zip(&cpu.joints).enumerate() {
+        let pairs = c
+            .point_impulse
+            .to_array()
+            .into_iter()
+            .chain(c.angular_impulse)
+            .zip(
+                g.point_impulse
+                    .to_array()
+                    .into_iter()
+                    .chain(g.angular_impulse),
+            );
+        for (slot, (c, g)) in pairs.enumerate() {
+            assert!(
+                close(g, c, tolerance),
+                "{what}: joint {index} (kind {}) impulse {slot}: GPU {g}, CPU {c} \
+                 (tolerance {tolerance}, CPU sensitivity {sensitivity})",
+                cpu.joints[index].frame.kind
+            );
+        }
+    }
+    for (index, (g, c)) in gpu_bodies.iter().zip(cpu_bodies).enumerate() {
         let ok = close3(g.linear_velocity, c.linear_velocity, tolerance)
             && close3(g.angular_velocity, c.angular_velocity, tolerance)
             && close3(g.delta_position, c.delta_position, tolerance)
@@ -317,7 +531,7 @@ fn one_iteration_matches_cpu_on_random_contacts() {
             .iter()
             .enumerate()
         {
-            let problem = problem(seed as u64, bodies, pairs, 0, batcher);
+            let problem = problem(seed as u64, bodies, pairs, 0, Joints::default(), batcher);
             check(
                 &problem,
                 one_iteration(),
@@ -330,7 +544,76 @@ fn one_iteration_matches_cpu_on_random_contacts() {
 
 #[test]
 fn overflow_batch_matches_cpu() {
-    let problem = problem(7, 200, 300, 150, Batcher::Colors);
+    let problem = problem(7, 200, 300, 150, Joints::default(), Batcher::Colors);
     assert!(problem.has_overflow, "the hub overflows the 64 colors");
     check(&problem, one_iteration(), 1e-5, "hub of 150 contacts");
+}
+
+/// Sub-steps and several iterations: the joint rows are rebuilt from rotations that moved.
+fn substeps() -> SolverSettings {
+    SolverSettings {
+        substeps: 4,
+        iterations: 2,
+        ..one_iteration()
+    }
+}
+
+#[test]
+fn joints_and_contacts_match_cpu() {
+    for batcher in Batcher::ALL {
+        for (seed, &(bodies, pairs, joints)) in
+            [(1, 0, 1), (2, 1, 2), (12, 10, 17), (101, 120, 257)]
+                .iter()
+                .enumerate()
+        {
+            let problem = problem(
+                100 + seed as u64,
+                bodies,
+                pairs,
+                0,
+                Joints {
+                    count: joints,
+                    hub: 0,
+                },
+                batcher,
+            );
+            assert!(!problem.joints.is_empty(), "{bodies} bodies: some joints");
+            for (settings, name) in [(one_iteration(), "1 iteration"), (substeps(), "4 substeps")] {
+                check(
+                    &problem,
+                    settings,
+                    1e-5,
+                    &format!("{bodies} bodies, {pairs} pairs, {joints} joints, {batcher}, {name}"),
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn joints_in_the_overflow_batch_match_cpu() {
+    let problem = problem(
+        8,
+        200,
+        300,
+        150,
+        // Joints take colors before contacts: past 64 on body 0, they overflow too.
+        Joints {
+            count: 120,
+            hub: 80,
+        },
+        Batcher::Colors,
+    );
+    assert!(problem.has_overflow, "the hub overflows the 64 colors");
+    let last = problem.joint_offsets.len() - 2;
+    assert!(
+        problem.joint_offsets[last + 1] > problem.joint_offsets[last],
+        "joints in the overflow batch"
+    );
+    check(
+        &problem,
+        substeps(),
+        1e-5,
+        "hub of 150 contacts and 80 joints",
+    );
 }

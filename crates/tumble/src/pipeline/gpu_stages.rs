@@ -11,10 +11,10 @@ use crate::stages::batching::gpu::GpuBatching;
 use crate::stages::batching::{Batcher, Coloring};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
-use crate::stages::constraints::{ContactConstraint, RowInputs};
+use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
-use crate::stages::solver::gpu::GpuSolver;
+use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
 /// Profile lines of one GPU stage: uploads, the kernels (GPU time), waiting on the host,
@@ -96,10 +96,13 @@ pub(crate) struct GpuStages {
     masses: GpuVec<BodyMass>,
     batching: GpuBatching,
     solver: GpuSolver,
-    /// The solver's bodies, constraints in batch order and batch offsets on the device.
+    /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
+    /// joints) on the device.
     solver_bodies: GpuVec<SolverBody>,
     batched_contacts: GpuVec<ContactConstraint>,
     batch_offsets: GpuVec<u32>,
+    batched_joints: GpuVec<JointConstraint>,
+    joint_batch_offsets: GpuVec<u32>,
     /// The narrowphase's inputs and output on the device.
     keys: GpuVec<u64>,
     old_index: GpuVec<u32>,
@@ -112,6 +115,7 @@ pub(crate) struct GpuStages {
     downloaded: Vec<PairContact>,
     downloaded_bodies: Vec<SolverBody>,
     downloaded_constraints: Vec<ContactConstraint>,
+    downloaded_joints: Vec<JointConstraint>,
 }
 
 impl GpuStages {
@@ -140,6 +144,8 @@ impl GpuStages {
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
+            batched_joints: GpuVec::with_capacity(&context, "batched joints", 0)?,
+            joint_batch_offsets: GpuVec::with_capacity(&context, "joint batch offsets", 0)?,
             keys: GpuVec::with_capacity(&context, "pair keys", 0)?,
             old_index: GpuVec::with_capacity(&context, "old pair index", 0)?,
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
@@ -150,6 +156,7 @@ impl GpuStages {
             downloaded: Vec::new(),
             downloaded_bodies: Vec::new(),
             downloaded_constraints: Vec::new(),
+            downloaded_joints: Vec::new(),
             context,
         })
     }
@@ -390,8 +397,8 @@ impl GpuStages {
         Ok(())
     }
 
-    /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract for contacts
-    /// (the caller keeps steps with joints on the CPU: joint rows have no kernel yet).
+    /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract, contacts and
+    /// joints (the drag included) in the same batches.
     pub fn solve(
         &mut self,
         profiler: &mut Profiler,
@@ -399,33 +406,32 @@ impl GpuStages {
         batched: &mut Batched,
         settings: SolverSettings,
     ) -> Result<(), GpuError> {
-        debug_assert!(
-            batched.joints.is_empty(),
-            "joint rows have no GPU kernel yet"
-        );
         let context = &self.context;
         let start = Instant::now();
         self.solver_bodies.upload(context, bodies)?;
         self.batched_contacts.upload(context, batched.contacts)?;
         self.batch_offsets
             .upload(context, batched.contact_offsets)?;
+        self.batched_joints.upload(context, batched.joints)?;
+        self.joint_batch_offsets
+            .upload(context, batched.joint_offsets)?;
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
         let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
-        let (contacts, offsets) = (&self.batched_contacts, &self.batch_offsets);
+        let device_batched = DeviceBatched {
+            contacts: &self.batched_contacts,
+            contact_offsets: &self.batch_offsets,
+            joints: &self.batched_joints,
+            joint_offsets: &self.joint_batch_offsets,
+            host_contact_offsets: batched.contact_offsets,
+            host_joint_offsets: batched.joint_offsets,
+            has_overflow: batched.has_overflow,
+        };
         run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
-            solver.encode(
-                pass,
-                device_bodies,
-                contacts,
-                offsets,
-                batched.contact_offsets,
-                batched.has_overflow,
-                settings,
-                restitution,
-            );
+            solver.encode(pass, device_bodies, &device_batched, settings, restitution);
             Ok(())
         })?;
+        // Impulses come back for warm starting and, for joints, the host's break test.
         let start = Instant::now();
         self.solver_bodies
             .download_into(context, &mut self.downloaded_bodies)?;
@@ -435,6 +441,9 @@ impl GpuStages {
         batched
             .contacts
             .copy_from_slice(&self.downloaded_constraints);
+        self.batched_joints
+            .download_into(context, &mut self.downloaded_joints)?;
+        batched.joints.copy_from_slice(&self.downloaded_joints);
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         Ok(())
     }

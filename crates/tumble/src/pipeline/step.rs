@@ -311,9 +311,7 @@ impl World {
             has_overflow: scratch.coloring.has_overflow,
         };
         let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
-            // Joints have no GPU rows yet: a step with joints (or a drag) solves on the CPU,
-            // and the profile's `cpu` line under `solver` says so.
-            (Executor::Gpu, Some(gpu)) if batched.joints.is_empty() => {
+            (Executor::Gpu, Some(gpu)) => {
                 gpu.solve(profiler, &mut scratch.solver_bodies, &mut batched, settings)
             }
             _ => {

@@ -1,5 +1,8 @@
-//! GPU executor of the soft step: the kernels of `solver.wgsl` over the same
-//! [`SolverBody`] and [`ContactConstraint`] arrays the CPU solves, in the CPU's order.
+//! GPU executor of the soft step: the kernels of `solver.wgsl` (contacts) and
+//! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`] and
+//! [`JointConstraint`] arrays the CPU solves, in the CPU's order: a batch's contacts and joints
+//! are one dispatch, its threads taking the contacts, then the joints. Stages without joints
+//! run contact-only kernels, those with joints their `_mixed` twins (`solver.wgsl` says why).
 //!
 //! One dispatch per batch and sweep (a dispatch is the GPU's barrier between batches), except
 //! that each run of consecutive batches smaller than [`SMALL_BATCH`] is one dispatch of one
@@ -16,7 +19,7 @@
 //!
 //! Guarantees: the same results as [`solve`](super::solve) up to float rounding (WGSL may
 //! fuse multiply-adds); deterministic, since threads of a dispatch touch disjoint bodies and
-//! constraints. Joints are not solved here yet: [`GpuSolver::run`] refuses them.
+//! constraints.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -28,19 +31,25 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
-use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, ContactConstraint};
+use crate::stages::constraints::{
+    CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
+};
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 
 const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
-const BINDINGS: [Binding; 4] = [
+const SOLVER_JOINT_WGSL: &str = include_str!("solver_joint.wgsl");
+/// Parameters, bodies, contacts, contact offsets, joints, joint offsets.
+const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageRead,
+    Binding::StorageReadWrite,
+    Binding::StorageRead,
 ];
 
-/// Batches with fewer constraints than this are solved in order by one thread, together with
+/// Batches with fewer constraints (contacts and joints) than this are solved in order by one thread, together with
 /// their neighbours of the same kind: a dispatch costs microseconds, a few dozen constraints
 /// in one thread about as much. The CPU's threshold (2 blocks of 64) applied to the GPU; not
 /// yet measured on a GPU.
@@ -69,8 +78,10 @@ pub fn wgsl() -> Source {
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
+        .snippet("joint_constraint.wgsl", JOINT_CONSTRAINT_WGSL)
         .snippet("solver_body.wgsl", SOLVER_BODY_WGSL)
         .snippet("solver.wgsl", SOLVER_WGSL)
+        .snippet("solver_joint.wgsl", SOLVER_JOINT_WGSL)
 }
 
 /// Batches `first..end` solved by one dispatch.
@@ -84,7 +95,8 @@ pub struct Stage {
 /// How a [`Stage`]'s dispatch goes through its batches; the value is `SolverParams::sequential`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum StageMode {
-    /// One batch, one thread per constraint, as many workgroups as it takes.
+    /// One batch, one thread per constraint, as many workgroups as it takes: the contacts'
+    /// workgroups, then the joints'.
     Parallel = 0,
     /// One workgroup walks a run of small batches in order, a barrier after each.
     Workgroup = 1,
@@ -92,14 +104,20 @@ pub enum StageMode {
     Alone = 2,
 }
 
-/// The dispatches of one sweep, from the batch offsets (`offsets[b]..offsets[b + 1]` is batch
-/// b; the last batch is the overflow batch when `has_overflow`).
-pub fn stages(offsets: &[u32], has_overflow: bool) -> Vec<Stage> {
-    let batch_count = offsets.len().saturating_sub(1) as u32;
+/// The dispatches of one sweep, from the batch offsets of the contacts and of the joints
+/// (`offsets[b]..offsets[b + 1]` is batch b; the last batch is the overflow batch when
+/// `has_overflow`).
+pub fn stages(contact_offsets: &[u32], joint_offsets: &[u32], has_overflow: bool) -> Vec<Stage> {
+    assert_eq!(
+        contact_offsets.len(),
+        joint_offsets.len(),
+        "contacts and joints have the same batches"
+    );
+    let batch_count = contact_offsets.len().saturating_sub(1) as u32;
     let mut stages = Vec::new();
     let mut small_from = 0;
     for batch in 0..batch_count {
-        let size = offsets[batch as usize + 1] - offsets[batch as usize];
+        let size = batch_size(contact_offsets, joint_offsets, batch as usize);
         let overflow = has_overflow && batch + 1 == batch_count;
         if size < SMALL_BATCH && !overflow {
             continue;
@@ -132,6 +150,12 @@ pub fn stages(offsets: &[u32], has_overflow: bool) -> Vec<Stage> {
     stages
 }
 
+/// Constraints of batch `batch`: its contacts and its joints.
+fn batch_size(contact_offsets: &[u32], joint_offsets: &[u32], batch: usize) -> u32 {
+    contact_offsets[batch + 1] - contact_offsets[batch] + joint_offsets[batch + 1]
+        - joint_offsets[batch]
+}
+
 /// Dispatches of one step over `stage_count` stages (see the module docs).
 pub fn dispatch_count(stage_count: usize, settings: &SolverSettings, restitution: bool) -> usize {
     let per_substep = 2 + stage_count * (2 + settings.iterations as usize);
@@ -152,7 +176,7 @@ const VARIANTS: usize = 3;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
 type Key = (
-    [wgpu::Buffer; 3],
+    [wgpu::Buffer; 5],
     usize,
     Vec<(u32, u32, StageMode)>,
     [u32; 8],
@@ -166,13 +190,27 @@ struct Bound {
     _slots: UniformSlots,
 }
 
+/// The batched constraints on the device, as [`GpuSolver::encode`] sweeps them: the arrays of
+/// [`Batched`], with the host's copy of the offsets, which sizes the dispatches.
+pub struct DeviceBatched<'a> {
+    pub contacts: &'a GpuVec<ContactConstraint>,
+    pub contact_offsets: &'a GpuVec<u32>,
+    pub joints: &'a GpuVec<JointConstraint>,
+    pub joint_offsets: &'a GpuVec<u32>,
+    pub host_contact_offsets: &'a [u32],
+    pub host_joint_offsets: &'a [u32],
+    pub has_overflow: bool,
+}
+
 /// The GPU solver: its kernels with the bind groups for the arrays it last saw, and its own
 /// arrays for [`run`](Self::run).
 pub struct GpuSolver {
     encoder: SolverEncoder,
     bodies: GpuVec<SolverBody>,
     contacts: GpuVec<ContactConstraint>,
-    offsets: GpuVec<u32>,
+    contact_offsets: GpuVec<u32>,
+    joints: GpuVec<JointConstraint>,
+    joint_offsets: GpuVec<u32>,
 }
 
 /// Kernels and bind groups: what encodes a step.
@@ -181,6 +219,9 @@ struct SolverEncoder {
     warm_start: Kernel,
     solve: Kernel,
     restitution: Kernel,
+    /// Warm start and solve for stages whose batches hold joints (see `sweep_mixed`).
+    warm_start_mixed: Kernel,
+    solve_mixed: Kernel,
     integrate_velocities: Kernel,
     integrate_positions: Kernel,
     bound: Option<Bound>,
@@ -197,6 +238,8 @@ impl GpuSolver {
                 warm_start: kernel("warm_start"),
                 solve: kernel("solve"),
                 restitution: kernel("restitution"),
+                warm_start_mixed: kernel("warm_start_mixed"),
+                solve_mixed: kernel("solve_mixed"),
                 integrate_velocities: kernel("integrate_velocities"),
                 integrate_positions: kernel("integrate_positions"),
                 bound: None,
@@ -204,104 +247,91 @@ impl GpuSolver {
             },
             bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
             contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
-            offsets: GpuVec::with_capacity(context, "solver batch offsets", 0)?,
+            contact_offsets: GpuVec::with_capacity(context, "solver contact batch offsets", 0)?,
+            joints: GpuVec::with_capacity(context, "solver joints", 0)?,
+            joint_offsets: GpuVec::with_capacity(context, "solver joint batch offsets", 0)?,
         })
     }
 
-    /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them),
-    /// `contacts` in batch order and `offsets` (the batch offsets, on the device); `host_offsets`
-    /// is the same offsets on the host, which size the dispatches. `restitution`: whether any
-    /// contact bounces (false skips the restitution sweep, which would change nothing).
-    /// Returns the number of dispatches encoded.
-    #[allow(clippy::too_many_arguments)]
+    /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them) and
+    /// the `batched` constraints. `restitution`: whether any contact bounces (false skips the
+    /// restitution sweep, which would change nothing). Returns the number of dispatches
+    /// encoded.
     pub fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
         bodies: &GpuVec<SolverBody>,
-        contacts: &GpuVec<ContactConstraint>,
-        offsets: &GpuVec<u32>,
-        host_offsets: &[u32],
-        has_overflow: bool,
+        batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
     ) -> usize {
-        self.encoder.encode(
-            pass,
-            bodies,
-            contacts,
-            offsets,
-            host_offsets,
-            has_overflow,
-            settings,
-            restitution,
-        )
+        self.encoder
+            .encode(pass, bodies, batched, settings, restitution)
     }
 
     /// The soft step with [`solve`](super::solve)'s signature: uploads the bodies and the
-    /// batched contacts, solves on the GPU, downloads both.
-    ///
-    /// # Panics
-    ///
-    /// If `batched` holds joints: the GPU solver does not solve joints yet.
+    /// batched contacts and joints, solves on the GPU, downloads all three.
     pub fn run(
         &mut self,
         bodies: &mut [SolverBody],
         batched: &mut Batched,
         settings: SolverSettings,
     ) -> Result<(), GpuError> {
-        assert!(
-            batched.joints.is_empty(),
-            "the GPU solver does not solve joints yet"
-        );
         let context = self.encoder.context.clone();
         self.bodies.upload(&context, bodies)?;
         self.contacts.upload(&context, batched.contacts)?;
-        self.offsets.upload(&context, batched.contact_offsets)?;
+        self.contact_offsets
+            .upload(&context, batched.contact_offsets)?;
+        self.joints.upload(&context, batched.joints)?;
+        self.joint_offsets.upload(&context, batched.joint_offsets)?;
         let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
+        let device = DeviceBatched {
+            contacts: &self.contacts,
+            contact_offsets: &self.contact_offsets,
+            joints: &self.joints,
+            joint_offsets: &self.joint_offsets,
+            host_contact_offsets: batched.contact_offsets,
+            host_joint_offsets: batched.joint_offsets,
+            has_overflow: batched.has_overflow,
+        };
+        let encoder = &mut self.encoder;
         context.submit_pass("solver", |pass| {
-            self.encoder.encode(
-                pass,
-                &self.bodies,
-                &self.contacts,
-                &self.offsets,
-                batched.contact_offsets,
-                batched.has_overflow,
-                settings,
-                restitution,
-            )
+            encoder.encode(pass, &self.bodies, &device, settings, restitution)
         });
         let downloaded = self.bodies.download(&context)?;
         bodies.copy_from_slice(&downloaded);
         let downloaded = self.contacts.download(&context)?;
         batched.contacts.copy_from_slice(&downloaded);
+        let downloaded = self.joints.download(&context)?;
+        batched.joints.copy_from_slice(&downloaded);
         Ok(())
     }
 }
 
 impl SolverEncoder {
-    /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them),
-    /// `contacts` in batch order and `offsets` (the batch offsets, on the device); `host_offsets`
-    /// is the same offsets on the host, which size the dispatches. `restitution`: whether any
-    /// contact bounces (false skips the restitution sweep, which would change nothing).
-    /// Returns the number of dispatches encoded.
-    #[allow(clippy::too_many_arguments)]
+    /// [`GpuSolver::encode`].
     fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
         bodies: &GpuVec<SolverBody>,
-        contacts: &GpuVec<ContactConstraint>,
-        offsets: &GpuVec<u32>,
-        host_offsets: &[u32],
-        has_overflow: bool,
+        batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
     ) -> usize {
-        let stages = stages(host_offsets, has_overflow);
+        let (host_contact_offsets, host_joint_offsets) =
+            (batched.host_contact_offsets, batched.host_joint_offsets);
+        let stages = stages(
+            host_contact_offsets,
+            host_joint_offsets,
+            batched.has_overflow,
+        );
         let key: Key = (
             [
                 bodies.buffer().clone(),
-                contacts.buffer().clone(),
-                offsets.buffer().clone(),
+                batched.contacts.buffer().clone(),
+                batched.contact_offsets.buffer().clone(),
+                batched.joints.buffer().clone(),
+                batched.joint_offsets.buffer().clone(),
             ],
             bodies.len(),
             stages.iter().map(|s| (s.first, s.end, s.mode)).collect(),
@@ -317,7 +347,7 @@ impl SolverEncoder {
             ],
         );
         if self.bound.as_ref().is_none_or(|bound| bound.key != key) {
-            self.bound = Some(self.bind(key, &stages, bodies, contacts, offsets, settings));
+            self.bound = Some(self.bind(key, &stages, bodies, batched, settings));
         }
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
@@ -329,10 +359,19 @@ impl SolverEncoder {
                 if stage.mode != StageMode::Parallel {
                     1
                 } else {
-                    let size =
-                        host_offsets[stage.end as usize] - host_offsets[stage.first as usize];
+                    let size = batch_size(
+                        host_contact_offsets,
+                        host_joint_offsets,
+                        stage.first as usize,
+                    );
                     workgroups_for(size as usize, WORKGROUP_SIZE)
                 }
+            })
+            .collect();
+        let has_joints: Vec<bool> = stages
+            .iter()
+            .map(|stage| {
+                host_joint_offsets[stage.end as usize] > host_joint_offsets[stage.first as usize]
             })
             .collect();
         let group = |stage: usize, variant: Variant| {
@@ -341,17 +380,21 @@ impl SolverEncoder {
         let body_group = bound.groups[stages.len() * VARIANTS].clone();
         let dispatches = &mut self.dispatches;
         dispatches.clear();
-        let sweep = |dispatches: &mut Vec<Dispatch>, kernel: &Kernel, variant: Variant| {
+        // A stage with joints runs the mixed twin of the contact-only kernel.
+        let sweep = |dispatches: &mut Vec<Dispatch>, kernels: [&Kernel; 2], variant: Variant| {
             for (stage, &groups) in stage_groups.iter().enumerate() {
+                let kernel = kernels[has_joints[stage] as usize];
                 dispatches.push(kernel.dispatch(group(stage, variant), groups));
             }
         };
+        let warm_start = [&self.warm_start, &self.warm_start_mixed];
+        let solve = [&self.solve, &self.solve_mixed];
         for substep in 0..settings.substeps {
             dispatches.push(
                 self.integrate_velocities
                     .dispatch(body_group.clone(), body_groups),
             );
-            sweep(dispatches, &self.warm_start, Variant::Solve);
+            sweep(dispatches, warm_start, Variant::Solve);
             for iteration in 0..settings.iterations {
                 // As on the CPU: only the first solve of the step starts from positions no
                 // sweep has seen; later ones reuse the last relax sweep's separations.
@@ -360,16 +403,18 @@ impl SolverEncoder {
                 } else {
                     Variant::Solve
                 };
-                sweep(dispatches, &self.solve, variant);
+                sweep(dispatches, solve, variant);
             }
             dispatches.push(
                 self.integrate_positions
                     .dispatch(body_group.clone(), body_groups),
             );
-            sweep(dispatches, &self.solve, Variant::Relax);
+            sweep(dispatches, solve, Variant::Relax);
         }
         if restitution {
-            sweep(dispatches, &self.restitution, Variant::Solve);
+            // Joints do not bounce: the contact-only kernel everywhere.
+            let restitution = &self.restitution;
+            sweep(dispatches, [restitution, restitution], Variant::Solve);
         }
         encode_all(pass, dispatches);
         debug_assert_eq!(
@@ -384,8 +429,7 @@ impl SolverEncoder {
         key: Key,
         stages: &[Stage],
         bodies: &GpuVec<SolverBody>,
-        contacts: &GpuVec<ContactConstraint>,
-        offsets: &GpuVec<u32>,
+        batched: &DeviceBatched,
         settings: SolverSettings,
     ) -> Bound {
         let base = SolverParams {
@@ -427,8 +471,10 @@ impl SolverEncoder {
                     &[
                         slots.binding(slot),
                         bodies.whole(),
-                        contacts.whole(),
-                        offsets.whole(),
+                        batched.contacts.whole(),
+                        batched.contact_offsets.whole(),
+                        batched.joints.whole(),
+                        batched.joint_offsets.whole(),
                     ],
                 )
             })

@@ -1,5 +1,6 @@
 //! Joint rows in the solver: the point part as one 3×3 block, then the angular rows, each
 //! rebuilt from the current rotations (step-start rotation composed with the delta rotation).
+//! `solver_joint.wgsl` is the GPU twin, in the same order of operations.
 
 use super::{BodyAccess, SolverBody, Sweep, bias_terms};
 use crate::math::{Mat3, Vec3};

@@ -1,13 +1,18 @@
 // The soft step's kernels (stages/solver/mod.rs explains the step; contact.rs holds the CPU
-// twins of every function here, in the same order of operations).
+// twins of the contact functions here, joint.rs those of solver_joint.wgsl, in the same order
+// of operations).
 //
-// Constraints lie batch after batch in `contacts`: batch b is contacts[offsets[b] ..
-// offsets[b + 1]]. A dispatch covers the batches first_batch .. end_batch:
-//   - parallel (sequential == 0): one batch, one thread per constraint. The batch's
-//     constraints share no dynamic body, so no two threads touch the same body.
+// Constraints lie batch after batch: batch b is contacts[offsets[b] .. offsets[b + 1]] and
+// joints[joint_offsets[b] .. joint_offsets[b + 1]]. A dispatch covers the batches
+// first_batch .. end_batch:
+//   - parallel (sequential == 0): one batch, one thread per constraint (its contacts, then
+//     its joints). The batch's constraints share no dynamic body, so no two threads touch the
+//     same body.
 //   - sequential == 1: one workgroup walks a run of small batches in order, its threads
 //     sharing each batch, a storage barrier after each (same results as one dispatch each);
-//   - sequential == 2: thread 0 alone solves the overflow batch in order.
+//   - sequential == 2: thread 0 alone solves the overflow batch in order, contacts first.
+// Dispatches whose batches hold no joint run the contact-only kernels (warm_start, solve);
+// the others their *_mixed twins (see sweep_mixed).
 
 struct SolverParams {
     gravity: vec3<f32>,
@@ -29,6 +34,8 @@ struct SolverParams {
 @group(0) @binding(1) var<storage, read_write> bodies: array<SolverBody>;
 @group(0) @binding(2) var<storage, read_write> contacts: array<ContactConstraint>;
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
+@group(0) @binding(4) var<storage, read_write> joints: array<JointConstraint>;
+@group(0) @binding(5) var<storage, read> joint_offsets: array<u32>;
 
 fn load_body(index: u32) -> SolverBody {
     if index == STATIC_BODY {
@@ -177,22 +184,6 @@ fn restitution_contact(index: u32) {
 
 const WALK: u32 = 1u;
 
-// Constraints of this dispatch's thread: a range of one, all of them (the overflow batch,
-// thread 0) or none. Not for WALK dispatches, which the kernels loop over themselves.
-fn constraint_range(thread: u32) -> vec2<u32> {
-    if params.sequential != 0u {
-        if thread == 0u {
-            return vec2<u32>(offsets[params.first_batch], offsets[params.end_batch]);
-        }
-        return vec2<u32>(0u, 0u);
-    }
-    let index = offsets[params.first_batch] + thread;
-    if index < offsets[params.first_batch + 1u] {
-        return vec2<u32>(index, index + 1u);
-    }
-    return vec2<u32>(0u, 0u);
-}
-
 // What a sweep does to each of its constraints.
 const WARM_START: u32 = 0u;
 const SOLVE: u32 = 1u;
@@ -212,8 +203,25 @@ fn apply_sweep(kind: u32, index: u32) {
     }
 }
 
-// One sweep of this dispatch's batches (see the top of the file), by thread `local` of its
-// workgroup, `thread` of the dispatch.
+// Contacts of this dispatch's thread: a range of one, all of them (the overflow batch,
+// thread 0) or none. Not for WALK dispatches, which the kernels loop over themselves.
+fn constraint_range(thread: u32) -> vec2<u32> {
+    if params.sequential != 0u {
+        if thread == 0u {
+            return vec2<u32>(offsets[params.first_batch], offsets[params.end_batch]);
+        }
+        return vec2<u32>(0u, 0u);
+    }
+    let index = offsets[params.first_batch] + thread;
+    if index < offsets[params.first_batch + 1u] {
+        return vec2<u32>(index, index + 1u);
+    }
+    return vec2<u32>(0u, 0u);
+}
+
+// One sweep of this dispatch's batches' contacts (see the top of the file), by thread `local`
+// of its workgroup, `thread` of the dispatch. For dispatches without joints, and for the
+// restitution sweep (joints do not bounce).
 fn sweep(kind: u32, local: u32, thread: u32) {
     if params.sequential == WALK {
         for (var batch = params.first_batch; batch < params.end_batch; batch++) {
@@ -228,6 +236,55 @@ fn sweep(kind: u32, local: u32, thread: u32) {
     let range = constraint_range(thread);
     for (var index = range.x; index < range.y; index++) {
         apply_sweep(kind, index);
+    }
+}
+
+// Constraints (contacts, then joints) of batch `batch`.
+fn batch_size(batch: u32) -> u32 {
+    return offsets[batch + 1u] - offsets[batch] + joint_offsets[batch + 1u]
+        - joint_offsets[batch];
+}
+
+// Item `item` of batch `batch`: its contact `item`, or its joint `item` − (its contacts).
+fn apply_mixed(kind: u32, batch: u32, item: u32) {
+    let contact_count = offsets[batch + 1u] - offsets[batch];
+    if item < contact_count {
+        apply_sweep(kind, offsets[batch] + item);
+    } else if kind == SOLVE {
+        solve_joint(joint_offsets[batch] + item - contact_count);
+    } else {
+        warm_start_joint(joint_offsets[batch] + item - contact_count);
+    }
+}
+
+// `sweep` for dispatches whose batches hold joints (warm start and solve): items are a
+// batch's contacts, then its joints, the CPU's order within a batch. Each of the row
+// functions is called from one place only: lavapipe's LLVM took minutes to compile the kernel
+// with the joint rows inlined at three call sites. The contact-only kernels stay apart, since
+// lavapipe runs both sides of a branch that differs between lanes: its contact-only scenes
+// ran 18× slower with the joint rows in their kernels.
+fn sweep_mixed(kind: u32, local: u32, thread: u32) {
+    for (var batch = params.first_batch; batch < params.end_batch; batch++) {
+        let size = batch_size(batch);
+        var start = 0u;
+        var stop = size;
+        var step = 1u;
+        if params.sequential == WALK {
+            start = local;
+            step = WORKGROUP_SIZE;
+        } else if params.sequential == 0u {
+            start = thread;
+            stop = min(thread + 1u, size);
+        } else if thread != 0u {
+            // The overflow batch: thread 0 alone, in order.
+            stop = 0u;
+        }
+        for (var item = start; item < stop; item += step) {
+            apply_mixed(kind, batch, item);
+        }
+        if params.sequential == WALK {
+            storageBarrier();
+        }
     }
 }
 
@@ -256,6 +313,24 @@ fn restitution(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn warm_start_mixed(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    sweep_mixed(WARM_START, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn solve_mixed(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    sweep_mixed(SOLVE, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
 }
 
 // Gravity into the velocities of the dynamic bodies.
