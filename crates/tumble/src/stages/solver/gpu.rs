@@ -219,13 +219,32 @@ struct SolverEncoder {
     warm_start: Kernel,
     solve: Kernel,
     restitution: Kernel,
-    /// Warm start and solve for stages whose batches hold joints (see `sweep_mixed`).
-    warm_start_mixed: Kernel,
-    solve_mixed: Kernel,
+    /// Warm start and solve for stages whose batches hold joints (see `sweep_mixed`), built
+    /// at the first step with joints: with a cold Mesa shader cache, lavapipe's LLVM took
+    /// more than 6 minutes over them (seconds once cached), which a world without joints
+    /// need not wait for.
+    mixed: Option<MixedKernels>,
     integrate_velocities: Kernel,
     integrate_positions: Kernel,
     bound: Option<Bound>,
     dispatches: Vec<Dispatch>,
+}
+
+/// The `_mixed` kernels of `solver.wgsl`.
+struct MixedKernels {
+    warm_start: Kernel,
+    solve: Kernel,
+}
+
+impl MixedKernels {
+    fn new(context: &GpuContext) -> Self {
+        let source = wgsl();
+        let kernel = |entry| Kernel::new(context, entry, &source, entry, &BINDINGS);
+        Self {
+            warm_start: kernel("warm_start_mixed"),
+            solve: kernel("solve_mixed"),
+        }
+    }
 }
 
 impl GpuSolver {
@@ -238,8 +257,7 @@ impl GpuSolver {
                 warm_start: kernel("warm_start"),
                 solve: kernel("solve"),
                 restitution: kernel("restitution"),
-                warm_start_mixed: kernel("warm_start_mixed"),
-                solve_mixed: kernel("solve_mixed"),
+                mixed: None,
                 integrate_velocities: kernel("integrate_velocities"),
                 integrate_positions: kernel("integrate_positions"),
                 bound: None,
@@ -381,14 +399,20 @@ impl SolverEncoder {
         let dispatches = &mut self.dispatches;
         dispatches.clear();
         // A stage with joints runs the mixed twin of the contact-only kernel.
-        let sweep = |dispatches: &mut Vec<Dispatch>, kernels: [&Kernel; 2], variant: Variant| {
-            for (stage, &groups) in stage_groups.iter().enumerate() {
-                let kernel = kernels[has_joints[stage] as usize];
-                dispatches.push(kernel.dispatch(group(stage, variant), groups));
-            }
-        };
-        let warm_start = [&self.warm_start, &self.warm_start_mixed];
-        let solve = [&self.solve, &self.solve_mixed];
+        let sweep =
+            |dispatches: &mut Vec<Dispatch>, kernels: [Option<&Kernel>; 2], variant: Variant| {
+                for (stage, &groups) in stage_groups.iter().enumerate() {
+                    let kernel = kernels[has_joints[stage] as usize]
+                        .expect("the mixed kernels are built before a stage with joints");
+                    dispatches.push(kernel.dispatch(group(stage, variant), groups));
+                }
+            };
+        if has_joints.contains(&true) && self.mixed.is_none() {
+            self.mixed = Some(MixedKernels::new(&self.context));
+        }
+        let mixed = self.mixed.as_ref();
+        let warm_start = [Some(&self.warm_start), mixed.map(|m| &m.warm_start)];
+        let solve = [Some(&self.solve), mixed.map(|m| &m.solve)];
         for substep in 0..settings.substeps {
             dispatches.push(
                 self.integrate_velocities
@@ -413,7 +437,7 @@ impl SolverEncoder {
         }
         if restitution {
             // Joints do not bounce: the contact-only kernel everywhere.
-            let restitution = &self.restitution;
+            let restitution = Some(&self.restitution);
             sweep(dispatches, [restitution, restitution], Variant::Solve);
         }
         encode_all(pass, dispatches);
