@@ -188,7 +188,8 @@ fn run(args: &RunArgs) -> Result<(), String> {
     };
     // The raycast scene casts its fan after every step, inside the step's profiler frame.
     let mut fan = RayFan::for_scene(&args.scene, args.scale);
-    for _ in 0..args.steps {
+    let mut first_step_ms = None;
+    for step in 0..args.steps {
         match fan.as_mut() {
             Some(fan) => world.try_step_then(|world| {
                 fan.cast(world);
@@ -196,6 +197,12 @@ fn run(args: &RunArgs) -> Result<(), String> {
             None => world.try_step(),
         }
         .map_err(|e| e.to_string())?;
+        // The first step compiles the GPU kernels and grows every buffer: it is reported on its
+        // own line, and the profile and the median are of the steps after it.
+        if step == 0 && args.steps > 1 {
+            first_step_ms = Some(world.profiler().median_frame_ms());
+            world.profiler_mut().reset();
+        }
     }
     let rays = fan.as_ref().map(RayFan::stats);
     let report = world.profiler().report();
@@ -203,6 +210,11 @@ fn run(args: &RunArgs) -> Result<(), String> {
     let ms_per_step = world.profiler().median_frame_ms();
     let threads = rayon::current_num_threads();
     if args.profile {
+        if let Some(ms) = first_step_ms {
+            println!(
+                "first step: {ms:.3} ms (kernel compilation, buffer growth), not in the profile below"
+            );
+        }
         print!("{report}");
         println!(
             "# bodies = {} ({} asleep)  # pairs = {} (+{} -{})  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",

@@ -93,6 +93,11 @@ fn json_summary_and_dump_that_loads_back() {
         stdout.contains("--- Profiling: step") && stdout.contains("-- solver"),
         "profile report: {stdout}"
     );
+    // The first step is reported alone; the profile averages the other 19.
+    assert!(
+        stdout.contains("first step: ") && stdout.contains("over 19 frames"),
+        "profile report: {stdout}"
+    );
     let last = stdout.lines().last().unwrap();
     let summary: serde_json::Value = serde_json::from_str(last).unwrap();
     for key in [

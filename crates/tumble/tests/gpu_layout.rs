@@ -550,17 +550,15 @@ fn row_and_batching_parameters_match_rust() {
             "ContactConstraint",
         ],
     );
-    check(
+    // Tally is two u32 words on the host ([u32; 2]: batched, count).
+    check_with_gpu_only(
         batching::wgsl(),
         vec![rust_layout!(BatchParams {
-            count,
             body_count,
             round,
             batcher,
-            ordered,
-            _pad0,
-            _pad1,
-            _pad2
+            ordered
         })],
+        &["Tally"],
     );
 }

@@ -17,10 +17,11 @@ use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, updat
 use crate::stages::solver::gpu::GpuSolver;
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
-/// Profile lines of one GPU stage: uploads, the kernels (GPU time), waiting on the host,
-/// downloads.
+/// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
+/// time), submitting and waiting on the host, downloads.
 struct StageSpans {
     upload: SpanPath,
+    encode: SpanPath,
     kernel: SpanPath,
     wait: SpanPath,
     download: SpanPath,
@@ -28,38 +29,44 @@ struct StageSpans {
 
 const AABB: StageSpans = StageSpans {
     upload: &["aabb", "copy to gpu"],
+    encode: &["aabb", "encode"],
     kernel: &["aabb", "kernel"],
-    wait: &["aabb", "encode, submit and wait"],
+    wait: &["aabb", "submit and wait"],
     download: &["aabb", "copy to cpu"],
 };
 const BROADPHASE: StageSpans = StageSpans {
     upload: &["broadphase", "copy to gpu"],
+    encode: &["broadphase", "encode"],
     kernel: &["broadphase", "kernels"],
-    wait: &["broadphase", "encode, submit and wait"],
+    wait: &["broadphase", "submit and wait"],
     download: &["broadphase", "copy to cpu"],
 };
 const CONSTRAINTS: StageSpans = StageSpans {
     upload: &["constraints", "copy to gpu"],
+    encode: &["constraints", "encode"],
     kernel: &["constraints", "kernels"],
-    wait: &["constraints", "encode, submit and wait"],
+    wait: &["constraints", "submit and wait"],
     download: &["constraints", "copy to cpu"],
 };
 const BATCHING: StageSpans = StageSpans {
     upload: &["batching", "copy to gpu"],
+    encode: &["batching", "encode"],
     kernel: &["batching", "kernels"],
-    wait: &["batching", "encode, submit and wait"],
+    wait: &["batching", "submit and wait"],
     download: &["batching", "copy to cpu"],
 };
 const SOLVER: StageSpans = StageSpans {
     upload: &["solver", "copy to gpu"],
+    encode: &["solver", "encode"],
     kernel: &["solver", "kernels"],
-    wait: &["solver", "encode, submit and wait"],
+    wait: &["solver", "submit and wait"],
     download: &["solver", "copy to cpu"],
 };
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
+    encode: &["narrowphase", "encode"],
     kernel: &["narrowphase", "kernel"],
-    wait: &["narrowphase", "encode, submit and wait"],
+    wait: &["narrowphase", "submit and wait"],
     download: &["narrowphase", "copy to cpu"],
 };
 
@@ -440,8 +447,8 @@ impl GpuStages {
     }
 }
 
-/// Encodes one stage's kernels into a measured pass, submits and waits: the host's wait is a
-/// CPU line, the kernels' time a GPU line when the adapter has timestamps.
+/// Encodes one stage's kernels into a measured pass, submits and waits: the host's encoding
+/// and its wait are CPU lines, the kernels' time a GPU line when the adapter has timestamps.
 fn run_pass(
     context: &GpuContext,
     gpu_profiler: &mut GpuProfiler,
@@ -463,7 +470,10 @@ fn run_pass(
         encode(&mut pass)?;
     }
     gpu_profiler.resolve(&mut encoder);
-    context.queue.submit([encoder.finish()]);
+    let commands = encoder.finish();
+    profiler.record(spans.encode, SpanKind::Cpu, elapsed_ms(start));
+    let start = Instant::now();
+    context.queue.submit([commands]);
     context.wait()?;
     profiler.record(spans.wait, SpanKind::Cpu, elapsed_ms(start));
     gpu_profiler.collect(context, profiler)

@@ -28,14 +28,10 @@ const BINDINGS: [Binding; 6] = [
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BatchParams {
-    pub count: u32,
     pub body_count: u32,
     pub round: u32,
     pub batcher: u32,
     pub ordered: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
-    pub _pad2: u32,
 }
 
 pub fn wgsl() -> Source {
@@ -47,7 +43,8 @@ pub fn wgsl() -> Source {
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,
-/// batched count), constraint count, body count, ordered count, batcher.
+/// tally), constraint capacity, body count, ordered count, batcher. Not the constraint count,
+/// which changes every step: the kernels read it from the tally.
 type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
 
 /// The GPU batching of one world, its buffers reused from step to step.
@@ -59,8 +56,8 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
-    /// How many constraints have a batch (the rounds' early exit).
-    batched: GpuVec<u32>,
+    /// How many constraints have a batch (the rounds' early exit), and how many there are.
+    tally: GpuVec<[u32; 2]>,
     cached: Option<(BatchKey, Vec<Dispatch>)>,
     /// Host scratch: the bodies to upload, the colors read back.
     host_bodies: Vec<[u32; 2]>,
@@ -74,7 +71,7 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
-            batched: GpuVec::from_slice(context, "batched count", &[0])?,
+            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0]])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
@@ -92,23 +89,30 @@ impl GpuBatching {
         batcher: Batcher,
     ) -> Result<(), GpuError> {
         let count = self.bodies.len();
+        if count == 0 {
+            self.colors.resize(context, 0)?;
+            return Ok(());
+        }
+        // Lands before this submission's commands run.
+        self.tally.upload(context, &[[0, count as u32]])?;
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * body_count)?;
         self.masks.resize(context, body_count)?;
+        let capacity = self.bodies.capacity();
         let buffers = [
             self.bodies.buffer().clone(),
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
-            self.batched.buffer().clone(),
+            self.tally.buffer().clone(),
         ];
-        let key = (buffers, count, body_count, ordered, batcher);
+        let key = (buffers, capacity, body_count, ordered, batcher);
         if self
             .cached
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let dispatches = self.dispatches(context, count, body_count, ordered, batcher);
+            let dispatches = self.dispatches(context, capacity, body_count, ordered, batcher);
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
@@ -117,17 +121,15 @@ impl GpuBatching {
         Ok(())
     }
 
+    /// The dispatches for up to `capacity` constraints.
     fn dispatches(
         &self,
         context: &GpuContext,
-        count: usize,
+        capacity: usize,
         body_count: usize,
         ordered: usize,
         batcher: Batcher,
     ) -> Vec<Dispatch> {
-        if count == 0 {
-            return Vec::new();
-        }
         let source = wgsl();
         let kernel = |entry: &str| {
             Kernel::new(
@@ -146,14 +148,10 @@ impl GpuBatching {
         );
         let blocks: Vec<BatchParams> = (0..MAX_ROUNDS as u32)
             .map(|round| BatchParams {
-                count: count as u32,
                 body_count: body_count as u32,
                 round,
                 batcher: batcher as u32,
                 ordered: ordered as u32,
-                _pad0: 0,
-                _pad1: 0,
-                _pad2: 0,
             })
             .collect();
         let slots = UniformSlots::new(context, "batching params", &blocks);
@@ -166,12 +164,12 @@ impl GpuBatching {
                     self.colors.whole(),
                     self.locks.whole(),
                     self.masks.whole(),
-                    self.batched.whole(),
+                    self.tally.whole(),
                 ],
             )
         };
-        let groups = workgroups_for(count, WORKGROUP_SIZE);
-        let start_groups = workgroups_for(count.max(body_count).max(1), WORKGROUP_SIZE);
+        let groups = workgroups_for(capacity, WORKGROUP_SIZE);
+        let start_groups = workgroups_for(capacity.max(body_count), WORKGROUP_SIZE);
         let mut dispatches = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
             dispatches.push(claim.dispatch(bind(&claim, round), groups));
