@@ -519,6 +519,22 @@ fn solver_structs_match_rust() {
     );
 }
 
+/// The impulses the solver reads back when the rows stay on the device. The source also holds
+/// the constraint structs, whose layouts `solver_structs_match_rust` checks.
+#[test]
+fn batched_impulses_match_rust() {
+    use tumble::stages::solver::batched::{BatchedImpulses, wgsl};
+    check_with_gpu_only(
+        wgsl(),
+        vec![rust_layout!(BatchedImpulses {
+            normal,
+            tangent1,
+            tangent2
+        })],
+        &["Softness", "Row", "ConstraintPoint", "ContactConstraint"],
+    );
+}
+
 /// The parameter blocks of the rows and batching kernels. The rows' source also holds the body,
 /// manifold and constraint structs, whose layouts the narrowphase and solver tests check.
 #[test]

@@ -14,6 +14,7 @@ use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
+use crate::stages::solver::batched::{BatchedImpulses, GpuBatched};
 use crate::stages::solver::gpu::GpuSolver;
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
@@ -103,6 +104,8 @@ pub(crate) struct GpuStages {
     masses: GpuVec<BodyMass>,
     batching: GpuBatching,
     solver: GpuSolver,
+    /// The batches kept on the device when rows, batching and solver all run here.
+    batched: GpuBatched,
     /// The solver's bodies, constraints in batch order and batch offsets on the device.
     solver_bodies: GpuVec<SolverBody>,
     batched_contacts: GpuVec<ContactConstraint>,
@@ -144,6 +147,7 @@ impl GpuStages {
             masses: GpuVec::with_capacity(&context, "masses", 0)?,
             batching: GpuBatching::new(&context)?,
             solver: GpuSolver::new(&context)?,
+            batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
@@ -327,14 +331,15 @@ impl GpuStages {
 impl GpuStages {
     /// Stage 5 on the GPU for contacts:
     /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract, the
-    /// manifold slots given as `keys` and `contacts` (pairs, then children).
+    /// manifold slots given as `keys` and `contacts` (pairs, then children). With no `out` the
+    /// constraints stay on the device for [`Self::solve_batched`].
     pub fn build_constraints(
         &mut self,
         profiler: &mut Profiler,
         keys: &[u64],
         contacts: &[PairContact],
         inputs: &RowInputs,
-        out: &mut Vec<ContactConstraint>,
+        out: Option<&mut Vec<ContactConstraint>>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
@@ -366,9 +371,11 @@ impl GpuStages {
             &CONSTRAINTS,
             |pass| rows.encode(context, pass, &device_inputs),
         )?;
-        let start = Instant::now();
-        self.rows.read_back(context, out)?;
-        record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
+        if let Some(out) = out {
+            let start = Instant::now();
+            self.rows.read_back(context, out)?;
+            record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
+        }
         Ok(())
     }
 
@@ -442,6 +449,56 @@ impl GpuStages {
         batched
             .contacts
             .copy_from_slice(&self.downloaded_constraints);
+        record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        Ok(())
+    }
+}
+
+impl GpuStages {
+    /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts that
+    /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
+    /// is the constraint at batched place i; `offsets` the batch offsets), solved as
+    /// [`Self::solve`] does, and only their impulses come back into `impulses`, in batch order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_batched(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &mut [SolverBody],
+        order: &[u32],
+        offsets: &[u32],
+        has_overflow: bool,
+        settings: SolverSettings,
+        restitution: bool,
+        impulses: &mut Vec<BatchedImpulses>,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        self.solver_bodies.upload(context, bodies)?;
+        self.batch_offsets.upload(context, offsets)?;
+        self.batched.upload(context, order)?;
+        record_copy(profiler, SOLVER.upload, elapsed_ms(start));
+        let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
+        let (batched, rows, device_offsets) = (&mut self.batched, &self.rows, &self.batch_offsets);
+        run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
+            batched.encode_gather(context, pass, &rows.constraints);
+            solver.encode(
+                pass,
+                device_bodies,
+                &batched.constraints,
+                device_offsets,
+                offsets,
+                has_overflow,
+                settings,
+                restitution,
+            );
+            batched.encode_read_impulses(pass);
+            Ok(())
+        })?;
+        let start = Instant::now();
+        self.solver_bodies
+            .download_into(context, &mut self.downloaded_bodies)?;
+        bodies.copy_from_slice(&self.downloaded_bodies);
+        self.batched.impulses.download_into(context, impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         Ok(())
     }
