@@ -103,8 +103,9 @@ impl Collider {
             Shape::Plane(p) => p.normal.extend(p.offset),
             // The GPU narrowphase does not collide meshes yet: only the kind is uploaded.
             Shape::TriMesh(_) => Vec4::ZERO,
-            // The GPU stages do not read hulls yet: the kind alone marks the collider.
-            Shape::ConvexHull(_) => Vec4::ZERO,
+            // The GPU stages do not read hulls or compounds yet: the kind alone marks the
+            // collider.
+            Shape::ConvexHull(_) | Shape::Compound(_) => Vec4::ZERO,
         };
         ColliderData {
             kind: self.shape.kind() as u32,
@@ -330,8 +331,9 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
         }
         // Checked when the mesh was built (TriMesh::new).
         Shape::TriMesh(_) => Ok(()),
-        // A hull is checked when it is built (`ConvexHull::new`).
-        Shape::ConvexHull(_) => Ok(()),
+        // Hulls and compounds are checked when they are built (`ConvexHull::new`,
+        // `Compound::new`).
+        Shape::ConvexHull(_) | Shape::Compound(_) => Ok(()),
     }
 }
 
@@ -359,6 +361,11 @@ pub enum BodyError {
          kind or the other"
     )]
     HullAndMesh,
+    #[error(
+        "compounds and triangle meshes do not collide with each other yet; a world holds one \
+         kind or the other"
+    )]
+    CompoundAndMesh,
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

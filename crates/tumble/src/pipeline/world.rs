@@ -224,18 +224,31 @@ impl World {
         {
             return Err(BodyError::HullAndMesh);
         }
+        // Likewise no compound–mesh path through the child cache yet.
+        let compound = |shape: &Shape| matches!(shape, Shape::Compound(_));
+        if (compound(&desc.shape) && live_colliders.clone().any(|(c, _)| mesh(&c.shape)))
+            || (mesh(&desc.shape) && live_colliders.clone().any(|(c, _)| compound(&c.shape)))
+        {
+            return Err(BodyError::CompoundAndMesh);
+        }
         let dynamic = !desc.is_static();
-        // A hull's body frame is its principal centroid frame: compose it with the desc's pose
-        // and keep the hull in that frame, so the body (and a dump of it) has the COM pose.
+        // A hull's or a compound's body frame is its principal centroid frame: compose it with
+        // the desc's pose and keep the shape in that frame, so the body (and a dump of it) has
+        // the COM pose.
+        let in_frame = |local_frame: Transform| {
+            let frame =
+                Transform::new(desc.position, desc.unit_rotation()).mul_transform(&local_frame);
+            BodyPose::new(frame.position, frame.rotation)
+        };
         let (pose, shape) = match &desc.shape {
-            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => {
-                let frame = Transform::new(desc.position, desc.unit_rotation())
-                    .mul_transform(&hull.local_frame());
-                (
-                    BodyPose::new(frame.position, frame.rotation),
-                    Shape::ConvexHull(Arc::new(hull.in_own_frame())),
-                )
-            }
+            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => (
+                in_frame(hull.local_frame()),
+                Shape::ConvexHull(Arc::new(hull.in_own_frame())),
+            ),
+            Shape::Compound(compound) if compound.local_frame() != Transform::IDENTITY => (
+                in_frame(compound.local_frame()),
+                Shape::Compound(Arc::new(compound.in_own_frame())),
+            ),
             shape => (
                 BodyPose::new(desc.position, desc.unit_rotation()),
                 shape.clone(),

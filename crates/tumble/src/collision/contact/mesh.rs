@@ -56,8 +56,11 @@ pub fn collide_mesh(
             Shape::Cuboid(cuboid) => {
                 box_triangle(cuboid, &local_pose, &triangle, margin, &mut local)
             }
-            // Hulls never meet meshes (`BodyError::HullAndMesh`); planes and meshes are static.
-            Shape::Plane(_) | Shape::TriMesh(_) | Shape::ConvexHull(_) => return,
+            // Hulls and compounds never meet meshes (`BodyError::HullAndMesh`,
+            // `CompoundAndMesh`); planes and meshes are static.
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::ConvexHull(_) | Shape::Compound(_) => {
+                return;
+            }
         }
         if local.count == 0 {
             continue;

@@ -105,6 +105,13 @@ fn collide_ordered(
     pose_b: BodyPose,
     margin: f32,
 ) {
+    // Only the four primitive kinds have GPU pair functions, and `pair` below is unique only
+    // for kinds < 4 (sphere–compound would read as capsule–box). Pairs with a hull get no
+    // manifold here; a mesh's or a compound's manifolds come from the CPU child cache, which
+    // the step fills after this stage. `b` holds the larger kind.
+    if b.kind > SHAPE_PLANE {
+        return;
+    }
     let pair = a.kind * 4u + b.kind;
     switch pair {
         case 0u: { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
