@@ -28,6 +28,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "1000 barrel-like convex hulls (40 points) in 10 layers of 10 x 10 falling on a plane",
     ),
     (
+        "compounds",
+        "1000 compound bodies, dumbbells (two balls on a rod) and tables (a top on four legs), in 10 layers of 10 x 10 falling on a plane",
+    ),
+    (
         "raycast",
         "about 1000 boxes, spheres and capsules at rest on a plane, a fan of 1000 rays cast each step",
     ),
@@ -43,6 +47,7 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
         "stacked-boxes" => Ok(stacked_boxes(scale)),
         "ragdolls" => Ok(ragdolls(scale)),
         "convex-hulls" => Ok(convex_hulls(scale)),
+        "compounds" => Ok(compounds(scale)),
         "raycast" => Ok(raycast(scale)),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
@@ -120,6 +125,77 @@ fn convex_hulls(scale: f32) -> Scene {
                         .position(position)
                         .rotation(crate::math::Quat::from_rotation_z(tilt)),
                 );
+            }
+        }
+        offset -= 0.05 * (side as f32 - 1.0);
+        y += PITCH;
+    }
+    scene
+}
+
+/// The `convex-hulls` layout with compounds: dumbbells and tables in a checkerboard, each
+/// layer turned a quarter turn from the last so bars land across bars.
+fn compounds(scale: f32) -> Scene {
+    use crate::math::{Quat, Transform};
+    use crate::shape::CompoundChild;
+    const PITCH: f32 = 2.0;
+    let target = 1000.0 * scale;
+    let side = ((10.0 * scale.cbrt()).round() as usize).max(1);
+    let layers = ((target / (side * side) as f32).round() as usize).max(1);
+    let part = |shape: Shape, position: Vec3, rotation: Quat| CompoundChild {
+        shape,
+        pose: Transform::new(position, rotation),
+    };
+    // Two 0.25 m balls on a 0.05 m rod, 1.5 m long in all.
+    let dumbbell = Shape::compound(vec![
+        part(
+            Shape::sphere(0.25),
+            Vec3::new(-0.5, 0.0, 0.0),
+            Quat::IDENTITY,
+        ),
+        part(
+            Shape::capsule(0.05, 0.4),
+            Vec3::ZERO,
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        ),
+        part(
+            Shape::sphere(0.25),
+            Vec3::new(0.5, 0.0, 0.0),
+            Quat::IDENTITY,
+        ),
+    ])
+    .expect("the dumbbell's children are convex and sized");
+    // A 1.2 x 0.1 x 0.8 m top on four 0.6 m legs.
+    let mut table = vec![part(
+        Shape::cuboid(Vec3::new(0.6, 0.05, 0.4)),
+        Vec3::new(0.0, 0.3, 0.0),
+        Quat::IDENTITY,
+    )];
+    for (x, z) in [(-0.5, -0.3), (0.5, -0.3), (-0.5, 0.3), (0.5, 0.3)] {
+        table.push(part(
+            Shape::cuboid(Vec3::new(0.05, 0.3, 0.05)),
+            Vec3::new(x, -0.05, z),
+            Quat::IDENTITY,
+        ));
+    }
+    let table = Shape::compound(table).expect("the table's children are convex and sized");
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    let mut offset = -(side as f32) * PITCH * 0.5;
+    let mut y = 1.0;
+    for layer in 0..layers {
+        let turn = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2 * (layer % 2) as f32);
+        for j in 0..side {
+            for i in 0..side {
+                let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
+                let shape = if (i + j + layer) % 2 == 0 {
+                    dumbbell.clone()
+                } else {
+                    table.clone()
+                };
+                scene
+                    .bodies
+                    .push(BodyDesc::dynamic(shape).position(position).rotation(turn));
             }
         }
         offset -= 0.05 * (side as f32 - 1.0);
