@@ -1,7 +1,8 @@
 //! Compound shapes in the world: a dumbbell (two balls on a capsule rod) and a table (a top on
 //! four legs) fall on a plane and rest; the dumbbell rests on a box and on the table
-//! (compound–compound); rays and sphere casts hit the nearest child; a compound off its
-//! centroid dumps and loads back bitwise; compounds and meshes are refused together.
+//! (compound–compound) and on a triangle-mesh floor; rays and sphere casts hit the nearest
+//! child; a compound off its centroid dumps and loads back bitwise; hull children and meshes
+//! are refused together, as hulls and meshes are.
 mod common;
 use common::*;
 use tumble::collision::ray::{Ray, cast_ray, cast_sphere};
@@ -265,25 +266,149 @@ fn off_centre_compound_dumps_and_loads_bitwise() {
     );
 }
 
-/// No compound–triangle path yet: the world refuses the mix instead of letting compounds
-/// fall through meshes.
-#[test]
-fn compounds_and_meshes_are_refused_together() {
+/// A floor of `cells_x` × `cells_z` square quads of `cell` m, 2 triangles each, at y = 0,
+/// centred on the origin.
+fn mesh_floor(cells_x: u32, cells_z: u32, cell: f32) -> Shape {
     use tumble::shape::TriMesh;
-    let floor = || {
-        let vertices = vec![Vec3::ZERO, Vec3::Z, Vec3::X];
-        Shape::trimesh(TriMesh::new(vertices, vec![[0, 1, 2]]).unwrap())
-    };
+    let mut vertices = Vec::new();
+    for j in 0..=cells_z {
+        for i in 0..=cells_x {
+            vertices.push(vec3(
+                (i as f32 - cells_x as f32 / 2.0) * cell,
+                0.0,
+                (j as f32 - cells_z as f32 / 2.0) * cell,
+            ));
+        }
+    }
+    let mut triangles = Vec::new();
+    let at = |i: u32, j: u32| j * (cells_x + 1) + i;
+    for j in 0..cells_z {
+        for i in 0..cells_x {
+            // Counter-clockwise seen from above (+Y).
+            triangles.push([at(i, j), at(i, j + 1), at(i + 1, j)]);
+            triangles.push([at(i + 1, j), at(i, j + 1), at(i + 1, j + 1)]);
+        }
+    }
+    Shape::trimesh(TriMesh::new(vertices, triangles).unwrap())
+}
+
+/// On a tessellated floor each child's triangles merge into one manifold (coplanar), so the
+/// table stands on 4 manifolds of 4 points, as on a plane; the dumbbell rests on its balls.
+#[test]
+fn compounds_rest_on_a_mesh_floor() {
+    let mut world = World::new(awake_config()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(mesh_floor(8, 8, 1.0)))
+        .unwrap();
+    let table = world
+        .add_body(
+            BodyDesc::dynamic(Shape::compound(table_children()).unwrap())
+                .position(vec3(0.2, 0.2, 0.3)),
+        )
+        .unwrap();
+    let bell = world
+        .add_body(BodyDesc::dynamic(dumbbell()).position(vec3(-2.3, 1.0, 1.7)))
+        .unwrap();
+    let (lowest, _) = fall(&mut world, table, 2.0);
+    assert!(
+        lowest > table_centroid_height() - 0.01,
+        "sank to y = {lowest}"
+    );
+    for (body, height) in [(table, table_centroid_height()), (bell, BALL)] {
+        let pose = world.pose(body).unwrap();
+        let speed = world.linear_velocity(body).unwrap().length();
+        assert!(speed < 1e-3, "still moving at {speed} m/s");
+        assert!((pose.position.y - height).abs() < 1e-3, "rests at {pose:?}");
+        assert!(
+            angle_between(pose.rotation, Quat::IDENTITY) < 1e-3,
+            "{pose:?}"
+        );
+    }
+    assert_eq!(world.stats().child_manifolds, 4 + 2, "a leg or a ball each");
+    for (_, body, _, contact) in world.child_contacts() {
+        let points = contact.manifold.points();
+        if body == table {
+            assert_eq!(points.len(), 4, "a leg on its 4 corners: {points:?}");
+        } else {
+            // The ball touches the floor right under its centre. (Its merged manifold also
+            // holds a second point 12 mm apart, from the sphere–triangle function.)
+            let centre = world
+                .pose(bell)
+                .unwrap()
+                .transform_point(vec3(HALF_SPAN, 0.0, 0.0));
+            let other = world
+                .pose(bell)
+                .unwrap()
+                .transform_point(vec3(-HALF_SPAN, 0.0, 0.0));
+            let deepest = points
+                .iter()
+                .min_by(|p, q| p.separation.total_cmp(&q.separation))
+                .unwrap();
+            let below = |c: Vec3| (deepest.position - vec3(c.x, 0.0, c.z)).length() < 1e-3;
+            assert!(below(centre) || below(other), "{points:?}");
+        }
+    }
+}
+
+/// Hull children have no triangle pair function, as hulls do not: refused with a mesh.
+#[test]
+fn compounds_with_hull_children_and_meshes_are_refused_together() {
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| {
+            0.2 * vec3(
+                [-1.0, 1.0][i & 1],
+                [-1.0, 1.0][(i >> 1) & 1],
+                [-1.0, 1.0][i >> 2],
+            )
+        })
+        .collect();
+    let with_hull = Shape::compound(vec![
+        CompoundChild {
+            shape: Shape::convex_hull(&corners).unwrap(),
+            pose: Transform::IDENTITY,
+        },
+        CompoundChild {
+            shape: Shape::sphere(0.2),
+            pose: Transform::from_position(Vec3::X),
+        },
+    ])
+    .unwrap();
     let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world.add_body(BodyDesc::fixed(floor())).unwrap();
+    world
+        .add_body(BodyDesc::fixed(mesh_floor(1, 1, 1.0)))
+        .unwrap();
     assert_eq!(
-        world.add_body(BodyDesc::dynamic(dumbbell())),
-        Err(tumble::BodyError::CompoundAndMesh)
+        world.add_body(BodyDesc::dynamic(with_hull.clone())),
+        Err(tumble::BodyError::HullAndMesh)
     );
     let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world.add_body(BodyDesc::dynamic(dumbbell())).unwrap();
+    world.add_body(BodyDesc::dynamic(with_hull)).unwrap();
     assert_eq!(
-        world.add_body(BodyDesc::fixed(floor())),
-        Err(tumble::BodyError::CompoundAndMesh)
+        world.add_body(BodyDesc::fixed(mesh_floor(1, 1, 1.0))),
+        Err(tumble::BodyError::HullAndMesh)
+    );
+}
+
+/// Child manifold keys `child * triangles + triangle` must fit a u32: 2^15 children on a mesh
+/// of just over 2^17 triangles do not, and are refused by name.
+#[test]
+fn a_compound_too_large_for_a_mesh_is_refused() {
+    let children: Vec<CompoundChild> = (0..1 << 15)
+        .map(|i| CompoundChild {
+            shape: Shape::sphere(0.1),
+            pose: Transform::from_position(vec3((i % 128) as f32, 0.0, (i / 128) as f32)),
+        })
+        .collect();
+    let mut world = World::new(tumble::StepConfig::default()).unwrap();
+    // 257 × 256 cells: 131 584 triangles, over 2^32 / 2^15 = 131 072.
+    world
+        .add_body(BodyDesc::fixed(mesh_floor(257, 256, 0.1)))
+        .unwrap();
+    assert_eq!(
+        world.add_body(BodyDesc::dynamic(Shape::compound(children).unwrap())),
+        Err(tumble::BodyError::CompoundMeshKeys {
+            children: 1 << 15,
+            triangles: 131_584
+        })
     );
 }

@@ -362,10 +362,10 @@ pub enum BodyError {
     )]
     HullAndMesh,
     #[error(
-        "compounds and triangle meshes do not collide with each other yet; a world holds one \
-         kind or the other"
+        "a compound of {children} children on a mesh of {triangles} triangles needs more than \
+         2^32 child manifold keys; split the mesh or the compound"
     )]
-    CompoundAndMesh,
+    CompoundMeshKeys { children: usize, triangles: usize },
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

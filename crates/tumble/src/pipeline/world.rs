@@ -210,7 +210,15 @@ impl World {
         {
             return Err(BodyError::DuplicateName(name.clone()));
         }
-        let hull = |shape: &Shape| matches!(shape, Shape::ConvexHull(_));
+        // A compound's hull children count as hulls here.
+        let hull = |shape: &Shape| match shape {
+            Shape::ConvexHull(_) => true,
+            Shape::Compound(compound) => compound
+                .children()
+                .iter()
+                .any(|child| matches!(child.shape, Shape::ConvexHull(_))),
+            _ => false,
+        };
         let mesh = |shape: &Shape| matches!(shape, Shape::TriMesh(_));
         let live_colliders = self
             .colliders
@@ -224,12 +232,24 @@ impl World {
         {
             return Err(BodyError::HullAndMesh);
         }
-        // Likewise no compound–mesh path through the child cache yet.
-        let compound = |shape: &Shape| matches!(shape, Shape::Compound(_));
-        if (compound(&desc.shape) && live_colliders.clone().any(|(c, _)| mesh(&c.shape)))
-            || (mesh(&desc.shape) && live_colliders.clone().any(|(c, _)| compound(&c.shape)))
+        // A compound on a mesh keys its child manifolds `child * triangles + triangle` in a
+        // u32 (the child cache's and the dump's child index).
+        let too_many_keys = |a: &Shape, b: &Shape| match (a, b) {
+            (Shape::Compound(compound), Shape::TriMesh(mesh))
+            | (Shape::TriMesh(mesh), Shape::Compound(compound)) => {
+                let keys = compound.children().len() as u64 * mesh.triangles().len() as u64;
+                (keys > 1 << 32).then_some(BodyError::CompoundMeshKeys {
+                    children: compound.children().len(),
+                    triangles: mesh.triangles().len(),
+                })
+            }
+            _ => None,
+        };
+        if let Some(error) = live_colliders
+            .clone()
+            .find_map(|(c, _)| too_many_keys(&desc.shape, &c.shape))
         {
-            return Err(BodyError::CompoundAndMesh);
+            return Err(error);
         }
         let dynamic = !desc.is_static();
         // A hull's or a compound's body frame is its principal centroid frame: compose it with

@@ -905,7 +905,9 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::ZeroNormal => "shape.plane.normal".into(),
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
-        BodyError::HullAndMesh | BodyError::CompoundAndMesh => format!("shape.{shape_name}"),
+        BodyError::HullAndMesh | BodyError::CompoundMeshKeys { .. } => {
+            format!("shape.{shape_name}")
+        }
     }
 }
 

@@ -19,8 +19,9 @@
 //!
 //! # Collision
 //!
-//! A pair with a compound collides child by child (`collide_compound`); each touching child pair
-//! keeps its own manifold in the narrowphase's child cache. Children are a flat list: every
+//! A pair with a compound collides child by child (`collide_compound`; on a triangle mesh, each
+//! child against the triangles); each touching child pair keeps its own manifold in the
+//! narrowphase's child cache. Hull children meet no meshes, as hulls do not. Children are a flat list: every
 //! child is tested, which suits the tens of children a compound built by hand has.
 
 use std::sync::Arc;

@@ -47,14 +47,20 @@ pub fn collide_compound(
                 return;
             }
             let child = index_a * children_b + index_b;
-            let mask = child.wrapping_mul(CHILD_ID_MIX);
-            let count = manifold.count as usize;
-            for point in &mut manifold.points[..count] {
-                point.id ^= mask;
-            }
+            mix_child_ids(&mut manifold, child);
             found.push((child, manifold));
         });
     });
+}
+
+/// Makes the feature ids of `manifold`, found for child (pair) `child`, differ from those of
+/// every other child (see [`CHILD_ID_MIX`]).
+pub fn mix_child_ids(manifold: &mut Manifold, child: u32) {
+    let mask = child.wrapping_mul(CHILD_ID_MIX);
+    let count = manifold.count as usize;
+    for point in &mut manifold.points[..count] {
+        point.id ^= mask;
+    }
 }
 
 /// Children of `shape`: its compound children, or the shape itself.

@@ -56,8 +56,8 @@ pub fn collide_mesh(
             Shape::Cuboid(cuboid) => {
                 box_triangle(cuboid, &local_pose, &triangle, margin, &mut local)
             }
-            // Hulls and compounds never meet meshes (`BodyError::HullAndMesh`,
-            // `CompoundAndMesh`); planes and meshes are static.
+            // Hulls never meet meshes (`BodyError::HullAndMesh`); a compound meets one child by
+            // child (`stages::narrowphase::children`); planes and meshes are static.
             Shape::Plane(_) | Shape::TriMesh(_) | Shape::ConvexHull(_) | Shape::Compound(_) => {
                 return;
             }

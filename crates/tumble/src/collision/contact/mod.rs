@@ -49,7 +49,7 @@ mod segment;
 mod sphere;
 mod triangle;
 
-pub use compound::collide_compound;
+pub use compound::{collide_compound, mix_child_ids};
 pub use mesh::collide_mesh;
 
 use crate::collision::manifold::{ContactPoint, Manifold};

@@ -1,6 +1,6 @@
 //! Child contacts: the manifolds of pairs that need more than one normal — a body on a triangle
-//! mesh touches several triangles, each with its own face — kept persistent from step to step
-//! like the pairs themselves.
+//! mesh touches several triangles, each with its own face; a compound touches with several
+//! children — kept persistent from step to step like the pairs themselves.
 //!
 //! # Layout
 //!
@@ -39,15 +39,16 @@
 //! concatenated in pair order).
 
 use super::{MATCH_DISTANCE, NarrowphaseInputs, PairContact, PointImpulse, closing_speed_bound};
-use crate::collision::contact::{collide_compound, collide_mesh};
+use crate::collision::contact::{collide_compound, collide_mesh, mix_child_ids};
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
 use crate::math::{Quat, Transform};
 use crate::shape::{Shape, TriMesh};
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
-/// (pair key, child index): the child index is the (lowest merged) triangle of the mesh, or
-/// `child_a * children_b + child_b` for a pair with a compound (`collide_compound`).
+/// (pair key, child index): the child index is the (lowest merged) triangle of the mesh,
+/// `child_a * children_b + child_b` for a pair with a compound (`collide_compound`), or
+/// `child * triangles + triangle` for a compound on a mesh.
 pub type ChildKey = (u64, u32);
 
 /// Cosine of the angle (0.5°) under which two triangles' contact normals count as one plane and
@@ -292,8 +293,6 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
                 );
             let (shape_a, shape_b) = (&colliders[a].shape, &colliders[b].shape);
             let (pose_a, pose_b) = (poses[a].transform(), poses[b].transform());
-            // A world never holds both a compound and a mesh (`BodyError::CompoundAndMesh`),
-            // so a pair is one kind or the other.
             let found = match (shape_a, shape_b) {
                 (_, Shape::TriMesh(mesh)) => mesh_children(shape_a, &pose_a, mesh, &pose_b, margin),
                 // The mesh is the second argument of `collide_mesh`: flip the normal to run
@@ -327,7 +326,9 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
 }
 
 /// The triangle manifolds of `shape` (at `pose`) on `mesh` (at `mesh_pose`), coplanar ones
-/// merged, normals from the mesh to the shape.
+/// merged, normals from the mesh to the shape, sorted by child index. A compound's children
+/// each get their own: child index `child * triangles + triangle` (`World::add_body` keeps it
+/// in a u32), ids mixed with the child's so that children never trade impulses by id.
 fn mesh_children(
     shape: &Shape,
     pose: &Transform,
@@ -336,8 +337,33 @@ fn mesh_children(
     margin: f32,
 ) -> Vec<(u32, Manifold)> {
     let mut found = Vec::new();
-    collide_mesh(shape, pose, mesh, mesh_pose, margin, &mut found);
-    merge_coplanar(found, mesh, mesh_pose.rotation)
+    let Shape::Compound(compound) = shape else {
+        collide_mesh(shape, pose, mesh, mesh_pose, margin, &mut found);
+        return merge_coplanar(found, mesh, mesh_pose.rotation);
+    };
+    let triangles = mesh.triangles().len() as u32;
+    let mut all = Vec::new();
+    for (index, child) in compound.children().iter().enumerate() {
+        let child_pose = pose.mul_transform(&child.pose);
+        collide_mesh(
+            &child.shape,
+            &child_pose,
+            mesh,
+            mesh_pose,
+            margin,
+            &mut found,
+        );
+        let first = index as u32 * triangles;
+        all.extend(
+            merge_coplanar(std::mem::take(&mut found), mesh, mesh_pose.rotation)
+                .into_iter()
+                .map(|(triangle, mut manifold)| {
+                    mix_child_ids(&mut manifold, index as u32);
+                    (first + triangle, manifold)
+                }),
+        );
+    }
+    all
 }
 
 #[cfg(test)]
