@@ -152,7 +152,7 @@ fn run_on_the_gpu_shows_stages_and_copies() {
     }
     assert!(
         stdout.contains(
-            "batches by colors on aabb=gpu,broadphase=gpu,narrowphase=gpu,batching=gpu,solver=gpu"
+            "batches by colors on aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
         ),
         "{stdout}"
     );

@@ -1,8 +1,8 @@
 //! Compound shapes in the world: a dumbbell (two balls on a capsule rod) and a table (a top on
 //! four legs) fall on a plane and rest; the dumbbell rests on a box and on the table
 //! (compound–compound) and on a triangle-mesh floor; rays and sphere casts hit the nearest
-//! child; a compound off its centroid dumps and loads back bitwise; hull children and meshes
-//! are refused together, as hulls and meshes are.
+//! child; a compound off its centroid dumps and loads back bitwise; a compound with a hull
+//! child rests on a mesh floor.
 mod common;
 use common::*;
 use tumble::collision::ray::{Ray, cast_ray, cast_sphere};
@@ -172,7 +172,13 @@ fn dumbbell_rests_on_the_table() {
     assert!((y - (top + BALL)).abs() < 2e-3, "rests at y = {y}");
     let table_pose = world.pose(table).unwrap();
     assert!((table_pose.position.y - table_centroid_height()).abs() < 2e-3);
-    assert!(angle_between(table_pose.rotation, Quat::IDENTITY) < 2e-3);
+    // Upright: its legs' axis vertical. Not its yaw: the impact tilts the table by about
+    // 2 mrad while the Gauss-Seidel sweep gives its four legs unequal impulses, and it lands
+    // back slid 3 to 4 mm and turned about Y by an angle that depends on the order the legs'
+    // manifolds are solved in (0.7 mrad with the batcher's old contact hash, 5.0 mrad with
+    // the 31-bit one that ranks joints first), not on the compound.
+    let up = table_pose.rotation * Vec3::Y;
+    assert!(up.angle_between(Vec3::Y) < 2e-3, "tilted: {table_pose:?}");
 }
 
 /// Rays and sphere casts report the child they meet first, with its surface and normal.
@@ -350,43 +356,70 @@ fn compounds_rest_on_a_mesh_floor() {
     }
 }
 
-/// Hull children have no triangle pair function, as hulls do not: refused with a mesh.
+/// Hull children meet meshes through the hull–triangle contacts, as lone hulls do: a compound
+/// of a hull cube and a ball, added before or after the floor, lands on a tessellated floor
+/// with the cube across a vertex of 4 quads and rests level on the cube's face (4 points, its
+/// triangles merged) and the ball.
 #[test]
-fn compounds_with_hull_children_and_meshes_are_refused_together() {
+fn compound_with_a_hull_child_rests_on_a_mesh_floor() {
+    const HALF: f32 = 0.2;
     let corners: Vec<Vec3> = (0..8)
         .map(|i| {
-            0.2 * vec3(
+            HALF * vec3(
                 [-1.0, 1.0][i & 1],
                 [-1.0, 1.0][(i >> 1) & 1],
                 [-1.0, 1.0][i >> 2],
             )
         })
         .collect();
-    let with_hull = Shape::compound(vec![
+    let children = vec![
         CompoundChild {
             shape: Shape::convex_hull(&corners).unwrap(),
             pose: Transform::IDENTITY,
         },
         CompoundChild {
-            shape: Shape::sphere(0.2),
+            shape: Shape::sphere(HALF),
             pose: Transform::from_position(Vec3::X),
         },
-    ])
-    .unwrap();
-    let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world
-        .add_body(BodyDesc::fixed(mesh_floor(1, 1, 1.0)))
-        .unwrap();
-    assert_eq!(
-        world.add_body(BodyDesc::dynamic(with_hull.clone())),
-        Err(tumble::BodyError::HullAndMesh)
-    );
-    let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world.add_body(BodyDesc::dynamic(with_hull)).unwrap();
-    assert_eq!(
-        world.add_body(BodyDesc::fixed(mesh_floor(1, 1, 1.0))),
-        Err(tumble::BodyError::HullAndMesh)
-    );
+    ];
+    let local_frame = Compound::new(children.clone()).unwrap().local_frame();
+    let shape = Shape::compound(children.clone()).unwrap();
+    for floor_first in [true, false] {
+        let mut world = World::new(awake_config()).unwrap();
+        let floor = BodyDesc::fixed(mesh_floor(8, 8, 1.0));
+        if floor_first {
+            world.add_body(floor.clone()).unwrap();
+        }
+        let body = world
+            .add_body(BodyDesc::dynamic(shape.clone()).position(vec3(0.0, 0.5, 0.0)))
+            .unwrap();
+        if !floor_first {
+            world.add_body(floor).unwrap();
+        }
+        let (_, speed) = fall(&mut world, body, 2.0);
+        assert!(speed < 1e-3, "still moving at {speed} m/s");
+        // Each child's centre, through the body (centroid) frame back to the frame the
+        // children were given in.
+        let pose = world.pose(body).unwrap();
+        for child in &children {
+            let centre =
+                pose.transform_point(local_frame.inverse_transform_point(child.pose.position));
+            assert!(
+                (centre.y - HALF).abs() < 1e-3,
+                "floor first {floor_first}: a child rests at {centre}"
+            );
+        }
+        assert_eq!(
+            world.stats().child_manifolds,
+            2,
+            "the cube's and the ball's"
+        );
+        let hull_points = world
+            .child_contacts()
+            .map(|(_, _, _, contact)| contact.manifold.points().len())
+            .max();
+        assert_eq!(hull_points, Some(4), "the cube on its 4 corners");
+    }
 }
 
 /// Child manifold keys `child * triangles + triangle` must fit a u32: 2^15 children on a mesh

@@ -60,6 +60,7 @@ fn dump_at_step_50_then_load_and_run_50_equals_100_steps() {
         ("stacked-boxes", 0.05),
         ("ragdolls", 0.05),
         ("convex-hulls", 0.05),
+        ("convex-trimesh", 0.02),
         ("compounds", 0.05),
     ] {
         let scene = builtin(name, scale).unwrap();

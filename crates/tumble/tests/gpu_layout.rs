@@ -518,3 +518,49 @@ fn solver_structs_match_rust() {
         ],
     );
 }
+
+/// The parameter blocks of the rows and batching kernels. The rows' source also holds the body,
+/// manifold and constraint structs, whose layouts the narrowphase and solver tests check.
+#[test]
+fn row_and_batching_parameters_match_rust() {
+    use tumble::stages::batching::gpu::{self as batching, BatchParams};
+    use tumble::stages::constraints::gpu::{self as rows, RowParams};
+    check_with_gpu_only(
+        rows::wgsl(),
+        vec![rust_layout!(RowParams {
+            softness,
+            static_softness,
+            slot_count,
+            _pad0,
+            _pad1,
+            _pad2
+        })],
+        &[
+            "BodyPose",
+            "BodyVelocity",
+            "BodyMass",
+            "ColliderData",
+            "ContactPoint",
+            "Manifold",
+            "PointImpulse",
+            "PairContact",
+            "Softness",
+            "Row",
+            "ConstraintPoint",
+            "ContactConstraint",
+        ],
+    );
+    check(
+        batching::wgsl(),
+        vec![rust_layout!(BatchParams {
+            count,
+            body_count,
+            round,
+            batcher,
+            ordered,
+            _pad0,
+            _pad1,
+            _pad2
+        })],
+    );
+}

@@ -152,3 +152,77 @@ fn batching_on_the_gpu_gives_the_cpu_step_exactly() {
         }
     }
 }
+
+/// With the narrowphase on the GPU, pairs with a hull or a mesh (no kernel yet) are computed on
+/// the host: a barrel rests on the plane and a ball and a barrel on a mesh as on the CPU. (The
+/// kernel once read a sphere–mesh pair as capsule–capsule and gave hull pairs no contact.)
+#[test]
+fn hulls_and_meshes_beside_the_gpu_narrowphase_follow_the_cpu() {
+    let _turn = gpu_common::context();
+    let world = |stages: &[Stage]| {
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        // A 4 m square of two triangles at y = 1, facing up, beside the origin.
+        let floor = tumble::shape::TriMesh::new(
+            vec![
+                Vec3::new(5.0, 1.0, -2.0),
+                Vec3::new(5.0, 1.0, 2.0),
+                Vec3::new(9.0, 1.0, -2.0),
+                Vec3::new(9.0, 1.0, 2.0),
+            ],
+            vec![[0, 1, 2], [2, 1, 3]],
+        )
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::trimesh(floor)))
+            .unwrap();
+        let barrel = || Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+        let bodies = [
+            world
+                .add_body(BodyDesc::dynamic(barrel()).position(Vec3::new(0.0, 1.0, 0.0)))
+                .unwrap(),
+            world
+                .add_body(BodyDesc::dynamic(barrel()).position(Vec3::new(6.0, 2.0, 0.0)))
+                .unwrap(),
+            world
+                .add_body(BodyDesc::dynamic(Shape::sphere(0.3)).position(Vec3::new(8.0, 1.5, 0.0)))
+                .unwrap(),
+        ];
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        (world, bodies)
+    };
+    let (mut cpu, bodies) = world(&[]);
+    let (mut gpu, _) = world(&[Stage::Narrowphase]);
+    for _ in 0..120 {
+        cpu.step();
+        gpu.try_step().unwrap();
+    }
+    let [on_plane, on_mesh, ball] = bodies.map(|body| gpu.pose(body).unwrap().position.y);
+    assert!(
+        on_plane > 0.1,
+        "the barrel fell through the plane to {on_plane}"
+    );
+    assert!(
+        on_mesh > 1.1,
+        "the barrel fell through the mesh to {on_mesh}"
+    );
+    assert!(
+        (ball - 1.3).abs() < 0.01,
+        "the ball rests at {ball}, not 1.3"
+    );
+    let distance = max_distance(&cpu, &gpu, &bodies);
+    assert!(
+        distance < 1e-3,
+        "the GPU narrowphase world drifted {distance} m"
+    );
+}

@@ -1,6 +1,6 @@
 //! Convex hulls in the world: a hull rests on a plane, a stack of three stands, a box given as
 //! a hull collides as the box does, and a hull whose points are off their centroid dumps and
-//! loads back bitwise.
+//! loads back bitwise; hulls land on triangle meshes.
 mod common;
 use common::*;
 use tumble::collision::contact::collide;
@@ -177,26 +177,35 @@ fn off_centre_hull_dumps_and_loads_bitwise() {
     );
 }
 
-/// Hulls have no pair function against triangles yet: a world refuses the mix with a clear
-/// error instead of letting hulls fall through meshes.
+/// Hulls and triangle meshes share a world in either order of adding, and a barrel dropped
+/// on a mesh lands on it (one triangle here; `tests/trimesh_floor.rs` has the tessellated
+/// floor and `tests/landscape.rs` the hills).
 #[test]
-fn hulls_and_meshes_are_refused_together() {
+fn hulls_and_meshes_collide() {
     use tumble::shape::TriMesh;
     let floor = || {
-        let vertices = vec![Vec3::ZERO, Vec3::Z, Vec3::X];
+        let vertices = vec![
+            vec3(-5.0, 0.0, -5.0),
+            vec3(0.0, 0.0, 5.0),
+            vec3(5.0, 0.0, -5.0),
+        ];
         Shape::trimesh(TriMesh::new(vertices, vec![[0, 1, 2]]).unwrap())
     };
-    let barrel = || Shape::convex_hull(&barrel_points()).unwrap();
-    let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world.add_body(BodyDesc::fixed(floor())).unwrap();
-    assert_eq!(
-        world.add_body(BodyDesc::dynamic(barrel())),
-        Err(tumble::BodyError::HullAndMesh)
-    );
-    let mut world = World::new(tumble::StepConfig::default()).unwrap();
-    world.add_body(BodyDesc::dynamic(barrel())).unwrap();
-    assert_eq!(
-        world.add_body(BodyDesc::fixed(floor())),
-        Err(tumble::BodyError::HullAndMesh)
-    );
+    let mut mesh_first = World::new(awake_config()).unwrap();
+    mesh_first.add_body(BodyDesc::fixed(floor())).unwrap();
+    let barrel_body = mesh_first
+        .add_body(BodyDesc::dynamic(barrel()).position(vec3(0.0, 1.0, -1.0)))
+        .unwrap();
+    let mut hull_first = World::new(awake_config()).unwrap();
+    let hull_body = hull_first
+        .add_body(BodyDesc::dynamic(barrel()).position(vec3(0.0, 1.0, -1.0)))
+        .unwrap();
+    hull_first.add_body(BodyDesc::fixed(floor())).unwrap();
+    for (mut world, body) in [(mesh_first, barrel_body), (hull_first, hull_body)] {
+        run(&mut world, 2.0);
+        // Standing on its square cap: the centre 0.5 m up, sunk no more than the solver's slop.
+        let y = world.pose(body).unwrap().position.y;
+        assert!((y - 0.5).abs() < 0.006, "rests at y = {y}");
+        assert_eq!(world.stats().contacts, 4, "the cap's 4 corners");
+    }
 }

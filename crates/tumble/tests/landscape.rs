@@ -1,5 +1,6 @@
-//! Spheres, capsules and boxes dropped on the generated landscape (a ~5000-triangle mesh with
-//! slopes up to about 20°) land on it, never sink below its surface, and the boxes come to rest.
+//! Spheres, capsules, boxes and convex hulls dropped on the generated landscape (a
+//! ~5000-triangle mesh with slopes up to about 20°) land on it, never sink below its surface,
+//! and the boxes come to rest; the `convex-trimesh` scene's barrels land on it.
 use tumble::math::{Quat, Vec3};
 use tumble::scene::landscape::Landscape;
 use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
@@ -18,7 +19,7 @@ const REST_TOLERANCE: f32 = 0.006;
 
 /// The lowest clearance (m) of a body above the landscape surface: sampled at the points where
 /// each shape reaches lowest (sphere centre minus radius along the vertical, box corners,
-/// capsule end spheres). Negative proves the body dips into the ground: the point straight
+/// capsule end spheres, hull vertices). Negative proves the body dips into the ground: the point straight
 /// below a ball's centre at distance r is inside the ball. Bodies that rolled off the
 /// landscape's edge give +∞ (nothing to check).
 fn clearance(landscape: &Landscape, world: &World, body: BodyHandle, shape: &Shape) -> f32 {
@@ -41,6 +42,14 @@ fn clearance(landscape: &Landscape, world: &World, body: BodyHandle, shape: &Sha
                     if corner & 4 == 0 { -1.0 } else { 1.0 },
                 ) * cuboid.half_extents;
                 let point = pose.transform_point(local);
+                point.y - surface(point)
+            })
+            .fold(f32::INFINITY, f32::min),
+        Shape::ConvexHull(hull) => hull
+            .vertices()
+            .iter()
+            .map(|&vertex| {
+                let point = pose.transform_point(vertex);
                 point.y - surface(point)
             })
             .fold(f32::INFINITY, f32::min),
@@ -142,5 +151,68 @@ fn boxes_dropped_on_the_landscape_come_to_rest() {
             speed < 0.005 && spin < 0.01,
             "box still moving: {speed} m/s, {spin} rad/s"
         );
+    }
+}
+
+/// Barrels (the `convex-hulls` hull, 40 points) dropped with the other shapes never dip into
+/// the ground by more than the landing tolerance.
+#[test]
+fn barrels_dropped_with_the_other_shapes_never_sink() {
+    let shapes = [
+        Shape::convex_hull(&tumble::scene::barrel_points()).unwrap(),
+        Shape::sphere(0.3),
+        Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
+    ];
+    drop_grid(&Landscape::new(0.05), &shapes);
+}
+
+/// The `convex-trimesh` scene at a small scale: its barrels fall onto the landscape, none
+/// sinks into it, and after 3 s they lie on it or on each other: at least half touch it
+/// (within 5 cm), none is higher than a barrel (1 m) on another.
+#[test]
+fn convex_trimesh_barrels_land_on_the_landscape() {
+    let scale = 0.02;
+    let scene = tumble::scene::builtin("convex-trimesh", scale).unwrap();
+    let landscape = Landscape::new(scale);
+    let Shape::TriMesh(mesh) = &scene.bodies[0].shape else {
+        panic!("the ground is the landscape mesh")
+    };
+    assert_eq!(
+        mesh.triangles().len(),
+        2 * landscape.cells() as usize * landscape.cells() as usize
+    );
+    let barrels: Vec<Shape> = scene.bodies[1..].iter().map(|b| b.shape.clone()).collect();
+    assert!(barrels.len() >= 15, "{} barrels", barrels.len());
+    let mut world = scene.build().unwrap();
+    let bodies: Vec<BodyHandle> = world.bodies().skip(1).collect();
+    let mut lowest = f32::INFINITY;
+    for _ in 0..180 {
+        world.step();
+        for (body, shape) in bodies.iter().zip(&barrels) {
+            lowest = lowest.min(clearance(&landscape, &world, *body, shape));
+        }
+    }
+    assert!(
+        lowest > -SINK_TOLERANCE,
+        "a barrel dipped {} m into the ground",
+        -lowest
+    );
+    let on_ground = bodies
+        .iter()
+        .zip(&barrels)
+        .filter(|(body, shape)| clearance(&landscape, &world, **body, shape) < 0.05)
+        .count();
+    println!(
+        "lowest clearance {lowest} m, {on_ground} of {} barrels on the ground",
+        bodies.len()
+    );
+    assert!(
+        on_ground * 2 >= bodies.len(),
+        "{on_ground} of {} barrels on the ground",
+        bodies.len()
+    );
+    for (body, shape) in bodies.iter().zip(&barrels) {
+        let clearance = clearance(&landscape, &world, *body, shape);
+        assert!(clearance < 1.05, "a barrel still {clearance} m up");
     }
 }

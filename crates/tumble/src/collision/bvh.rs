@@ -241,8 +241,10 @@ impl Bvh {
 
 /// Distance parameter at which the ray enters `aabb` (0 when it starts inside), or `None` when
 /// it misses the box within `[0, max_t]`. Slab test; `inverse` is `1 / direction`, infinite on
-/// axes the ray runs parallel to. `f32::min`/`max` drop the NaN of `0 · ∞` (origin exactly on
-/// a slab of a parallel axis), which counts that slab as passed.
+/// axes the ray runs parallel to. A ray parallel to an axis that starts exactly on one of the
+/// box's planes across it gives `0 · ∞ = NaN` there: it runs along that (closed) face, so the
+/// slab does not bound it and is skipped. (`t0.min(t1)` would instead return the other,
+/// infinite bound and miss the box: a ray along a mesh's grid line missed both triangles.)
 #[inline]
 pub fn ray_box_entry(origin: Vec3, inverse: Vec3, aabb: &Aabb, max_t: f32) -> Option<f32> {
     let mut enter = 0.0f32;
@@ -250,6 +252,9 @@ pub fn ray_box_entry(origin: Vec3, inverse: Vec3, aabb: &Aabb, max_t: f32) -> Op
     for axis in 0..3 {
         let t0 = (aabb.min[axis] - origin[axis]) * inverse[axis];
         let t1 = (aabb.max[axis] - origin[axis]) * inverse[axis];
+        if t0.is_nan() || t1.is_nan() {
+            continue;
+        }
         enter = enter.max(t0.min(t1));
         exit = exit.min(t0.max(t1));
     }
@@ -427,6 +432,22 @@ mod tests {
                 assert_eq!(found, expected, "size {size}");
             }
         }
+    }
+
+    /// A ray parallel to z starting in the plane z = 0 runs along the faces of the boxes on
+    /// either side of that plane: it enters both (closed boxes), and misses one it runs beside.
+    #[test]
+    fn a_ray_along_a_box_face_enters_the_box() {
+        let below = Aabb::new(Vec3::new(0.0, -1.0, -1.0), Vec3::new(1.0, 0.0, 0.0));
+        let above = Aabb::new(Vec3::new(0.0, -1.0, 0.0), Vec3::new(1.0, 0.0, 1.0));
+        let beside = Aabb::new(Vec3::new(0.0, -1.0, 0.5), Vec3::new(1.0, 0.0, 1.0));
+        let origin = Vec3::new(0.2, 2.0, 0.0);
+        let inverse = Vec3::new(0.1, -1.0, 0.0).normalize().recip();
+        for aabb in [below, above] {
+            let entry = ray_box_entry(origin, inverse, &aabb, 10.0).unwrap();
+            assert!((entry - 2.0 * Vec3::new(0.1, -1.0, 0.0).length()).abs() < 1e-5);
+        }
+        assert_eq!(ray_box_entry(origin, inverse, &beside, 10.0), None);
     }
 
     #[test]

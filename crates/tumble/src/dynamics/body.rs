@@ -357,11 +357,6 @@ pub enum BodyError {
     #[error("a triangle mesh is static only (mass 0); use a convex shape for moving bodies")]
     DynamicTriMesh,
     #[error(
-        "convex hulls and triangle meshes do not collide with each other yet; a world holds one \
-         kind or the other"
-    )]
-    HullAndMesh,
-    #[error(
         "a compound of {children} children on a mesh of {triangles} triangles needs more than \
          2^32 child manifold keys; split the mesh or the compound"
     )]

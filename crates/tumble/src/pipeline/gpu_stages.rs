@@ -13,7 +13,7 @@ use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
-use crate::stages::narrowphase::{NarrowphaseInputs, PairContact};
+use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
 use crate::stages::solver::gpu::GpuSolver;
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
@@ -297,8 +297,22 @@ impl GpuStages {
 
         let start = Instant::now();
         self.contacts.download_into(context, &mut self.downloaded)?;
-        contacts.copy_from_slice(&self.downloaded);
+        // Pairs with a hull or a mesh have no kernel yet: they keep last step's contact (for
+        // its impulses) and the host computes them, as the `cpu pairs` line shows.
+        let colliders = inputs.colliders;
+        let on_gpu = |key: u64| {
+            let (a, b) = crate::stages::pairs::pair_bodies(key);
+            gpu_pair(&colliders[a as usize].shape, &colliders[b as usize].shape)
+        };
+        for ((contact, downloaded), &key) in contacts.iter_mut().zip(&self.downloaded).zip(keys) {
+            if on_gpu(key) {
+                *contact = *downloaded;
+            }
+        }
         record_copy(profiler, NARROWPHASE.download, elapsed_ms(start));
+        profiler.scope("cpu pairs", || {
+            update_contacts_where(keys, contacts, inputs, |a, b| !gpu_pair(a, b))
+        });
         Ok(())
     }
 }
@@ -358,6 +372,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         bodies: impl Iterator<Item = (u32, u32)>,
         body_count: usize,
+        ordered: usize,
         batcher: Batcher,
         coloring: &mut Coloring,
     ) -> Result<(), GpuError> {
@@ -367,7 +382,7 @@ impl GpuStages {
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
         let batching = &mut self.batching;
         run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-            batching.encode(context, pass, body_count, batcher)
+            batching.encode(context, pass, body_count, ordered, batcher)
         })?;
         let start = Instant::now();
         self.batching.read_back(context, coloring)?;

@@ -248,6 +248,7 @@ impl World {
                 profiler,
                 bodies,
                 self.poses.len(),
+                scratch.joints.len(),
                 config.batcher,
                 &mut scratch.coloring,
             ),
@@ -255,6 +256,7 @@ impl World {
                 color_constraints(
                     bodies,
                     self.poses.len(),
+                    scratch.joints.len(),
                     config.batcher,
                     &mut scratch.coloring,
                 );

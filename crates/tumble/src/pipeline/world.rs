@@ -210,28 +210,11 @@ impl World {
         {
             return Err(BodyError::DuplicateName(name.clone()));
         }
-        // A compound's hull children count as hulls here.
-        let hull = |shape: &Shape| match shape {
-            Shape::ConvexHull(_) => true,
-            Shape::Compound(compound) => compound
-                .children()
-                .iter()
-                .any(|child| matches!(child.shape, Shape::ConvexHull(_))),
-            _ => false,
-        };
-        let mesh = |shape: &Shape| matches!(shape, Shape::TriMesh(_));
         let live_colliders = self
             .colliders
             .iter()
             .zip(&self.slots)
             .filter(|(_, slot)| slot.is_live());
-        // No hull-triangle pair function yet: refuse the mix rather than let hulls fall
-        // through meshes.
-        if (hull(&desc.shape) && live_colliders.clone().any(|(c, _)| mesh(&c.shape)))
-            || (mesh(&desc.shape) && live_colliders.clone().any(|(c, _)| hull(&c.shape)))
-        {
-            return Err(BodyError::HullAndMesh);
-        }
         // A compound on a mesh keys its child manifolds `child * triangles + triangle` in a
         // u32 (the child cache's and the dump's child index).
         let too_many_keys = |a: &Shape, b: &Shape| match (a, b) {

@@ -5,6 +5,7 @@ use crate::dynamics::body::BodyDesc;
 use crate::math::Vec3;
 use crate::pipeline::config::StepConfig;
 use crate::scene::format::{Scene, SceneError};
+use crate::scene::landscape::Landscape;
 use crate::scene::ragdoll::{RAGDOLL_HALF_SPAN, add_ragdoll, arms_along_z};
 use crate::scene::raycast::raycast;
 use crate::shape::Shape;
@@ -28,12 +29,16 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "1000 barrel-like convex hulls (40 points) in 10 layers of 10 x 10 falling on a plane",
     ),
     (
+        "convex-trimesh",
+        "the 1000 barrels of convex-hulls falling on a generated landscape of about 100k triangles",
+    ),
+    (
         "compounds",
         "1000 compound bodies, dumbbells (two balls on a rod) and tables (a top on four legs), in 10 layers of 10 x 10 falling on a plane",
     ),
     (
         "raycast",
-        "about 1000 boxes, spheres and capsules at rest on a plane, a fan of 1000 rays cast each step",
+        "about 1000 boxes, spheres and capsules dropped on a landscape of about 100k triangles, a fan of 1000 rays cast each step",
     ),
 ];
 
@@ -47,8 +52,9 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
         "stacked-boxes" => Ok(stacked_boxes(scale)),
         "ragdolls" => Ok(ragdolls(scale)),
         "convex-hulls" => Ok(convex_hulls(scale)),
+        "convex-trimesh" => convex_trimesh(scale),
         "compounds" => Ok(compounds(scale)),
-        "raycast" => Ok(raycast(scale)),
+        "raycast" => raycast(scale),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
 }
@@ -105,20 +111,55 @@ pub fn barrel_points() -> Vec<Vec3> {
 /// Bullet's BenchmarkDemo test 6 in spirit: barrels on a 1.5 m pitch, layer after layer, each
 /// layer shifted and each barrel tipped a little so they land on rims and tumble.
 fn convex_hulls(scale: f32) -> Scene {
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    add_barrel_layers(&mut scene, scale, |_, _| 0.0);
+    scene
+}
+
+/// Bullet's BenchmarkDemo test 7 in spirit: the barrels of [`convex_hulls`] over a landscape
+/// mesh of about `100 000 · scale` triangles (`scene::landscape`), each column starting 1 m
+/// above the ground below it. The landscape's side grows as the barrels' (both as
+/// `sqrt(scale)`), about 15 times theirs, so every barrel lands on it.
+fn convex_trimesh(scale: f32) -> Result<Scene, SceneError> {
+    let landscape = Landscape::new(scale);
+    let mesh = landscape_mesh(&landscape)?;
+    let mut scene = Scene::new(StepConfig::default());
+    scene
+        .bodies
+        .push(BodyDesc::fixed(Shape::trimesh(mesh)).name("landscape"));
+    add_barrel_layers(&mut scene, scale, |x, z| {
+        // The barrels' square (about 15 m at scale 1) lies well inside the landscape.
+        landscape.height_at(x, z).unwrap_or(0.0)
+    });
+    Ok(scene)
+}
+
+/// The landscape's mesh; it has no degenerate triangle at any scale, but a mesh error is still
+/// reported as the scene's, not a panic.
+pub(crate) fn landscape_mesh(landscape: &Landscape) -> Result<crate::shape::TriMesh, SceneError> {
+    landscape.mesh().map_err(|error| SceneError::Invalid {
+        field: "landscape".into(),
+        message: error.to_string(),
+    })
+}
+
+/// About `1000 · scale` barrels in layers of side × side on a 1.5 m pitch, the lowest 1 m above
+/// `ground_height(x, z)` (m) below each column.
+fn add_barrel_layers(scene: &mut Scene, scale: f32, ground_height: impl Fn(f32, f32) -> f32) {
     const PITCH: f32 = 1.5;
     let target = 1000.0 * scale;
     let side = ((10.0 * scale.cbrt()).round() as usize).max(1);
     let layers = ((target / (side * side) as f32).round() as usize).max(1);
     // One hull shared by every barrel (`Shape` clones share it).
     let barrel = Shape::convex_hull(&barrel_points()).expect("the barrel encloses volume");
-    let mut scene = Scene::new(StepConfig::default());
-    scene.bodies.push(ground());
     let mut offset = -(side as f32) * PITCH * 0.5;
     let mut y = 1.0;
     for layer in 0..layers {
         for j in 0..side {
             for i in 0..side {
-                let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
+                let (x, z) = (offset + i as f32 * PITCH, offset + j as f32 * PITCH);
+                let position = Vec3::new(x, ground_height(x, z) + y, z);
                 let tilt = 0.2 * (((i + 2 * j + 3 * layer) % 5) as f32 - 2.0);
                 scene.bodies.push(
                     BodyDesc::dynamic(barrel.clone())
@@ -130,7 +171,6 @@ fn convex_hulls(scale: f32) -> Scene {
         offset -= 0.05 * (side as f32 - 1.0);
         y += PITCH;
     }
-    scene
 }
 
 /// The `convex-hulls` layout with compounds: dumbbells and tables in a checkerboard, each
@@ -325,6 +365,19 @@ mod tests {
         assert_eq!(ragdolls.joints.len(), 136 * 10);
         assert_eq!(builtin("ragdolls", 10.0).unwrap().joints.len(), 1360 * 10);
         assert_eq!(builtin("ragdolls", 0.05).unwrap().joints.len(), 6 * 10);
+        let convex_trimesh = builtin("convex-trimesh", 1.0).unwrap();
+        assert_eq!(convex_trimesh.bodies.len(), 1000 + 1);
+        let Shape::TriMesh(landscape) = &convex_trimesh.bodies[0].shape else {
+            panic!("the ground is the landscape mesh")
+        };
+        assert!((99_000..=101_000).contains(&landscape.triangles().len()));
+        // The same barrels as convex-hulls, each column lifted by the ground under it.
+        let on_plane = builtin("convex-hulls", 1.0).unwrap();
+        for (barrel, on_landscape) in on_plane.bodies[1..].iter().zip(&convex_trimesh.bodies[1..]) {
+            assert_eq!(barrel.position.x, on_landscape.position.x);
+            assert_eq!(barrel.position.z, on_landscape.position.z);
+            assert_eq!(barrel.rotation, on_landscape.rotation);
+        }
     }
 
     #[test]

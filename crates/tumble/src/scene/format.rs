@@ -119,10 +119,13 @@ pub enum ShapeFile {
         vertices: Vec<[f32; 3]>,
         indices: Vec<u32>,
     },
-    /// A Wavefront OBJ file loaded as a static triangle mesh (all its objects together). A
+    /// A Wavefront OBJ file loaded as a static triangle mesh (all its objects together), or
+    /// with `hull: true` as the convex hull of its faces' vertices (a body of any mass). A
     /// relative path is relative to the scene file's folder.
     Obj {
         path: String,
+        #[serde(default)]
+        hull: bool,
     },
     /// The convex hull of `points` (m, body frame). The body is placed at the hull's principal
     /// centroid frame; a dump writes the hull in that frame and the body's pose.
@@ -712,10 +715,24 @@ fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String
                 .map_err(|error| ("shape.trimesh".to_string(), error.to_string()))?;
             Shape::trimesh(mesh)
         }
-        ShapeFile::Obj { path } => {
+        ShapeFile::Obj { path, hull: false } => {
             let mesh = load_obj(&folder.join(path))
                 .map_err(|message| ("shape.obj.path".to_string(), message))?;
             Shape::trimesh(mesh)
+        }
+        ShapeFile::Obj { path, hull: true } => {
+            let path = folder.join(path);
+            let (vertices, _) =
+                read_obj(&path).map_err(|message| ("shape.obj.path".to_string(), message))?;
+            Shape::convex_hull(&vertices).map_err(|error| {
+                (
+                    "shape.obj.hull".to_string(),
+                    format!(
+                        "{}: no convex hull of its vertices: {error}",
+                        path.display()
+                    ),
+                )
+            })?
         }
         ShapeFile::Sphere { radius } => Shape::sphere(*radius),
         ShapeFile::Box { half_extents } => Shape::cuboid(Vec3::from_array(*half_extents)),
@@ -849,6 +866,12 @@ fn parse(text: &str) -> Result<SceneFile, SceneError> {
 /// All objects of an OBJ file as one triangle mesh (polygons fanned into triangles), or a
 /// message naming the file and the problem.
 fn load_obj(path: &Path) -> Result<TriMesh, String> {
+    let (vertices, triangles) = read_obj(path)?;
+    TriMesh::new(vertices, triangles).map_err(|error| format!("{}: {error}", path.display()))
+}
+
+/// The vertices and triangles of all objects of an OBJ file, or a message naming the file.
+fn read_obj(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
     let options = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
@@ -872,7 +895,7 @@ fn load_obj(path: &Path) -> Result<TriMesh, String> {
                 .map(|t| [base + t[0], base + t[1], base + t[2]]),
         );
     }
-    TriMesh::new(vertices, triangles).map_err(|error| format!("{}: {error}", path.display()))
+    Ok((vertices, triangles))
 }
 
 /// The shape's key in a scene file.
@@ -905,9 +928,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::ZeroNormal => "shape.plane.normal".into(),
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
-        BodyError::HullAndMesh | BodyError::CompoundMeshKeys { .. } => {
-            format!("shape.{shape_name}")
-        }
+        BodyError::CompoundMeshKeys { .. } => format!("shape.{shape_name}"),
     }
 }
 

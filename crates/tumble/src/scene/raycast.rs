@@ -1,8 +1,10 @@
 //! The `raycast` scene of Bullet's benchmark demo: about 1000 primitives (boxes, spheres,
-//! capsules) at rest on the ground, and a fan of 1000 rays cast through the world every step.
+//! capsules) dropped on a landscape triangle mesh, and a fan of 1000 rays cast through the
+//! world every step.
 //!
-//! The talk's version lies on a landscape triangle mesh; until the engine has triangle meshes
-//! the ground is a plane. The fan is [`RayFan`]: the CLI casts it after each step with
+//! The landscape is `scene::landscape` at the same scale (about 100 000 triangles at scale 1),
+//! its side about 2.8 times the primitives' grid, so the fan's cone, which reaches a little past
+//! the grid's corners, ends on it. The fan is [`RayFan`]: the CLI casts it after each step with
 //! [`World::step_then`], so its profiler scope `raycast` shows in the step's report.
 
 use rayon::prelude::*;
@@ -15,7 +17,9 @@ use crate::pipeline::config::StepConfig;
 use crate::pipeline::query::QueryFilter;
 use crate::pipeline::world::World;
 use crate::profile::median;
-use crate::scene::format::Scene;
+use crate::scene::builtin::landscape_mesh;
+use crate::scene::format::{Scene, SceneError};
+use crate::scene::landscape::Landscape;
 use crate::shape::Shape;
 
 /// Primitives and rays at scale 1, as in Bullet's demo.
@@ -25,35 +29,66 @@ const RAYS: f32 = 1000.0;
 /// Distance between neighbouring primitives on the ground grid (m).
 const PITCH: f32 = 2.5;
 
-/// Height of the fan's apex above the ground (m).
+/// Height of the fan's apex above the landscape's mean level y = 0 (m).
 const APEX_HEIGHT: f32 = 20.0;
 
+/// How far a primitive's lowest point starts above the highest of the surface samples under
+/// it (m): the surface is piecewise flat in 1 m cells, and on the hills' gentle curvature it
+/// rises less than 2 cm above the samples' plane within a primitive's reach.
+const DROP_CLEARANCE: f32 = 0.05;
+
 /// `1000 · scale` primitives on a square grid, cycling box, sphere, capsule (lying down), each
-/// resting on the plane y = 0.
-pub fn raycast(scale: f32) -> Scene {
+/// a little above the landscape below it, to drop and settle there (spheres and capsules roll
+/// on downhill: the hills slope up to about 20°).
+pub fn raycast(scale: f32) -> Result<Scene, SceneError> {
     let count = ((PRIMITIVES * scale).round() as usize).max(1);
     let side = (count as f32).sqrt().ceil() as usize;
     let half_span = 0.5 * (side as f32 - 1.0) * PITCH;
+    let landscape = Landscape::new(scale);
     let mut scene = Scene::new(StepConfig::default());
     scene
         .bodies
-        .push(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)).name("ground"));
+        .push(BodyDesc::fixed(Shape::trimesh(landscape_mesh(&landscape)?)).name("landscape"));
+    // Highest surface point among the centre and 8 points around it at `reach` (m); off the
+    // landscape (not at the scales the scene is built for) the level y = 0.
+    let highest_ground = |x: f32, z: f32, reach: f32| {
+        let mut highest = f32::NEG_INFINITY;
+        for dx in [-reach, 0.0, reach] {
+            for dz in [-reach, 0.0, reach] {
+                highest = highest.max(landscape.height_at(x + dx, z + dz).unwrap_or(0.0));
+            }
+        }
+        highest
+    };
     for index in 0..count {
         let (i, j) = (index % side, index / side);
         let x = i as f32 * PITCH - half_span;
         let z = j as f32 * PITCH - half_span;
-        let body = match index % 3 {
-            0 => BodyDesc::dynamic(Shape::cuboid(Vec3::new(0.5, 0.4, 0.6)))
-                .position(Vec3::new(x, 0.4, z)),
-            1 => BodyDesc::dynamic(Shape::sphere(0.5)).position(Vec3::new(x, 0.5, z)),
-            // Lying along X, so it rests instead of toppling.
-            _ => BodyDesc::dynamic(Shape::capsule(0.3, 0.5))
-                .position(Vec3::new(x, 0.3, z))
-                .rotation(Quat::from_rotation_z(std::f32::consts::FRAC_PI_2)),
+        // (shape, rotation, half height, horizontal reach (m)).
+        let (shape, rotation, half_height, reach) = match index % 3 {
+            0 => (
+                Shape::cuboid(Vec3::new(0.5, 0.4, 0.6)),
+                Quat::IDENTITY,
+                0.4,
+                0.6,
+            ),
+            1 => (Shape::sphere(0.5), Quat::IDENTITY, 0.5, 0.5),
+            // Lying along X.
+            _ => (
+                Shape::capsule(0.3, 0.5),
+                Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+                0.3,
+                0.8,
+            ),
         };
-        scene.bodies.push(body);
+        let y = highest_ground(x, z, reach) + half_height + DROP_CLEARANCE;
+        scene.bodies.push(
+            BodyDesc::dynamic(shape)
+                .position(Vec3::new(x, y, z))
+                .rotation(rotation),
+        );
     }
-    scene
+    Ok(scene)
 }
 
 /// A fan of rays from one apex above the middle of the scene, spread evenly (a golden-angle
@@ -153,31 +188,43 @@ mod tests {
 
     #[test]
     fn talk_size_and_every_primitive_kind() {
-        let scene = raycast(1.0);
+        let scene = raycast(1.0).unwrap();
         assert_eq!(scene.bodies.len(), 1000 + 1);
+        let Shape::TriMesh(mesh) = &scene.bodies[0].shape else {
+            panic!("the ground is the landscape mesh")
+        };
+        assert!((99_000..=101_000).contains(&mesh.triangles().len()));
         assert_eq!(RayFan::new(1.0).rays().len(), 1000);
-        assert_eq!(raycast(0.001).bodies.len(), 2);
+        assert_eq!(raycast(0.001).unwrap().bodies.len(), 2);
     }
 
-    /// The bodies start at rest on the ground and stay there, and the fan hits both them and
-    /// the ground: straight down from the apex lands on the middle of the grid.
+    /// The bodies land on the landscape and stay on it (none falls through; balls and capsules
+    /// roll downhill and knock boxes about), and the fan hits both them and the landscape:
+    /// every ray ends on something, the one straight along a grid line included.
     #[test]
-    fn primitives_rest_and_rays_hit() {
+    fn primitives_land_and_rays_hit() {
         let scale = 0.05;
-        let mut world = raycast(scale).build().unwrap();
+        let landscape = Landscape::new(scale);
+        let mut world = raycast(scale).unwrap().build().unwrap();
         let mut fan = RayFan::new(scale);
         let mut hits = 0;
-        for _ in 0..30 {
+        for _ in 0..90 {
             hits = world.step_then(|world| fan.cast(world));
         }
         assert_eq!(
             hits,
             fan.rays().len(),
-            "every ray meets the ground or a body"
+            "every ray meets the landscape or a body"
         );
-        for body in world.bodies() {
-            let speed = world.linear_velocity(body).unwrap().length();
-            assert!(speed < 0.05, "body {body:?} moves at {speed} m/s");
+        for (index, body) in world.bodies().enumerate().skip(1) {
+            let position = world.pose(body).unwrap().position;
+            let ground = landscape.height_at(position.x, position.z).unwrap();
+            // Every centre is at least 0.3 m (the smallest half height) over the ground, less
+            // the penetration slop and a slope's lean.
+            assert!(
+                position.y - ground > 0.2,
+                "body {index} at {position:?}, ground at {ground}"
+            );
         }
         let filter = QueryFilter::default().exclude_static();
         let on_bodies = fan

@@ -60,17 +60,17 @@ use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Sphere};
 /// on it with two points.
 const CAPSULE_FACE_COS_SQUARED: f32 = 0.998_782;
 
-const REFERENCE_IS_A_BIT: u32 = 1 << 30;
-const EDGE_CONTACT_BIT: u32 = 1 << 31;
-const CROSSING_BIT: u32 = 0x8000;
+pub(super) const REFERENCE_IS_A_BIT: u32 = 1 << 30;
+pub(super) const EDGE_CONTACT_BIT: u32 = 1 << 31;
+pub(super) const CROSSING_BIT: u32 = 0x8000;
 
 /// A convex polyhedron seen through slices: a hull, or a box through [`BoxPolyhedron`].
 #[derive(Clone, Copy)]
 pub(crate) struct Polyhedron<'a> {
-    vertices: &'a [Vec3],
-    faces: &'a [HullFace],
-    face_vertices: &'a [u32],
-    edges: &'a [HullEdge],
+    pub(super) vertices: &'a [Vec3],
+    pub(super) faces: &'a [HullFace],
+    pub(super) face_vertices: &'a [u32],
+    pub(super) edges: &'a [HullEdge],
 }
 
 impl<'a> Polyhedron<'a> {
@@ -84,7 +84,7 @@ impl<'a> Polyhedron<'a> {
     }
 
     #[inline]
-    fn support(&self, direction: Vec3) -> Vec3 {
+    pub(super) fn support(&self, direction: Vec3) -> Vec3 {
         let mut best = self.vertices[0];
         let mut best_dot = best.dot(direction);
         for &v in &self.vertices[1..] {
@@ -210,7 +210,7 @@ pub(super) fn hull_hull(
 
 /// The best face of `reference` against `other`: (separation, face index); `other_in_ref` is
 /// `other`'s frame in `reference`'s.
-fn face_query(
+pub(super) fn face_query(
     reference: &Polyhedron,
     other: &Polyhedron,
     other_in_ref: &Transform,
@@ -332,7 +332,7 @@ type ClipVertex = (Vec3, u32);
 /// Clips `incident` (of polyhedron `other`) against `reference`'s face `face`, filling `out` with
 /// normal from the reference face outwards — the caller flips it when the reference is B.
 #[allow(clippy::too_many_arguments)]
-fn face_contact(
+pub(super) fn face_contact(
     reference: &Polyhedron,
     pose_reference: &Transform,
     face: usize,
@@ -440,7 +440,7 @@ fn clip(polygon: &[ClipVertex], side: Vec3, offset: f32, plane: u32, out: &mut V
 
 /// One point midway between the closest points of A's and B's edges (`axis` in A's frame,
 /// from A towards B).
-fn edge_contact(
+pub(super) fn edge_contact(
     a: &Polyhedron,
     pose_a: &Transform,
     b: &Polyhedron,

@@ -2,6 +2,7 @@
 //! shape, and each touching triangle gets its own manifold (a child manifold: one normal per
 //! manifold, and a shape on a seam or in a valley touches faces with different normals).
 
+use super::hull_triangle::hull_triangle;
 use super::triangle::{box_triangle, capsule_triangle, sphere_triangle};
 use crate::collision::manifold::{ContactPoint, Manifold};
 use crate::math::{Transform, Vec3};
@@ -56,11 +57,12 @@ pub fn collide_mesh(
             Shape::Cuboid(cuboid) => {
                 box_triangle(cuboid, &local_pose, &triangle, margin, &mut local)
             }
-            // Hulls never meet meshes (`BodyError::HullAndMesh`); a compound meets one child by
-            // child (`stages::narrowphase::children`); planes and meshes are static.
-            Shape::Plane(_) | Shape::TriMesh(_) | Shape::ConvexHull(_) | Shape::Compound(_) => {
-                return;
+            Shape::ConvexHull(hull) => {
+                hull_triangle(hull, &local_pose, &triangle, margin, &mut local)
             }
+            // A compound meets a mesh child by child (`stages::narrowphase::children`); planes
+            // and meshes are static: they never meet a mesh.
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::Compound(_) => return,
         }
         if local.count == 0 {
             continue;

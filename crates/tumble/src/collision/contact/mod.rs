@@ -27,6 +27,7 @@
 //! | box–box, edge | `1 << 13` · B's edge index · A's edge index `<< 4` |
 //! | hull–plane | the hull vertex index |
 //! | box–hull, hull–hull | see `hull.rs`: clip feature, reference and incident faces, edges |
+//! | sphere, capsule, box, hull against a mesh triangle | see `triangle.rs` and `hull_triangle.rs`: 12 bits, the child cache adds the triangle above them |
 //! | sphere–hull; capsule–hull at one point | `0` |
 //! | capsule–hull along a face | `0` and `1` for the segment's `-half_height` and `+half_height` ends |
 //!
@@ -43,6 +44,7 @@ mod box_box;
 mod capsule;
 mod compound;
 mod hull;
+mod hull_triangle;
 mod mesh;
 mod plane;
 mod segment;

@@ -44,7 +44,7 @@ use crate::shape::trimesh::Triangle;
 
 /// The box's face is the reference only if its separation beats the triangle face's by this
 /// fraction (see `clearly_greater`): the triangle face gives steadier manifolds on a mesh.
-const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
+pub(super) const FACE_RELATIVE_TOLERANCE: f32 = 0.02;
 
 /// Distance (m) under which the closest points coincide: no direction, the face normal is used.
 const COINCIDENT_DISTANCE: f32 = 1.0e-6;
@@ -118,7 +118,7 @@ pub(crate) fn closest_point_on_triangle(point: Vec3, vertices: &[Vec3; 3]) -> (V
 
 impl Triangle {
     /// True when a contact on `feature` may have a normal other than the face's.
-    fn feature_is_active(&self, feature: Feature) -> bool {
+    pub(super) fn feature_is_active(&self, feature: Feature) -> bool {
         match feature {
             Feature::Face => false,
             Feature::Edge(edge) => self.edge_is_active(edge),

@@ -8,6 +8,11 @@ struct BatchParams {
     body_count: u32,
     round: u32,
     batcher: u32,
+    // The first `ordered` constraints (joints) rank by index.
+    ordered: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BatchParams;
@@ -20,21 +25,25 @@ struct BatchParams {
 @group(0) @binding(3) var<storage, read_write> locks: array<atomic<u32>>;
 // Per body: the colors its constraints have (low word, high word).
 @group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
-// Constraints per color (MAX_COLORS + 1 with the overflow), then the batched count.
-@group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
+// How many constraints have a batch: the rounds stop working once all have one.
+@group(0) @binding(5) var<storage, read_write> batched: atomic<u32>;
 
 const UNBATCHED: u32 = 0xffffffffu;
 const NO_LOCK: u32 = 0xffffffffu;
-const BATCHED_SLOT: u32 = MAX_COLORS + 1u;
 
-// Twin of `priority` in `mod.rs`: a bijective hash of the constraint index.
+// Twin of `priority` in `mod.rs`: joints by index, then a bijective 31-bit hash above 2^31.
 fn priority(index: u32) -> u32 {
-    var x = index;
+    if index < params.ordered {
+        return index;
+    }
+    let low_31 = 0x7fffffffu;
+    var x = index & low_31;
     x ^= x >> 16u;
-    x *= 0x7feb352du;
+    x = (x * 0x7feb352du) & low_31;
     x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    return x ^ (x >> 16u);
+    x = (x * 0x846ca68bu) & low_31;
+    x ^= x >> 16u;
+    return 0x80000000u | x;
 }
 
 fn thread_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
@@ -44,7 +53,7 @@ fn thread_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
 // Every round's kernels return at once when all constraints have a batch: the rounds are
 // encoded up to MAX_ROUNDS, most of them usually find nothing left.
 fn all_batched() -> bool {
-    return atomicLoad(&counts[BATCHED_SLOT]) == params.count;
+    return atomicLoad(&batched) == params.count;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -62,8 +71,8 @@ fn start(
         atomicStore(&locks[params.body_count + i], NO_LOCK);
         masks[i] = vec2<u32>(0u);
     }
-    if i <= BATCHED_SLOT {
-        atomicStore(&counts[i], 0u);
+    if i == 0u {
+        atomicStore(&batched, 0u);
     }
 }
 
@@ -143,8 +152,7 @@ fn commit(
         }
     }
     colors[i] = color;
-    atomicAdd(&counts[color], 1u);
-    atomicAdd(&counts[BATCHED_SLOT], 1u);
+    atomicAdd(&batched, 1u);
 }
 
 // After the last round: what is left goes to the overflow batch.
@@ -159,5 +167,4 @@ fn finish(
         return;
     }
     colors[i] = MAX_COLORS;
-    atomicAdd(&counts[MAX_COLORS], 1u);
 }

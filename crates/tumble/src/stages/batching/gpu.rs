@@ -32,6 +32,10 @@ pub struct BatchParams {
     pub body_count: u32,
     pub round: u32,
     pub batcher: u32,
+    pub ordered: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 pub fn wgsl() -> Source {
@@ -43,8 +47,8 @@ pub fn wgsl() -> Source {
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,
-/// counts), constraint count, body count, batcher.
-type BatchKey = ([wgpu::Buffer; 5], usize, usize, Batcher);
+/// batched count), constraint count, body count, ordered count, batcher.
+type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
 
 /// The GPU batching of one world, its buffers reused from step to step.
 #[derive(Debug)]
@@ -55,8 +59,8 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
-    /// Constraints per color, then the batched count.
-    counts: GpuVec<u32>,
+    /// How many constraints have a batch (the rounds' early exit).
+    batched: GpuVec<u32>,
     cached: Option<(BatchKey, Vec<Dispatch>)>,
     /// Host scratch: the bodies to upload, the colors read back.
     host_bodies: Vec<[u32; 2]>,
@@ -70,20 +74,21 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
-            counts: GpuVec::from_slice(context, "batching counts", &[0; MAX_COLORS + 2])?,
+            batched: GpuVec::from_slice(context, "batched count", &[0])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
         })
     }
 
-    /// Encodes the batching of the `bodies` buffer's constraints among `body_count` bodies;
-    /// the colors land in `colors`.
+    /// Encodes the batching of the `bodies` buffer's constraints among `body_count` bodies,
+    /// the first `ordered` ranked by index; the colors land in `colors`.
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         body_count: usize,
+        ordered: usize,
         batcher: Batcher,
     ) -> Result<(), GpuError> {
         let count = self.bodies.len();
@@ -95,15 +100,15 @@ impl GpuBatching {
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
-            self.counts.buffer().clone(),
+            self.batched.buffer().clone(),
         ];
-        let key = (buffers, count, body_count, batcher);
+        let key = (buffers, count, body_count, ordered, batcher);
         if self
             .cached
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let dispatches = self.dispatches(context, count, body_count, batcher);
+            let dispatches = self.dispatches(context, count, body_count, ordered, batcher);
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
@@ -117,6 +122,7 @@ impl GpuBatching {
         context: &GpuContext,
         count: usize,
         body_count: usize,
+        ordered: usize,
         batcher: Batcher,
     ) -> Vec<Dispatch> {
         if count == 0 {
@@ -144,6 +150,10 @@ impl GpuBatching {
                 body_count: body_count as u32,
                 round,
                 batcher: batcher as u32,
+                ordered: ordered as u32,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
             })
             .collect();
         let slots = UniformSlots::new(context, "batching params", &blocks);
@@ -156,13 +166,12 @@ impl GpuBatching {
                     self.colors.whole(),
                     self.locks.whole(),
                     self.masks.whole(),
-                    self.counts.whole(),
+                    self.batched.whole(),
                 ],
             )
         };
         let groups = workgroups_for(count, WORKGROUP_SIZE);
-        let start_groups =
-            workgroups_for(count.max(body_count).max(MAX_COLORS + 2), WORKGROUP_SIZE);
+        let start_groups = workgroups_for(count.max(body_count).max(1), WORKGROUP_SIZE);
         let mut dispatches = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
             dispatches.push(claim.dispatch(bind(&claim, round), groups));
@@ -180,12 +189,13 @@ impl GpuBatching {
         context: &GpuContext,
         bodies: impl Iterator<Item = (u32, u32)>,
         body_count: usize,
+        ordered: usize,
         batcher: Batcher,
         coloring: &mut Coloring,
     ) -> Result<(), GpuError> {
         self.upload(context, bodies)?;
         context.submit_pass("batching", |pass| {
-            self.encode(context, pass, body_count, batcher)
+            self.encode(context, pass, body_count, ordered, batcher)
         })?;
         self.read_back(context, coloring)
     }

@@ -38,7 +38,9 @@ pub struct RowParams {
     pub softness: [f32; 4],
     pub static_softness: [f32; 4],
     pub slot_count: u32,
-    pub padding: [u32; 3],
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 fn softness_vec(softness: Softness) -> [f32; 4] {
@@ -125,7 +127,9 @@ impl GpuRows {
             softness: softness_vec(inputs.softness),
             static_softness: softness_vec(inputs.static_softness),
             slot_count: slots as u32,
-            padding: [0; 3],
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
         };
         let words: [u32; 12] = bytemuck::cast(params);
         let key = (buffers, slots, words);

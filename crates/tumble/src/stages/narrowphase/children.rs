@@ -56,7 +56,7 @@ pub type ChildKey = (u64, u32);
 pub const COPLANAR_COSINE: f32 = 0.999_96;
 
 /// Bits of a child point's feature id left for the triangle's own feature (see
-/// `collision::contact::triangle`: box ids use bits 0–11).
+/// `collision::contact::triangle` and `hull_triangle`: box and hull ids use bits 0–11).
 const TRIANGLE_ID_SHIFT: u32 = 12;
 
 /// Child manifolds, sorted by key; see the module documentation.

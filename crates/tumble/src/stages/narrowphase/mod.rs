@@ -26,6 +26,7 @@ pub use children::{ChildCache, ChildKey, has_children, update_child_contacts};
 use crate::collision::contact::collide;
 use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
+use crate::shape::{Shape, ShapeKind};
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
@@ -79,6 +80,23 @@ pub struct NarrowphaseInputs<'a> {
 
 /// CPU executor: refresh the manifold of every pair.
 pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &NarrowphaseInputs) {
+    update_contacts_where(keys, contacts, inputs, |_, _| true);
+}
+
+/// Whether the GPU narrowphase computes a pair of these shapes: spheres, capsules, boxes and
+/// planes. Pairs with a hull or a mesh stay with [`update_contacts_where`] on the host.
+pub fn gpu_pair(a: &Shape, b: &Shape) -> bool {
+    a.kind() <= ShapeKind::Plane && b.kind() <= ShapeKind::Plane
+}
+
+/// [`update_contacts`] for the pairs whose shapes `select` accepts; the others are left as
+/// they are (a mixed step's GPU pairs).
+pub fn update_contacts_where(
+    keys: &[u64],
+    contacts: &mut [PairContact],
+    inputs: &NarrowphaseInputs,
+    select: impl Fn(&Shape, &Shape) -> bool + Sync,
+) {
     let NarrowphaseInputs {
         poses,
         velocities,
@@ -94,12 +112,15 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
         .zip(keys.par_iter())
         .with_min_len(MIN_PAIRS_PER_TASK)
         .for_each(|(contact, &key)| {
+            let (a, b) = pair_bodies(key);
+            let (a, b) = (a as usize, b as usize);
+            if !select(&colliders[a].shape, &colliders[b].shape) {
+                return;
+            }
             if !skipped.is_empty() && skipped.binary_search(&key).is_ok() {
                 *contact = PairContact::default();
                 return;
             }
-            let (a, b) = pair_bodies(key);
-            let (a, b) = (a as usize, b as usize);
             if has_children(&colliders[a].shape, &colliders[b].shape) {
                 // One manifold per triangle: they live in the child cache.
                 *contact = PairContact::default();

@@ -105,10 +105,9 @@ fn collide_ordered(
     pose_b: BodyPose,
     margin: f32,
 ) {
-    // Only the four primitive kinds have GPU pair functions, and `pair` below is unique only
-    // for kinds < 4 (sphere–compound would read as capsule–box). Pairs with a hull get no
-    // manifold here; a mesh's or a compound's manifolds come from the CPU child cache, which
-    // the step fills after this stage. `b` holds the larger kind.
+    // Hulls, meshes and compounds are host work (`narrowphase::gpu_pair`); without this their
+    // kinds would alias primitive pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5;
+    // sphere–compound, 0 * 4 + 6, is capsule–box's 6). `b` holds the larger kind.
     if b.kind > SHAPE_PLANE {
         return;
     }
