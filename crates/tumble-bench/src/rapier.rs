@@ -104,6 +104,27 @@ fn vector(v: tumble::math::Vec3) -> Vector {
     Vector::new(v.x, v.y, v.z)
 }
 
+/// A compound's child as a parry shape: `Compound::new` admits only these four kinds.
+fn convex_child(shape: &tumble::Shape) -> SharedShape {
+    match shape {
+        tumble::Shape::Sphere(sphere) => SharedShape::ball(sphere.radius),
+        tumble::Shape::Cuboid(cuboid) => {
+            let h = cuboid.half_extents;
+            SharedShape::cuboid(h.x, h.y, h.z)
+        }
+        tumble::Shape::Capsule(capsule) => {
+            SharedShape::capsule_y(capsule.half_height, capsule.radius)
+        }
+        tumble::Shape::ConvexHull(hull) => {
+            let points: Vec<_> = hull.vertices().iter().map(|&v| vector(v)).collect();
+            SharedShape::convex_hull(&points).expect("a tumble hull is a valid parry hull")
+        }
+        tumble::Shape::Plane(_) | tumble::Shape::TriMesh(_) | tumble::Shape::Compound(_) => {
+            unreachable!("Compound::new refuses {:?} children", shape.kind())
+        }
+    }
+}
+
 fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
     let q = desc.rotation.normalize();
     let pose = Pose::from_parts(
@@ -154,6 +175,22 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
             // A ConvexHull encloses volume by construction, so parry's hull of it exists.
             ColliderBuilder::convex_hull(&points).expect("a tumble hull is a valid parry hull")
         }
+        // The body frame is the compound's (its centroid), so the children go in at their
+        // stored poses; rapier weighs them by volume as Tumble does.
+        tumble::Shape::Compound(compound) => ColliderBuilder::compound(
+            compound
+                .children()
+                .iter()
+                .map(|child| {
+                    let q = child.pose.rotation;
+                    let pose = Pose::from_parts(
+                        vector(child.pose.position),
+                        Rotation::from_xyzw(q.x, q.y, q.z, q.w),
+                    );
+                    (pose, convex_child(&child.shape))
+                })
+                .collect(),
+        ),
     }
     .friction(desc.friction)
     .friction_combine_rule(CoefficientCombineRule::GeometricMean)
@@ -399,6 +436,10 @@ mod tests {
                 Shape::TriMesh(mesh) => {
                     let rapier_mesh = shape.as_trimesh().unwrap();
                     assert_eq!(rapier_mesh.indices(), mesh.triangles());
+                }
+                Shape::Compound(compound) => {
+                    let parts = shape.as_compound().unwrap().shapes();
+                    assert_eq!(parts.len(), compound.children().len());
                 }
                 Shape::ConvexHull(hull) => {
                     let points = shape.as_convex_polyhedron().unwrap().points();

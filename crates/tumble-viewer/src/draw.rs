@@ -116,6 +116,28 @@ fn hull_key(hull: &ConvexHull) -> u64 {
 }
 
 impl DrawList {
+    /// The instanced mesh and its scale for a convex shape (a hull's mesh is kept once per
+    /// hull); `None` for planes, meshes and compounds, which are drawn otherwise.
+    fn convex_mesh(&mut self, shape: &Shape) -> Option<(MeshKey, Vec3)> {
+        Some(match shape {
+            Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
+            Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
+            Shape::Capsule(capsule) => (
+                MeshKey::Capsule {
+                    radius: capsule.radius.to_bits(),
+                    half_height: capsule.half_height.to_bits(),
+                },
+                Vec3::ONE,
+            ),
+            Shape::ConvexHull(hull) => {
+                let key = hull_key(hull);
+                self.hulls.entry(key).or_insert_with(|| hull.clone());
+                (MeshKey::Hull(key), Vec3::ONE)
+            }
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::Compound(_) => return None,
+        })
+    }
+
     pub fn build(world: &World, settings: DrawSettings) -> Self {
         let mut list = DrawList {
             wireframe: settings.wireframe,
@@ -141,21 +163,8 @@ impl DrawList {
                 (true, BatchView::Off) => body_colour(handle.index() as usize),
                 (true, _) => BATCH_BODY_COLOUR,
             };
-            let (key, scale) = match &desc.shape {
-                Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
-                Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
-                Shape::Capsule(capsule) => (
-                    MeshKey::Capsule {
-                        radius: capsule.radius.to_bits(),
-                        half_height: capsule.half_height.to_bits(),
-                    },
-                    Vec3::ONE,
-                ),
-                Shape::ConvexHull(hull) => {
-                    let key = hull_key(hull);
-                    list.hulls.entry(key).or_insert_with(|| hull.clone());
-                    (MeshKey::Hull(key), Vec3::ONE)
-                }
+            // A compound is drawn as its children, each at its pose in the body frame.
+            let parts: Vec<(&Shape, tumble::math::Transform)> = match &desc.shape {
                 Shape::Plane(plane) => {
                     let normal = pose.rotation * plane.normal;
                     let origin = pose.position + normal * plane.offset;
@@ -174,13 +183,28 @@ impl DrawList {
                 // The viewer has no mesh for triangle meshes yet: a static mesh is left out of
                 // the picture (the physics still collides with it).
                 Shape::TriMesh(_) => continue,
+                Shape::Compound(compound) => compound
+                    .children()
+                    .iter()
+                    .map(|child| (&child.shape, pose.mul_transform(&child.pose)))
+                    .collect(),
+                shape => vec![(shape, pose)],
             };
-            smallest = smallest.min(desc.shape.aabb(&pose).half_extents().min_element());
-            let model = Mat4::from_scale_rotation_translation(scale, pose.rotation, pose.position);
-            list.instances
-                .entry(key)
-                .or_default()
-                .push(Instance::new(model, colour));
+            for (shape, part_pose) in parts {
+                let Some((key, scale)) = list.convex_mesh(shape) else {
+                    continue;
+                };
+                smallest = smallest.min(shape.aabb(&part_pose).half_extents().min_element());
+                let model = Mat4::from_scale_rotation_translation(
+                    scale,
+                    part_pose.rotation,
+                    part_pose.position,
+                );
+                list.instances
+                    .entry(key)
+                    .or_default()
+                    .push(Instance::new(model, colour));
+            }
         }
         if settings.contacts || settings.batches != BatchView::Off {
             list.add_contacts(world, 0.15 * smallest.min(1.0), settings.batches);

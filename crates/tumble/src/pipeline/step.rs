@@ -151,8 +151,8 @@ impl World {
             }
         };
         if narrowphase.is_ok() {
-            // Pairs with a mesh: one child manifold per touching triangle (on the CPU: the GPU
-            // narrowphase has no meshes yet).
+            // Pairs with a mesh or a compound: one child manifold per touching triangle or
+            // child pair (on the CPU: the GPU narrowphase has neither yet).
             narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
         }
         profiler.end();
