@@ -71,6 +71,18 @@ const NARROWPHASE: StageSpans = StageSpans {
     download: &["narrowphase", "copy to cpu"],
 };
 
+/// The manifold slots the GPU rows read: pairs, then children.
+pub(crate) enum RowSlots<'a> {
+    /// Uploaded from the host.
+    Host {
+        keys: &'a [u64],
+        contacts: &'a [PairContact],
+    },
+    /// This step's GPU narrowphase output, already on the device: every slot is a pair and the
+    /// narrowphase computed all of them ([`GpuStages::pair_contacts_on_device`]).
+    Narrowphase,
+}
+
 /// The step's body arrays, as the GPU stages read them.
 pub(crate) struct BodyInputs<'a> {
     pub poses: &'a [BodyPose],
@@ -116,6 +128,9 @@ pub(crate) struct GpuStages {
     old_contacts: GpuVec<PairContact>,
     contacts: GpuVec<PairContact>,
     skipped: GpuVec<u64>,
+    /// The narrowphase ran on the GPU this step and computed every pair there: its output
+    /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
+    pair_contacts_fresh: bool,
     /// Host scratch, reused: the identity map, the packed colliders, downloaded contacts.
     identity: Vec<u32>,
     collider_data: Vec<ColliderData>,
@@ -156,6 +171,7 @@ impl GpuStages {
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
+            pair_contacts_fresh: false,
             identity: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
@@ -178,6 +194,13 @@ impl GpuStages {
     /// A new step: the host's poses and velocities are newer than the device's.
     pub fn begin_step(&mut self) {
         self.bodies.uploaded_this_step = false;
+        self.pair_contacts_fresh = false;
+    }
+
+    /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
+    /// [`RowSlots::Narrowphase`] can stand for the pair cache.
+    pub fn pair_contacts_on_device(&self) -> bool {
+        self.pair_contacts_fresh
     }
 
     /// Stage 1 on the GPU: [`compute_aabbs`](crate::stages::aabb::compute_aabbs)'s contract.
@@ -315,11 +338,15 @@ impl GpuStages {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
             gpu_pair(&colliders[a as usize].shape, &colliders[b as usize].shape)
         };
+        let mut host_pairs = 0;
         for ((contact, downloaded), &key) in contacts.iter_mut().zip(&self.downloaded).zip(keys) {
             if on_gpu(key) {
                 *contact = *downloaded;
+            } else {
+                host_pairs += 1;
             }
         }
+        self.pair_contacts_fresh = host_pairs == 0;
         record_copy(profiler, NARROWPHASE.download, elapsed_ms(start));
         profiler.scope("cpu pairs", || {
             update_contacts_where(keys, contacts, inputs, |a, b| !gpu_pair(a, b))
@@ -330,21 +357,32 @@ impl GpuStages {
 
 impl GpuStages {
     /// Stage 5 on the GPU for contacts:
-    /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract, the
-    /// manifold slots given as `keys` and `contacts` (pairs, then children). With no `out` the
-    /// constraints stay on the device for [`Self::solve_batched`].
+    /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract over the
+    /// manifold `slots`. With no `out` the constraints stay on the device for
+    /// [`Self::solve_batched`].
     pub fn build_constraints(
         &mut self,
         profiler: &mut Profiler,
-        keys: &[u64],
-        contacts: &[PairContact],
+        slots: RowSlots,
         inputs: &RowInputs,
         out: Option<&mut Vec<ContactConstraint>>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
-        self.row_keys.upload(context, keys)?;
-        self.row_contacts.upload(context, contacts)?;
+        let from_narrowphase = match slots {
+            RowSlots::Host { keys, contacts } => {
+                self.row_keys.upload(context, keys)?;
+                self.row_contacts.upload(context, contacts)?;
+                false
+            }
+            RowSlots::Narrowphase => {
+                debug_assert!(
+                    self.pair_contacts_fresh,
+                    "no GPU narrowphase output this step"
+                );
+                true
+            }
+        };
         self.masses.upload(context, inputs.masses)?;
         let bodies = BodyInputs {
             poses: inputs.poses,
@@ -353,9 +391,14 @@ impl GpuStages {
         };
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
         record_copy(profiler, CONSTRAINTS.upload, elapsed_ms(start));
+        let (keys, contacts) = if from_narrowphase {
+            (&self.keys, &self.contacts)
+        } else {
+            (&self.row_keys, &self.row_contacts)
+        };
         let device_inputs = GpuRowInputs {
-            keys: &self.row_keys,
-            contacts: &self.row_contacts,
+            keys,
+            contacts,
             poses: &self.bodies.poses,
             velocities: &self.bodies.velocities,
             masses: &self.masses,
@@ -559,4 +602,91 @@ fn upload_bodies(
 
 fn elapsed_ms(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Quat, Vec3};
+    use crate::pipeline::config::{Softness, StepConfig};
+    use crate::stages::constraints::world_inverse_inertia;
+    use crate::{BodyDesc, Shape, World};
+
+    /// The rows read from the GPU narrowphase's output are the rows read from the host's copy
+    /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
+    #[test]
+    fn rows_from_the_narrowphase_output_equal_rows_from_the_host() {
+        let mut gpu =
+            GpuStages::new().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for level in 0..6 {
+            let turn = Quat::from_rotation_y(0.4 * level as f32);
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(Vec3::new(0.1 * level as f32, 0.5 + level as f32, 0.0))
+                        .rotation(turn),
+                )
+                .unwrap();
+        }
+        for _ in 0..40 {
+            world.step();
+        }
+        let config = *world.config();
+        let mut profiler = Profiler::new("test");
+        let keys = world.pairs.keys().to_vec();
+        let mut contacts = world.pairs.values().to_vec();
+        let inputs = NarrowphaseInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            colliders: &world.colliders,
+            margin: config.contact_margin,
+            dt: config.dt,
+            skipped: &world.jointed_pairs,
+            keep_resting: None,
+        };
+        gpu.begin_step();
+        gpu.update_contacts(&mut profiler, &keys, &mut contacts, &inputs)
+            .unwrap();
+        assert!(
+            gpu.pair_contacts_on_device(),
+            "every pair is a GPU pair here"
+        );
+        assert!(contacts.iter().any(|c| c.manifold.count > 0), "no contact");
+        let mut inertia = Vec::new();
+        world_inverse_inertia(&world.poses, &world.masses, &mut inertia);
+        let row_inputs = RowInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            masses: &world.masses,
+            colliders: &world.colliders,
+            inverse_inertia: &inertia,
+            softness: Softness::new(30.0, 10.0, 1.0 / 480.0),
+            static_softness: Softness::new(60.0, 10.0, 1.0 / 480.0),
+        };
+        let (mut from_device, mut from_host) = (Vec::new(), Vec::new());
+        gpu.build_constraints(
+            &mut profiler,
+            RowSlots::Narrowphase,
+            &row_inputs,
+            Some(&mut from_device),
+        )
+        .unwrap();
+        let slots = RowSlots::Host {
+            keys: &keys,
+            contacts: &contacts,
+        };
+        gpu.build_constraints(&mut profiler, slots, &row_inputs, Some(&mut from_host))
+            .unwrap();
+        assert!(!from_host.is_empty());
+        let bytes = |rows: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(rows).to_vec();
+        assert_eq!(bytes(&from_device), bytes(&from_host));
+    }
 }

@@ -4,7 +4,7 @@ use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::BodyInputs;
+use crate::pipeline::gpu_stages::{BodyInputs, RowSlots};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
@@ -223,21 +223,29 @@ impl World {
         scratch.row_summaries.clear();
         match (self.devices.get(Stage::Constraints), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) => {
-                // The GPU reads every manifold slot from one array: pairs, then children.
-                scratch.slot_keys.clear();
-                scratch.slot_keys.extend_from_slice(self.pairs.keys());
-                scratch
-                    .slot_keys
-                    .extend(self.children.keys().iter().map(|&(key, _)| key));
-                scratch.slot_contacts.clear();
-                scratch.slot_contacts.extend_from_slice(self.pairs.values());
-                scratch
-                    .slot_contacts
-                    .extend_from_slice(self.children.values());
+                let slots = if self.children.is_empty() && gpu.pair_contacts_on_device() {
+                    // The GPU narrowphase's output is the pair cache: no copy, no upload.
+                    RowSlots::Narrowphase
+                } else {
+                    // The GPU reads every manifold slot from one array: pairs, then children.
+                    scratch.slot_keys.clear();
+                    scratch.slot_keys.extend_from_slice(self.pairs.keys());
+                    scratch
+                        .slot_keys
+                        .extend(self.children.keys().iter().map(|&(key, _)| key));
+                    scratch.slot_contacts.clear();
+                    scratch.slot_contacts.extend_from_slice(self.pairs.values());
+                    scratch
+                        .slot_contacts
+                        .extend_from_slice(self.children.values());
+                    RowSlots::Host {
+                        keys: &scratch.slot_keys,
+                        contacts: &scratch.slot_contacts,
+                    }
+                };
                 let built = gpu.build_constraints(
                     profiler,
-                    &scratch.slot_keys,
-                    &scratch.slot_contacts,
+                    slots,
                     &inputs,
                     (!chained).then_some(&mut scratch.contacts),
                 );
