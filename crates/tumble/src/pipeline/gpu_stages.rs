@@ -8,7 +8,7 @@ use crate::math::Aabb;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::batching::gpu::GpuBatching;
-use crate::stages::batching::{Batcher, Coloring};
+use crate::stages::batching::{Batcher, Coloring, MAX_ROUNDS};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, RowInputs};
@@ -17,6 +17,10 @@ use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, updat
 use crate::stages::solver::batched::{BatchedImpulses, GpuBatched};
 use crate::stages::solver::gpu::GpuSolver;
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
+
+/// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
+/// talk's batcher makes one batch a round), the colors batcher as many.
+const FIRST_BATCHING_ROUNDS: usize = 32;
 
 /// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
 /// time), submitting and waiting on the host, downloads.
@@ -115,6 +119,8 @@ pub(crate) struct GpuStages {
     row_contacts: GpuVec<PairContact>,
     masses: GpuVec<BodyMass>,
     batching: GpuBatching,
+    /// Batching rounds encoded before the colors are first read back (grows when too few).
+    batching_rounds: usize,
     solver: GpuSolver,
     /// The batches kept on the device when rows, batching and solver all run here.
     batched: GpuBatched,
@@ -161,6 +167,7 @@ impl GpuStages {
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
             masses: GpuVec::with_capacity(&context, "masses", 0)?,
             batching: GpuBatching::new(&context)?,
+            batching_rounds: FIRST_BATCHING_ROUNDS,
             solver: GpuSolver::new(&context)?,
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
@@ -437,13 +444,28 @@ impl GpuStages {
         let start = Instant::now();
         self.batching.upload(context, bodies)?;
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
+        // Most of the 64 rounds find nothing left: encode as many as the last steps needed,
+        // and the rest only when some constraint is still unbatched after them.
+        let rounds = self.batching_rounds;
         let batching = &mut self.batching;
         run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-            batching.encode(context, pass, body_count, ordered, batcher)
+            batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
         })?;
         let start = Instant::now();
-        self.batching.read_back(context, coloring)?;
+        let complete = self.batching.read_back(context, coloring)?;
         record_copy(profiler, BATCHING.download, elapsed_ms(start));
+        if !complete {
+            let batching = &self.batching;
+            run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
+                batching.encode_rest(pass, rounds);
+                Ok(())
+            })?;
+            let start = Instant::now();
+            let complete = self.batching.read_back(context, coloring)?;
+            debug_assert!(complete, "every round and the finish ran");
+            record_copy(profiler, BATCHING.download, elapsed_ms(start));
+            self.batching_rounds = (2 * rounds).min(MAX_ROUNDS);
+        }
         Ok(())
     }
 

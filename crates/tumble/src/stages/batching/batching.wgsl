@@ -1,7 +1,7 @@
 // Batching rounds (see `stages/batching/mod.rs`): in each round every unbatched constraint
 // claims its dynamic bodies with its priority (atomicMin into the round's half of `locks`),
 // then the constraints that hold all their bodies' locks are batched. The constants
-// MAX_COLORS, STATIC_BODY and the batcher ids come from Rust.
+// MAX_COLORS, STATIC_BODY, UNBATCHED and the batcher ids come from Rust.
 
 struct BatchParams {
     body_count: u32,
@@ -31,7 +31,6 @@ struct Tally {
 @group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
 @group(0) @binding(5) var<storage, read_write> tally: Tally;
 
-const UNBATCHED: u32 = 0xffffffffu;
 const NO_LOCK: u32 = 0xffffffffu;
 
 // Twin of `priority` in `mod.rs`: joints by index, then a bijective 31-bit hash above 2^31.

@@ -15,6 +15,8 @@ use crate::gpu::kernel::{
 use crate::stages::constraints::STATIC_BODY;
 
 const WGSL: &str = include_str!("batching.wgsl");
+/// The color of a constraint no round has batched yet.
+const UNBATCHED: u32 = u32::MAX;
 const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
     Binding::StorageRead,
@@ -38,6 +40,7 @@ pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("MAX_COLORS", MAX_COLORS as u32)
         .constant_u32("STATIC_BODY", STATIC_BODY)
+        .constant_u32("UNBATCHED", UNBATCHED)
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
         .snippet("batching.wgsl", WGSL)
 }
@@ -88,6 +91,25 @@ impl GpuBatching {
         ordered: usize,
         batcher: Batcher,
     ) -> Result<(), GpuError> {
+        self.encode_rounds(context, pass, body_count, ordered, batcher, MAX_ROUNDS)?;
+        self.encode_rest(pass, MAX_ROUNDS);
+        Ok(())
+    }
+
+    /// The first part of [`Self::encode`]: the start and rounds `0..rounds`. Rounds after the
+    /// last constraint is batched only return, but each is two dispatches: a caller that expects
+    /// fewer rounds encodes these, reads the colors back and, if some constraint has none yet
+    /// ([`Self::read_back`] says so), finishes with [`Self::encode_rest`] in a second pass.
+    /// The colors are the same either way.
+    pub fn encode_rounds(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        body_count: usize,
+        ordered: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) -> Result<(), GpuError> {
         let count = self.bodies.len();
         if count == 0 {
             self.colors.resize(context, 0)?;
@@ -116,9 +138,20 @@ impl GpuBatching {
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
-            encode_all(pass, dispatches);
+            encode_all(pass, &dispatches[..1 + 2 * rounds.min(MAX_ROUNDS)]);
         }
         Ok(())
+    }
+
+    /// The rest of [`Self::encode`] after [`Self::encode_rounds`] with `rounds`: the remaining
+    /// rounds and the finish, which sends what is still unbatched to the overflow batch.
+    pub fn encode_rest(&self, pass: &mut wgpu::ComputePass<'_>, rounds: usize) {
+        if self.bodies.is_empty() {
+            return;
+        }
+        if let Some((_, dispatches)) = &self.cached {
+            encode_all(pass, &dispatches[1 + 2 * rounds.min(MAX_ROUNDS)..]);
+        }
     }
 
     /// The dispatches for up to `capacity` constraints.
@@ -195,7 +228,9 @@ impl GpuBatching {
         context.submit_pass("batching", |pass| {
             self.encode(context, pass, body_count, ordered, batcher)
         })?;
-        self.read_back(context, coloring)
+        let complete = self.read_back(context, coloring)?;
+        debug_assert!(complete, "every round and the finish ran");
+        Ok(())
     }
 
     /// Uploads the constraints' bodies.
@@ -209,18 +244,23 @@ impl GpuBatching {
         self.bodies.upload(context, &self.host_bodies)
     }
 
-    /// Reads the colors of the last encoded batching into `coloring`.
+    /// Reads the colors of the last encoded batching into `coloring`. Returns false when some
+    /// constraint has no color yet (only after [`Self::encode_rounds`] without the rest):
+    /// `coloring` is then left as it was.
     pub fn read_back(
         &mut self,
         context: &GpuContext,
         coloring: &mut Coloring,
-    ) -> Result<(), GpuError> {
+    ) -> Result<bool, GpuError> {
         self.colors.download_into(context, &mut self.host_colors)?;
+        if self.host_colors.contains(&UNBATCHED) {
+            return Ok(false);
+        }
         coloring.colors.clear();
         coloring
             .colors
             .extend(self.host_colors.iter().map(|&color| color as u8));
         coloring.count_batches();
-        Ok(())
+        Ok(true)
     }
 }
