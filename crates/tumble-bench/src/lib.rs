@@ -49,7 +49,7 @@
 //! | `bodies` | dynamic bodies |
 //! | `engine` | `tumble-cpu`, `tumble-gpu`, `rapier`, `rapier-default` |
 //! | `threads` | rayon threads the step ran on |
-//! | `status` | `ok`, `time-limit`, `skipped`, `not available: <why>` |
+//! | `status` | `ok`, `time-limit`, `skipped`, `not available: <why>`, `unsupported: <why>` |
 //! | `warmup_steps` | warm-up steps run |
 //! | `timed_steps` | timed steps run |
 //! | `ms_median` | median wall time of a timed step (ms) |
@@ -66,7 +66,7 @@
 //! | `solver_iterations` | the scene's velocity iterations per sub-step |
 //! | `substeps` | the scene's sub-steps per step |
 //!
-//! Figures a case did not produce (skipped, not available) are empty cells.
+//! Figures a case did not produce (skipped, not available, unsupported) are empty cells.
 
 pub mod args;
 pub mod broadphase;
