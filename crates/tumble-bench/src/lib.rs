@@ -19,7 +19,8 @@
 //! - `tumble-gpu`: Tumble with every stage on the GPU (`StageDevices::all(Executor::Gpu)`),
 //!   each stage's inputs uploaded and outputs read back around it for now;
 //! - `rapier`: rapier3d 0.36 with Tumble's solver settings — the same sub-steps, sweeps and
-//!   contact softness (see [`rapier`] for the translation);
+//!   contact and joint softness (see [`rapier`] for the translation, joints included; a scene
+//!   using what rapier lacks, a breakable joint, is reported `unsupported`);
 //! - `rapier-default`: rapier3d with its own default solver settings.
 //!
 //! Both engines run their step inside a rayon pool of `--threads` threads: Tumble's stages use

@@ -40,7 +40,7 @@
 //! - [`SolverSettings::RapierDefault`] (engine `rapier-default`): rapier's own defaults for the
 //!   solver (4 sub-steps, 30 Hz contacts with ζ = 10) with the same dt, materials and margins.
 
-mod joints;
+pub mod joints;
 
 use crate::engine::{BodyState, ContactSample, Simulation};
 use rapier3d::prelude::*;
