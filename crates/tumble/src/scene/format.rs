@@ -360,6 +360,22 @@ impl SceneJoint {
             state: None,
         }
     }
+
+    /// The joint's state as [`Scene::build`] gives it to the world: the dumped `state`, or a
+    /// new joint's at the poses of its bodies in `bodies` (the scene's). `None` if either
+    /// body index is out of range.
+    pub fn state_in(&self, bodies: &[BodyDesc]) -> Option<JointState> {
+        if let Some(state) = self.state {
+            return Some(state);
+        }
+        let pose = |body: &BodyDesc| (body.position, body.unit_rotation());
+        Some(JointState::new(
+            self.kind,
+            self.anchor,
+            pose(bodies.get(self.body_a)?),
+            pose(bodies.get(self.body_b)?),
+        ))
+    }
 }
 
 impl Scene {

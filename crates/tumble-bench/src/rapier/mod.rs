@@ -23,6 +23,9 @@
 //!   `max_ccd_substeps = 0`, which also turns off rapier's automatic CCD against fixed bodies).
 //! - Rapier's own speed features stay on, as a user gets them: contact recycling (a pair that
 //!   barely moved keeps its contacts without a narrowphase update) and contact clustering.
+//! - Joints: each Tumble joint becomes the rapier joint of the same kind with the same frames,
+//!   contacts between its bodies off; a joint rapier cannot hold as Tumble does refuses the
+//!   scene instead of being dropped ([`joints`]).
 //!
 //! # Solver settings
 //!
@@ -36,6 +39,8 @@
 //!   against fixed bodies, as both engines do). The like-for-like comparison of work.
 //! - [`SolverSettings::RapierDefault`] (engine `rapier-default`): rapier's own defaults for the
 //!   solver (4 sub-steps, 30 Hz contacts with ζ = 10) with the same dt, materials and margins.
+
+pub mod joints;
 
 use crate::engine::{BodyState, ContactSample, Simulation};
 use rapier3d::prelude::*;
@@ -82,14 +87,18 @@ pub fn integration_parameters(scene: &Scene, settings: SolverSettings) -> Integr
     }
 }
 
-/// The scene as a rapier world; the handles are the scene's bodies, in order.
-pub fn translate(scene: &Scene, settings: SolverSettings) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
+/// The scene as a rapier world; the handles are the scene's bodies, in order. `Err` says why
+/// the scene cannot go to rapier faithfully (a joint rapier lacks, [`joints`]).
+pub fn translate(
+    scene: &Scene,
+    settings: SolverSettings,
+) -> Result<(PhysicsWorld, Vec<RigidBodyHandle>), String> {
     let mut world = PhysicsWorld {
         gravity: vector(scene.config.gravity),
         integration_parameters: integration_parameters(scene, settings),
         ..PhysicsWorld::default()
     };
-    let handles = scene
+    let handles: Vec<_> = scene
         .bodies
         .iter()
         .map(|desc| {
@@ -97,7 +106,8 @@ pub fn translate(scene: &Scene, settings: SolverSettings) -> (PhysicsWorld, Vec<
             world.insert(body, collider).0
         })
         .collect();
-    (world, handles)
+    joints::insert_joints(&mut world, scene, &handles, settings)?;
+    Ok((world, handles))
 }
 
 fn vector(v: tumble::math::Vec3) -> Vector {
@@ -226,20 +236,21 @@ struct RapierStages {
 }
 
 impl RapierSimulation {
-    pub fn new(scene: &Scene, settings: SolverSettings) -> Self {
-        let (world, handles) = translate(scene, settings);
+    /// `Err` says why the scene cannot run on rapier faithfully ([`translate`]).
+    pub fn new(scene: &Scene, settings: SolverSettings) -> Result<Self, String> {
+        let (world, handles) = translate(scene, settings)?;
         let dynamic_bodies = handles
             .into_iter()
             .zip(&scene.bodies)
             .filter(|(_, desc)| !desc.is_static())
             .map(|(handle, _)| handle)
             .collect();
-        Self {
+        Ok(Self {
             world,
             dynamic_bodies,
             stage_totals: RapierStages::default(),
             steps_since_reset: 0,
-        }
+        })
     }
 }
 
@@ -365,7 +376,7 @@ mod tests {
     #[test]
     fn translation_keeps_shapes_masses_and_materials() {
         let scene = scene();
-        let (world, handles) = translate(&scene, SolverSettings::Matched);
+        let (world, handles) = translate(&scene, SolverSettings::Matched).unwrap();
         assert_eq!(handles.len(), scene.bodies.len());
         for (desc, &handle) in scene.bodies.iter().zip(&handles) {
             let body = &world.bodies[handle];
