@@ -91,8 +91,8 @@ fn primitive_parameter_blocks_match_rust() {
             radix_sort::wgsl(key_words),
             vec![rust_layout!(radix_sort::RadixParams {
                 count,
-                shift,
-                word,
+                pass_index,
+                passes,
                 tile_count
             })],
         );
