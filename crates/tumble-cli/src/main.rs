@@ -124,17 +124,27 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
-/// The executor of each stage, after `--device` and then `--stages`. `auto` is the CPU for
-/// now: with each GPU stage's inputs and outputs copied around it, the GPU step is slower
-/// than the CPU's (H100: falling-boxes 7.4 ms against 3.5 ms at 16 threads, BENCHMARKS.md);
-/// it picks the GPU once the step stays on the device.
+/// The executor of each stage, after `--device` and then `--stages`. `auto` is every stage on
+/// a hardware GPU when there is one (H100: 1.2× rapier's speed at 30k falling boxes, 1.7× at
+/// 100k; 10% slower than 16 CPU threads at 3k, BENCHMARKS.md), else the CPU: Mesa's CPU
+/// drivers run the kernels slower than the CPU step.
 fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
+    let assignments = args.stages.as_deref().unwrap_or("");
+    let assign = |base: StageDevices| {
+        base.with_assignments(assignments)
+            .map_err(|e| format!("--stages: {e}"))
+    };
+    // Checked first: a bad --stages is reported before any adapter is probed.
+    assign(StageDevices::default())?;
     let base = match args.device {
         Device::Gpu => StageDevices::all(Executor::Gpu),
-        Device::Cpu | Device::Auto => StageDevices::default(),
+        Device::Cpu => StageDevices::default(),
+        Device::Auto => match tumble::gpu::GpuContext::shared() {
+            Ok(context) if !context.is_cpu_driver() => StageDevices::all(Executor::Gpu),
+            _ => StageDevices::default(),
+        },
     };
-    base.with_assignments(args.stages.as_deref().unwrap_or(""))
-        .map_err(|e| format!("--stages: {e}"))
+    assign(base)
 }
 
 fn run(args: &RunArgs) -> Result<(), String> {
@@ -157,7 +167,6 @@ fn run(args: &RunArgs) -> Result<(), String> {
     if args.explain {
         return Err("--explain is for the particles scene".into());
     }
-    let devices = stage_devices(args)?;
     let batcher: Batcher = args
         .batcher
         .parse()
@@ -173,6 +182,8 @@ fn run(args: &RunArgs) -> Result<(), String> {
     }
     let scene = load_scene(&args.scene, args.scale)?;
     let mut world = scene.build().map_err(|e| e.to_string())?;
+    // After the scene: bad input is reported before any adapter is probed.
+    let devices = stage_devices(args)?;
     world
         .set_stage_devices(devices)
         .map_err(|e| e.to_string())?;

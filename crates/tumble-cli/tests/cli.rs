@@ -219,3 +219,28 @@ fn raycast_scene_reports_rays_in_the_profile() {
     let listed = tumble(&["scenes"]);
     assert!(String::from_utf8_lossy(&listed.stdout).contains("raycast"));
 }
+
+/// `--device auto` (the default) is every stage on a hardware GPU when there is one, and the
+/// CPU when the only adapters are Mesa's CPU drivers (or none).
+#[test]
+fn auto_runs_on_a_hardware_gpu_only() {
+    let output = tumble(&[
+        "run",
+        "stacked-boxes",
+        "--scale",
+        "0.02",
+        "--steps",
+        "2",
+        "--json",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    let hardware = tumble::gpu::GpuContext::shared().is_ok_and(|context| !context.is_cpu_driver());
+    let expected = if hardware {
+        "aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
+    } else {
+        "cpu"
+    };
+    assert_eq!(summary["device"], expected, "{stdout}");
+}
