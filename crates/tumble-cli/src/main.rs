@@ -54,7 +54,7 @@ enum Device {
 struct RunArgs {
     /// Built-in scene name (`tumble scenes`) or path to a JSON scene file.
     scene: String,
-    /// Where the step runs; `auto` picks the GPU when there is one.
+    /// Where the step runs; `auto` picks a hardware GPU for scenes of 10k bodies or more.
     #[arg(long, value_enum, default_value = "auto")]
     device: Device,
     /// Per-stage devices, e.g. `broadphase=gpu,solver=cpu` (overrides --device per stage).
@@ -124,11 +124,17 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
+/// Bodies from which `--device auto` runs the step on a hardware GPU. Measured on an H100
+/// machine (BENCHMARKS.md): below it the GPU step's fixed costs (a submission and a wait per
+/// stage, ~230 dependent solver dispatches) lose to 16 CPU threads (falling-boxes at 3k: 4.7
+/// against 4.2 ms; stacked-boxes, mostly asleep: 2.3 against 0.6 ms); above it the GPU wins
+/// (30k falling boxes: 12.3 against 41 ms, 100k: 28.6 against 112 ms).
+const AUTO_GPU_BODIES: usize = 10_000;
+
 /// The executor of each stage, after `--device` and then `--stages`. `auto` is every stage on
-/// a hardware GPU when there is one (H100: 1.2× rapier's speed at 30k falling boxes, 1.7× at
-/// 100k; 10% slower than 16 CPU threads at 3k, BENCHMARKS.md), else the CPU: Mesa's CPU
-/// drivers run the kernels slower than the CPU step.
-fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
+/// a hardware GPU for scenes of at least [`AUTO_GPU_BODIES`] bodies, else the CPU (Mesa's CPU
+/// drivers run the kernels slower than the CPU step).
+fn stage_devices(args: &RunArgs, bodies: usize) -> Result<StageDevices, String> {
     let assignments = args.stages.as_deref().unwrap_or("");
     let assign = |base: StageDevices| {
         base.with_assignments(assignments)
@@ -139,6 +145,7 @@ fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
     let base = match args.device {
         Device::Gpu => StageDevices::all(Executor::Gpu),
         Device::Cpu => StageDevices::default(),
+        Device::Auto if bodies < AUTO_GPU_BODIES => StageDevices::default(),
         Device::Auto => match tumble::gpu::GpuContext::shared() {
             Ok(context) if !context.is_cpu_driver() => StageDevices::all(Executor::Gpu),
             _ => StageDevices::default(),
@@ -183,7 +190,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
     let scene = load_scene(&args.scene, args.scale)?;
     let mut world = scene.build().map_err(|e| e.to_string())?;
     // After the scene: bad input is reported before any adapter is probed.
-    let devices = stage_devices(args)?;
+    let devices = stage_devices(args, world.body_count())?;
     world
         .set_stage_devices(devices)
         .map_err(|e| e.to_string())?;

@@ -220,27 +220,25 @@ fn raycast_scene_reports_rays_in_the_profile() {
     assert!(String::from_utf8_lossy(&listed.stdout).contains("raycast"));
 }
 
-/// `--device auto` (the default) is every stage on a hardware GPU when there is one, and the
-/// CPU when the only adapters are Mesa's CPU drivers (or none).
+/// `--device auto` (the default) is the CPU for small scenes, and every stage on a hardware GPU
+/// for scenes of 10k bodies or more when there is one (not on Mesa's CPU drivers).
 #[test]
-fn auto_runs_on_a_hardware_gpu_only() {
-    let output = tumble(&[
-        "run",
-        "stacked-boxes",
-        "--scale",
-        "0.02",
-        "--steps",
-        "2",
-        "--json",
-    ]);
-    assert!(output.status.success(), "{}", stderr(&output));
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+fn auto_runs_large_scenes_on_a_hardware_gpu() {
+    let device_of = |scene: &str, scale: &str| {
+        let output = tumble(&["run", scene, "--scale", scale, "--steps", "1", "--json"]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let summary: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+        summary["device"].as_str().unwrap().to_owned()
+    };
+    assert_eq!(device_of("stacked-boxes", "0.02"), "cpu");
     let hardware = tumble::gpu::GpuContext::shared().is_ok_and(|context| !context.is_cpu_driver());
     let expected = if hardware {
         "aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
     } else {
         "cpu"
     };
-    assert_eq!(summary["device"], expected, "{stdout}");
+    // 3.4 × 3008 boxes: 10.2k bodies.
+    assert_eq!(device_of("falling-boxes", "3.4"), expected);
 }
