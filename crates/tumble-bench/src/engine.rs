@@ -26,6 +26,16 @@ pub enum EngineKind {
     RapierDefault,
 }
 
+/// Why an engine does not run a scene.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BuildError {
+    /// The engine cannot run on this machine or build (e.g. no GPU).
+    NotAvailable(String),
+    /// The engine lacks something the scene uses (e.g. a kind of joint), so it could not run
+    /// the same scene.
+    Unsupported(String),
+}
+
 /// Contact figures after a step.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ContactSample {
@@ -68,33 +78,37 @@ impl EngineKind {
         }
     }
 
-    /// The scene loaded into this engine, or why this engine cannot run here.
-    pub fn build(self, scene: &Scene) -> Result<Box<dyn Simulation>, String> {
+    /// The scene loaded into this engine, or why this engine cannot run it.
+    pub fn build(self, scene: &Scene) -> Result<Box<dyn Simulation>, BuildError> {
         match self {
             EngineKind::TumbleCpu | EngineKind::TumbleGpu => {
-                let mut world = scene.build().map_err(|e| e.to_string())?;
+                let unavailable =
+                    |e: &dyn std::fmt::Display| BuildError::NotAvailable(e.to_string());
+                let mut world = scene.build().map_err(|e| unavailable(&e))?;
                 // Sleeping is off in benchmarks, as on the peers: a settled pile is timed
                 // solving, not asleep.
                 let config = tumble::StepConfig {
                     sleeping: false,
                     ..*world.config()
                 };
-                world.set_config(config).map_err(|e| e.to_string())?;
+                world.set_config(config).map_err(|e| unavailable(&e))?;
                 if self == EngineKind::TumbleGpu {
                     world
                         .set_stage_devices(StageDevices::all(Executor::Gpu))
-                        .map_err(|e| e.to_string())?;
+                        .map_err(|e| unavailable(&e))?;
                 }
                 Ok(Box::new(TumbleSimulation { world }))
             }
-            EngineKind::Rapier => Ok(Box::new(RapierSimulation::new(
-                scene,
-                SolverSettings::Matched,
-            ))),
-            EngineKind::RapierDefault => Ok(Box::new(RapierSimulation::new(
-                scene,
-                SolverSettings::RapierDefault,
-            ))),
+            EngineKind::Rapier | EngineKind::RapierDefault => {
+                let settings = if self == EngineKind::Rapier {
+                    SolverSettings::Matched
+                } else {
+                    SolverSettings::RapierDefault
+                };
+                let simulation =
+                    RapierSimulation::new(scene, settings).map_err(BuildError::Unsupported)?;
+                Ok(Box::new(simulation))
+            }
         }
     }
 }

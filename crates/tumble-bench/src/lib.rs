@@ -19,7 +19,8 @@
 //! - `tumble-gpu`: Tumble with every stage on the GPU (`StageDevices::all(Executor::Gpu)`),
 //!   each stage's inputs uploaded and outputs read back around it for now;
 //! - `rapier`: rapier3d 0.36 with Tumble's solver settings — the same sub-steps, sweeps and
-//!   contact softness (see [`rapier`] for the translation);
+//!   contact and joint softness (see [`rapier`] for the translation, joints included; a scene
+//!   using what rapier lacks, a breakable joint, is reported `unsupported`);
 //! - `rapier-default`: rapier3d with its own default solver settings.
 //!
 //! Both engines run their step inside a rayon pool of `--threads` threads: Tumble's stages use
@@ -49,7 +50,7 @@
 //! | `bodies` | dynamic bodies |
 //! | `engine` | `tumble-cpu`, `tumble-gpu`, `rapier`, `rapier-default` |
 //! | `threads` | rayon threads the step ran on |
-//! | `status` | `ok`, `time-limit`, `skipped`, `not available: <why>` |
+//! | `status` | `ok`, `time-limit`, `skipped`, `not available: <why>`, `unsupported: <why>` |
 //! | `warmup_steps` | warm-up steps run |
 //! | `timed_steps` | timed steps run |
 //! | `ms_median` | median wall time of a timed step (ms) |
@@ -66,7 +67,7 @@
 //! | `solver_iterations` | the scene's velocity iterations per sub-step |
 //! | `substeps` | the scene's sub-steps per step |
 //!
-//! Figures a case did not produce (skipped, not available) are empty cells.
+//! Figures a case did not produce (skipped, not available, unsupported) are empty cells.
 
 pub mod args;
 pub mod broadphase;

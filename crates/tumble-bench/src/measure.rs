@@ -1,7 +1,7 @@
 //! One case: a scene at one scale on one engine with one thread count. Warm-up steps, then
 //! timed steps, each timed alone; quality figures taken outside the timed calls.
 
-use crate::engine::{EngineKind, Simulation};
+use crate::engine::{BuildError, EngineKind, Simulation};
 use std::time::Instant;
 use tumble::math::Vec3;
 use tumble::scene::Scene;
@@ -29,6 +29,9 @@ pub enum Status {
     Skipped,
     /// The engine cannot run here (e.g. no GPU step yet); nothing ran.
     NotAvailable(String),
+    /// The engine lacks something the scene uses (e.g. breakable joints on rapier); nothing
+    /// ran, rather than a different scene.
+    Unsupported(String),
 }
 
 impl std::fmt::Display for Status {
@@ -38,6 +41,7 @@ impl std::fmt::Display for Status {
             Status::TimeLimit => f.write_str("time-limit"),
             Status::Skipped => f.write_str("skipped"),
             Status::NotAvailable(why) => write!(f, "not available: {why}"),
+            Status::Unsupported(why) => write!(f, "unsupported: {why}"),
         }
     }
 }
@@ -161,7 +165,12 @@ impl CaseResult {
 pub fn run_case(key: CaseKey, scene: &Scene, schedule: Schedule, on_step: &dyn Fn()) -> CaseResult {
     let mut simulation = match key.engine.build(scene) {
         Ok(simulation) => simulation,
-        Err(why) => return CaseResult::not_run(key, scene, Status::NotAvailable(why)),
+        Err(BuildError::NotAvailable(why)) => {
+            return CaseResult::not_run(key, scene, Status::NotAvailable(why));
+        }
+        Err(BuildError::Unsupported(why)) => {
+            return CaseResult::not_run(key, scene, Status::Unsupported(why));
+        }
     };
     let start_positions: Vec<Vec3> = scene
         .bodies

@@ -54,7 +54,7 @@ enum Device {
 struct RunArgs {
     /// Built-in scene name (`tumble scenes`) or path to a JSON scene file.
     scene: String,
-    /// Where the step runs; `auto` picks the GPU when there is one.
+    /// Where the step runs; `auto` picks a hardware GPU for scenes of 10k bodies or more.
     #[arg(long, value_enum, default_value = "auto")]
     device: Device,
     /// Per-stage devices, e.g. `broadphase=gpu,solver=cpu` (overrides --device per stage).
@@ -124,17 +124,34 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
     }
 }
 
-/// The executor of each stage, after `--device` and then `--stages`. `auto` is the CPU for
-/// now: with each GPU stage's inputs and outputs copied around it, the GPU step is slower
-/// than the CPU's (H100: falling-boxes 7.4 ms against 3.5 ms at 16 threads, BENCHMARKS.md);
-/// it picks the GPU once the step stays on the device.
-fn stage_devices(args: &RunArgs) -> Result<StageDevices, String> {
+/// Bodies from which `--device auto` runs the step on a hardware GPU. Measured on an H100
+/// machine (BENCHMARKS.md): below it the GPU step's fixed costs (a submission and a wait per
+/// stage, ~230 dependent solver dispatches) lose to 16 CPU threads (falling-boxes at 3k: 4.7
+/// against 4.2 ms; stacked-boxes, mostly asleep: 2.3 against 0.6 ms); above it the GPU wins
+/// (30k falling boxes: 12.3 against 41 ms, 100k: 28.6 against 112 ms).
+const AUTO_GPU_BODIES: usize = 10_000;
+
+/// The executor of each stage, after `--device` and then `--stages`. `auto` is every stage on
+/// a hardware GPU for scenes of at least [`AUTO_GPU_BODIES`] bodies, else the CPU (Mesa's CPU
+/// drivers run the kernels slower than the CPU step).
+fn stage_devices(args: &RunArgs, bodies: usize) -> Result<StageDevices, String> {
+    let assignments = args.stages.as_deref().unwrap_or("");
+    let assign = |base: StageDevices| {
+        base.with_assignments(assignments)
+            .map_err(|e| format!("--stages: {e}"))
+    };
+    // Checked first: a bad --stages is reported before any adapter is probed.
+    assign(StageDevices::default())?;
     let base = match args.device {
         Device::Gpu => StageDevices::all(Executor::Gpu),
-        Device::Cpu | Device::Auto => StageDevices::default(),
+        Device::Cpu => StageDevices::default(),
+        Device::Auto if bodies < AUTO_GPU_BODIES => StageDevices::default(),
+        Device::Auto => match tumble::gpu::GpuContext::shared() {
+            Ok(context) if !context.is_cpu_driver() => StageDevices::all(Executor::Gpu),
+            _ => StageDevices::default(),
+        },
     };
-    base.with_assignments(args.stages.as_deref().unwrap_or(""))
-        .map_err(|e| format!("--stages: {e}"))
+    assign(base)
 }
 
 fn run(args: &RunArgs) -> Result<(), String> {
@@ -157,7 +174,6 @@ fn run(args: &RunArgs) -> Result<(), String> {
     if args.explain {
         return Err("--explain is for the particles scene".into());
     }
-    let devices = stage_devices(args)?;
     let batcher: Batcher = args
         .batcher
         .parse()
@@ -173,6 +189,8 @@ fn run(args: &RunArgs) -> Result<(), String> {
     }
     let scene = load_scene(&args.scene, args.scale)?;
     let mut world = scene.build().map_err(|e| e.to_string())?;
+    // After the scene: bad input is reported before any adapter is probed.
+    let devices = stage_devices(args, world.body_count())?;
     world
         .set_stage_devices(devices)
         .map_err(|e| e.to_string())?;
@@ -188,7 +206,8 @@ fn run(args: &RunArgs) -> Result<(), String> {
     };
     // The raycast scene casts its fan after every step, inside the step's profiler frame.
     let mut fan = RayFan::for_scene(&args.scene, args.scale);
-    for _ in 0..args.steps {
+    let mut first_step_ms = None;
+    for step in 0..args.steps {
         match fan.as_mut() {
             Some(fan) => world.try_step_then(|world| {
                 fan.cast(world);
@@ -196,6 +215,12 @@ fn run(args: &RunArgs) -> Result<(), String> {
             None => world.try_step(),
         }
         .map_err(|e| e.to_string())?;
+        // The first step compiles the GPU kernels and grows every buffer: it is reported on its
+        // own line, and the profile and the median are of the steps after it.
+        if step == 0 && args.steps > 1 {
+            first_step_ms = Some(world.profiler().median_frame_ms());
+            world.profiler_mut().reset();
+        }
     }
     let rays = fan.as_ref().map(RayFan::stats);
     let report = world.profiler().report();
@@ -203,6 +228,11 @@ fn run(args: &RunArgs) -> Result<(), String> {
     let ms_per_step = world.profiler().median_frame_ms();
     let threads = rayon::current_num_threads();
     if args.profile {
+        if let Some(ms) = first_step_ms {
+            println!(
+                "first step: {ms:.3} ms (kernel compilation, buffer growth), not in the profile below"
+            );
+        }
         print!("{report}");
         println!(
             "# bodies = {} ({} asleep)  # pairs = {} (+{} -{})  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",

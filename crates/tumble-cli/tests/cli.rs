@@ -93,6 +93,11 @@ fn json_summary_and_dump_that_loads_back() {
         stdout.contains("--- Profiling: step") && stdout.contains("-- solver"),
         "profile report: {stdout}"
     );
+    // The first step is reported alone; the profile averages the other 19.
+    assert!(
+        stdout.contains("first step: ") && stdout.contains("over 19 frames"),
+        "profile report: {stdout}"
+    );
     let last = stdout.lines().last().unwrap();
     let summary: serde_json::Value = serde_json::from_str(last).unwrap();
     for key in [
@@ -213,4 +218,27 @@ fn raycast_scene_reports_rays_in_the_profile() {
     assert!(text.contains("# rays = 20  # hits = 20"), "{text}");
     let listed = tumble(&["scenes"]);
     assert!(String::from_utf8_lossy(&listed.stdout).contains("raycast"));
+}
+
+/// `--device auto` (the default) is the CPU for small scenes, and every stage on a hardware GPU
+/// for scenes of 10k bodies or more when there is one (not on Mesa's CPU drivers).
+#[test]
+fn auto_runs_large_scenes_on_a_hardware_gpu() {
+    let device_of = |scene: &str, scale: &str| {
+        let output = tumble(&["run", scene, "--scale", scale, "--steps", "1", "--json"]);
+        assert!(output.status.success(), "{}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let summary: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+        summary["device"].as_str().unwrap().to_owned()
+    };
+    assert_eq!(device_of("stacked-boxes", "0.02"), "cpu");
+    let hardware = tumble::gpu::GpuContext::shared().is_ok_and(|context| !context.is_cpu_driver());
+    let expected = if hardware {
+        "aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
+    } else {
+        "cpu"
+    };
+    // 3.4 × 3008 boxes: 10.2k bodies.
+    assert_eq!(device_of("falling-boxes", "3.4"), expected);
 }

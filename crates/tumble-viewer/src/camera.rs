@@ -45,11 +45,12 @@ impl Camera {
         }
     }
 
-    /// A camera that sees the bounding box of `world`'s finite bodies whole, from above and to
-    /// the side. Infinite planes are left out of the box; a world with nothing else looks at
-    /// the origin from 10 m.
+    /// A camera that sees the bounding box of `world`'s dynamic bodies whole, from above and to
+    /// the side: the bodies are what moves, and a landscape under them can be a hundred times
+    /// their extent. With no dynamic body it frames the finite static bodies (infinite planes
+    /// are left out); a world with nothing else looks at the origin from 10 m.
     pub fn framing(world: &World) -> Self {
-        let (center, radius) = match finite_bounds(world) {
+        let (center, radius) = match dynamic_bounds(world).or_else(|| finite_bounds(world)) {
             Some(aabb) => (aabb.center(), aabb.half_extents().length().max(0.5)),
             None => (Vec3::ZERO, 4.0),
         };
@@ -106,6 +107,18 @@ pub fn finite_bounds(world: &World) -> Option<Aabb> {
         .reduce(|a, b| a.union(&b))
 }
 
+/// Union of the world AABBs of the dynamic bodies.
+pub fn dynamic_bounds(world: &World) -> Option<Aabb> {
+    world
+        .bodies()
+        .filter(|&handle| world.is_dynamic(handle).unwrap_or(false))
+        .filter_map(|handle| {
+            let shape = world.body_desc(handle).ok()?.shape;
+            Some(shape.aabb(&world.pose(handle).ok()?))
+        })
+        .reduce(|a, b| a.union(&b))
+}
+
 /// Parses `--camera eye_x,eye_y,eye_z,target_x,target_y,target_z` (metres).
 pub fn parse_camera(text: &str) -> Result<Camera, String> {
     let numbers: Vec<f32> = text
@@ -150,6 +163,35 @@ mod tests {
         let ndc = clip.truncate() / clip.w;
         assert!(ndc.x.abs() < 1e-5 && ndc.y.abs() < 1e-5);
         assert!((0.0..1.0).contains(&ndc.z));
+    }
+
+    fn fixed(world: &mut World, shape: Shape) {
+        world.add_body(tumble::BodyDesc::fixed(shape)).unwrap();
+    }
+
+    #[test]
+    fn framing_follows_the_dynamic_bodies() {
+        let mut world = World::new(tumble::StepConfig::default()).unwrap();
+        fixed(&mut world, Shape::plane(Vec3::Y, 0.0));
+        // A floor 200 m wide, far larger than the bodies on it.
+        fixed(&mut world, Shape::cuboid(Vec3::new(100.0, 0.5, 100.0)));
+        let floor_only = Camera::framing(&world);
+        assert!(floor_only.distance > 200.0, "{floor_only:?}");
+
+        for x in [10.0, 12.0] {
+            world
+                .add_body(
+                    tumble::BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(Vec3::new(x, 1.0, 0.0)),
+                )
+                .unwrap();
+        }
+        let camera = Camera::framing(&world);
+        assert!((camera.target - Vec3::new(11.0, 1.0, 0.0)).length() < 1e-5);
+        // The two boxes span 3 x 1 x 1 m: their bounding sphere fills the view.
+        let radius = Vec3::new(1.5, 0.5, 0.5).length();
+        let expected = 1.1 * radius / (FOV_Y * 0.5).sin();
+        assert!((camera.distance - expected).abs() < 1e-4, "{camera:?}");
     }
 
     #[test]

@@ -9,7 +9,7 @@ use glam::{Mat4, Vec3};
 use std::sync::Arc;
 use tumble::World;
 use tumble::math::tangent_basis;
-use tumble::shape::{ConvexHull, Shape};
+use tumble::shape::{ConvexHull, Shape, TriMesh};
 
 use crate::camera::finite_bounds;
 
@@ -17,6 +17,9 @@ use crate::camera::finite_bounds;
 pub const BACKGROUND: [f32; 3] = [0.30, 0.40, 0.55];
 /// Bodies that never move (boxes, spheres, capsules with mass 0), linear RGB.
 pub const STATIC_COLOUR: [f32; 3] = [0.45, 0.45, 0.45];
+/// Static triangle meshes (landscapes, floors), linear RGB: a muted earth tone, darker and warmer
+/// than the grey of static bodies and the grid of ground planes, so bodies stand out on it.
+pub const TRIMESH_COLOUR: [f32; 3] = [0.30, 0.26, 0.18];
 /// Contact points and their normals (linear RGB).
 pub const CONTACT_POINT_COLOUR: [f32; 3] = [1.0, 0.15, 0.05];
 pub const CONTACT_NORMAL_COLOUR: [f32; 3] = [1.0, 0.9, 0.1];
@@ -58,6 +61,9 @@ pub enum MeshKey {
     /// A convex hull, named by a hash of its vertices' bits (equal hulls share a mesh);
     /// [`DrawList::hulls`] holds its geometry.
     Hull(u64),
+    /// A static triangle mesh, named by a hash of its vertices' bits and its triangles (equal
+    /// meshes share one); [`DrawList::trimeshes`] holds its geometry.
+    TriMesh(u64),
 }
 
 /// A finite square of an infinite plane, drawn as a grid.
@@ -102,20 +108,60 @@ pub struct DrawList {
     pub wireframe: bool,
     /// The hulls that `MeshKey::Hull` keys name.
     pub hulls: BTreeMap<u64, Arc<ConvexHull>>,
+    /// The triangle meshes that `MeshKey::TriMesh` keys name.
+    pub trimeshes: BTreeMap<u64, Arc<TriMesh>>,
 }
 
-/// FNV-1a over the vertices' bits: a key that is the same for equal hulls in every run.
+/// FNV-1a over 32-bit words: a key that is the same for equal geometry in every run.
+fn fnv1a(words: impl IntoIterator<Item = u32>) -> u64 {
+    words
+        .into_iter()
+        .fold(0xcbf2_9ce4_8422_2325u64, |hash, word| {
+            (hash ^ u64::from(word)).wrapping_mul(0x0100_0000_01b3)
+        })
+}
+
 fn hull_key(hull: &ConvexHull) -> u64 {
-    let mut hash = 0xcbf2_9ce4_8422_2325u64;
-    for v in hull.vertices() {
-        for x in v.to_array() {
-            hash = (hash ^ u64::from(x.to_bits())).wrapping_mul(0x0100_0000_01b3);
-        }
-    }
-    hash
+    fnv1a(
+        hull.vertices()
+            .iter()
+            .flat_map(|v| v.to_array().map(f32::to_bits)),
+    )
+}
+
+/// Hashes the whole mesh every frame: about 0.5 M words for the 100k-triangle landscapes, well
+/// under a millisecond in a release build, and it keeps the key a pure function of the shape.
+fn trimesh_key(trimesh: &TriMesh) -> u64 {
+    let vertices = trimesh
+        .vertices()
+        .iter()
+        .flat_map(|v| v.to_array().map(f32::to_bits));
+    fnv1a(vertices.chain(trimesh.triangles().iter().flatten().copied()))
 }
 
 impl DrawList {
+    /// The instanced mesh and its scale for a convex shape (a hull's mesh is kept once per
+    /// hull); `None` for planes, meshes and compounds, which are drawn otherwise.
+    fn convex_mesh(&mut self, shape: &Shape) -> Option<(MeshKey, Vec3)> {
+        Some(match shape {
+            Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
+            Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
+            Shape::Capsule(capsule) => (
+                MeshKey::Capsule {
+                    radius: capsule.radius.to_bits(),
+                    half_height: capsule.half_height.to_bits(),
+                },
+                Vec3::ONE,
+            ),
+            Shape::ConvexHull(hull) => {
+                let key = hull_key(hull);
+                self.hulls.entry(key).or_insert_with(|| hull.clone());
+                (MeshKey::Hull(key), Vec3::ONE)
+            }
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::Compound(_) => return None,
+        })
+    }
+
     pub fn build(world: &World, settings: DrawSettings) -> Self {
         let mut list = DrawList {
             wireframe: settings.wireframe,
@@ -141,21 +187,8 @@ impl DrawList {
                 (true, BatchView::Off) => body_colour(handle.index() as usize),
                 (true, _) => BATCH_BODY_COLOUR,
             };
-            let (key, scale) = match &desc.shape {
-                Shape::Cuboid(cuboid) => (MeshKey::Cube, cuboid.half_extents),
-                Shape::Sphere(sphere) => (MeshKey::Sphere, Vec3::splat(sphere.radius)),
-                Shape::Capsule(capsule) => (
-                    MeshKey::Capsule {
-                        radius: capsule.radius.to_bits(),
-                        half_height: capsule.half_height.to_bits(),
-                    },
-                    Vec3::ONE,
-                ),
-                Shape::ConvexHull(hull) => {
-                    let key = hull_key(hull);
-                    list.hulls.entry(key).or_insert_with(|| hull.clone());
-                    (MeshKey::Hull(key), Vec3::ONE)
-                }
+            // A compound is drawn as its children, each at its pose in the body frame.
+            let parts: Vec<(&Shape, tumble::math::Transform)> = match &desc.shape {
                 Shape::Plane(plane) => {
                     let normal = pose.rotation * plane.normal;
                     let origin = pose.position + normal * plane.offset;
@@ -171,16 +204,39 @@ impl DrawList {
                     });
                     continue;
                 }
-                // The viewer has no mesh for triangle meshes yet: a static mesh is left out of
-                // the picture (the physics still collides with it).
-                Shape::TriMesh(_) => continue,
+                // One mesh per distinct triangle mesh, uploaded once and drawn at its body's pose.
+                Shape::TriMesh(trimesh) => {
+                    let key = trimesh_key(trimesh);
+                    list.trimeshes.entry(key).or_insert_with(|| trimesh.clone());
+                    let model = Mat4::from_rotation_translation(pose.rotation, pose.position);
+                    list.instances
+                        .entry(MeshKey::TriMesh(key))
+                        .or_default()
+                        .push(Instance::new(model, TRIMESH_COLOUR));
+                    continue;
+                }
+                Shape::Compound(compound) => compound
+                    .children()
+                    .iter()
+                    .map(|child| (&child.shape, pose.mul_transform(&child.pose)))
+                    .collect(),
+                shape => vec![(shape, pose)],
             };
-            smallest = smallest.min(desc.shape.aabb(&pose).half_extents().min_element());
-            let model = Mat4::from_scale_rotation_translation(scale, pose.rotation, pose.position);
-            list.instances
-                .entry(key)
-                .or_default()
-                .push(Instance::new(model, colour));
+            for (shape, part_pose) in parts {
+                let Some((key, scale)) = list.convex_mesh(shape) else {
+                    continue;
+                };
+                smallest = smallest.min(shape.aabb(&part_pose).half_extents().min_element());
+                let model = Mat4::from_scale_rotation_translation(
+                    scale,
+                    part_pose.rotation,
+                    part_pose.position,
+                );
+                list.instances
+                    .entry(key)
+                    .or_default()
+                    .push(Instance::new(model, colour));
+            }
         }
         if settings.contacts || settings.batches != BatchView::Off {
             list.add_contacts(world, 0.15 * smallest.min(1.0), settings.batches);
@@ -303,6 +359,28 @@ mod tests {
         let model = Mat4::from_cols_array_2d(&list.instances[&MeshKey::Cube][0].model);
         let corner = model.transform_point3(Vec3::ONE);
         assert!((corner - Vec3::new(0.5, 0.5, 1.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn a_trimesh_is_one_mesh_drawn_at_its_pose() {
+        let mut world = world();
+        let floor = TriMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::NEG_Z], vec![[0, 1, 2]]).unwrap();
+        let shape = Shape::trimesh(floor);
+        for x in [5.0, 9.0] {
+            world
+                .add_body(BodyDesc::fixed(shape.clone()).position(Vec3::new(x, 0.0, 0.0)))
+                .unwrap();
+        }
+        let list = DrawList::build(&world, DrawSettings::default());
+        // Both bodies share the one mesh, each drawn at its own position.
+        assert_eq!(list.trimeshes.len(), 1);
+        let key = MeshKey::TriMesh(*list.trimeshes.keys().next().unwrap());
+        let xs: Vec<f32> = list.instances[&key]
+            .iter()
+            .map(|instance| instance.model[3][0])
+            .collect();
+        assert_eq!(xs, [5.0, 9.0]);
+        assert_eq!(list.instances[&key][0].colour[..3], TRIMESH_COLOUR);
     }
 
     #[test]

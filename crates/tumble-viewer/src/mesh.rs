@@ -1,6 +1,7 @@
 //! Meshes of the shapes, built on the CPU once and instanced: a box of half extent 1 (scaled per
 //! instance), a sphere of radius 1 (scaled), a capsule per distinct radius and half height (a
-//! capsule does not scale: its caps would turn into ellipsoids), and a unit segment for lines.
+//! capsule does not scale: its caps would turn into ellipsoids), a unit segment for lines, and
+//! one mesh per convex hull and per triangle mesh, in the shape's own frame.
 
 use std::f32::consts::PI;
 
@@ -80,6 +81,29 @@ impl MeshData {
             for k in 0..count {
                 mesh.lines.extend([base + k, base + (k + 1) % count]);
             }
+        }
+        mesh
+    }
+
+    /// A static triangle mesh in its own frame, flat shaded: three vertices of its own per
+    /// triangle, with the triangle's front normal (a landscape reads by its facets). Its edges
+    /// are the wireframe; an edge shared by two triangles is listed twice, which draws the same.
+    pub fn trimesh(trimesh: &tumble::shape::TriMesh) -> Self {
+        let count = trimesh.triangles().len();
+        let mut mesh = MeshData {
+            vertices: Vec::with_capacity(3 * count),
+            triangles: Vec::with_capacity(3 * count),
+            lines: Vec::with_capacity(6 * count),
+        };
+        for index in 0..count as u32 {
+            let triangle = trimesh.triangle(index);
+            let base = mesh.vertices.len() as u32;
+            for corner in triangle.vertices {
+                mesh.push(corner, triangle.normal);
+            }
+            mesh.triangles.extend([base, base + 1, base + 2]);
+            mesh.lines
+                .extend([base, base + 1, base + 1, base + 2, base + 2, base]);
         }
         mesh
     }
@@ -195,6 +219,25 @@ mod tests {
         let (low, high) = ys.fold((f32::MAX, f32::MIN), |(l, h), y| (l.min(y), h.max(y)));
         assert!((low + 0.75).abs() < 1e-6 && (high - 0.75).abs() < 1e-6);
         assert_eq!(capsule.lines.len() % 2, 0);
+    }
+
+    #[test]
+    fn trimesh_is_flat_shaded_per_triangle() {
+        // Two triangles sharing an edge, one folded up: each keeps its own normal.
+        let vertices = vec![
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(0.0, 0.0, -1.0),
+            Vec3::new(1.0, 1.0, -1.0),
+        ];
+        let trimesh = tumble::shape::TriMesh::new(vertices, vec![[0, 1, 2], [1, 3, 2]]).unwrap();
+        let mesh = MeshData::trimesh(&trimesh);
+        assert_eq!(mesh.vertices.len(), 6);
+        assert_eq!(mesh.triangles.len(), 6);
+        assert_eq!(mesh.lines.len(), 12);
+        assert_outward(&mesh);
+        assert_eq!(mesh.vertices[0].normal, [0.0, 1.0, 0.0]);
+        assert_ne!(mesh.vertices[3].normal, mesh.vertices[0].normal);
     }
 
     #[test]

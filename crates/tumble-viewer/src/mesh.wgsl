@@ -1,4 +1,5 @@
-// Instanced meshes: boxes, spheres, capsules (solid or wireframe) and contact segments (lines).
+// Instanced meshes: boxes, spheres, capsules, hulls, triangle meshes (solid or wireframe) and
+// contact segments (lines).
 // Vertex layout: `Vertex` in mesh.rs; instance layout: `Instance` in draw.rs.
 
 struct VertexIn {
@@ -36,6 +37,13 @@ fn vs_main(in: VertexIn) -> VertexOut {
 @fragment
 fn fs_solid(in: VertexOut) -> @location(0) vec4<f32> {
     return vec4<f32>(shade(in.colour, in.normal), 1.0);
+}
+
+// Triangle meshes: seen from behind, a triangle is lit as its back face (the normal flipped).
+@fragment
+fn fs_two_sided(in: VertexOut, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
+    let normal = select(-in.normal, in.normal, front_facing);
+    return vec4<f32>(shade(in.colour, normal), 1.0);
 }
 
 // Wireframe edges and contact normals: unlit, so they read the same from every side.

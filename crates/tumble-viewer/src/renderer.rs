@@ -4,6 +4,7 @@
 //!
 //! A frame is one render pass: clear, ground grids, then every mesh instanced once (solid
 //! triangles, or its edges as lines in wireframe mode), then contact segments as lines.
+//! Triangle meshes are drawn from both sides, as the physics collides with both.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -98,6 +99,7 @@ pub struct Renderer {
     globals: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     solid_pipeline: wgpu::RenderPipeline,
+    two_sided_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
     grid_pipeline: wgpu::RenderPipeline,
     meshes: BTreeMap<MeshKey, GpuMesh>,
@@ -230,6 +232,16 @@ impl Renderer {
             wgpu::PrimitiveTopology::TriangleList,
             Some(wgpu::Face::Back),
         );
+        // A triangle mesh is an open surface (a landscape, a floor): no side of it is hidden
+        // by the rest of it, and a camera under a floor still sees the floor.
+        let two_sided_pipeline = pipeline(
+            "two-sided",
+            &mesh_shader,
+            "fs_two_sided",
+            &mesh_buffers,
+            wgpu::PrimitiveTopology::TriangleList,
+            None,
+        );
         let line_pipeline = pipeline(
             "lines",
             &mesh_shader,
@@ -254,6 +266,7 @@ impl Renderer {
             globals,
             bind_group,
             solid_pipeline,
+            two_sided_pipeline,
             line_pipeline,
             grid_pipeline,
             meshes: BTreeMap::new(),
@@ -338,6 +351,9 @@ impl Renderer {
         for (key, range) in &self.draws {
             let mesh = &self.meshes[key];
             let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
+                (Some(triangles), false) if matches!(key, MeshKey::TriMesh(_)) => {
+                    (&self.two_sided_pipeline, triangles)
+                }
                 (Some(triangles), false) => (&self.solid_pipeline, triangles),
                 _ => match &mesh.lines {
                     Some(lines) => (&self.line_pipeline, lines),
@@ -382,6 +398,7 @@ fn mesh_data(key: MeshKey, list: &DrawList) -> MeshData {
         } => MeshData::capsule(f32::from_bits(radius), f32::from_bits(half_height)),
         MeshKey::Segment => MeshData::segment(),
         MeshKey::Hull(hash) => MeshData::hull(&list.hulls[&hash]),
+        MeshKey::TriMesh(hash) => MeshData::trimesh(&list.trimeshes[&hash]),
     }
 }
 

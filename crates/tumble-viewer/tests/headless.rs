@@ -1,10 +1,12 @@
-//! A headless render of one box on a plane, on whatever adapter wgpu finds (lavapipe where
-//! there is no GPU): the picture is not blank, shows the background where nothing is, and shows
-//! the box where its centre projects with the same camera matrix the renderer uses.
+//! Headless renders on whatever adapter wgpu finds (lavapipe where there is no GPU): one box on
+//! a plane (the picture is not blank, shows the background where nothing is, and shows the box
+//! where its centre projects with the same camera matrix the renderer uses), and one box on a
+//! floor made of two triangles (the floor shows where it projects, the background around it).
 
 use tumble::math::Vec3;
+use tumble::shape::TriMesh;
 use tumble::{BodyDesc, Shape, StepConfig, World};
-use tumble_viewer::draw::{BACKGROUND, DrawSettings, body_colour};
+use tumble_viewer::draw::{BACKGROUND, DrawSettings, TRIMESH_COLOUR, body_colour};
 use tumble_viewer::headless::Offscreen;
 use tumble_viewer::{Camera, GpuContext};
 
@@ -28,6 +30,42 @@ fn decode_srgb(encoded: u8) -> f32 {
     } else {
         ((c + 0.055) / 1.055).powf(2.4)
     }
+}
+
+/// The pixel where `point` projects with the renderer's matrix; panics outside the picture.
+fn project(camera: &Camera, point: Vec3) -> (u32, u32) {
+    let clip = camera.view_projection(WIDTH as f32 / HEIGHT as f32) * point.extend(1.0);
+    let ndc = clip.truncate() / clip.w;
+    assert!(
+        ndc.x.abs() < 1.0 && ndc.y.abs() < 1.0,
+        "{point} is out of the picture"
+    );
+    let x = ((ndc.x + 1.0) * 0.5 * WIDTH as f32) as u32;
+    let y = ((1.0 - ndc.y) * 0.5 * HEIGHT as f32) as u32;
+    (x, y)
+}
+
+/// Asserts that the pixel has the background colour.
+fn assert_background(pixel: [u8; 4], at: (u32, u32)) {
+    let background = BACKGROUND.map(|c| (encode_srgb(c) * 255.0).round() as i32);
+    for channel in 0..3 {
+        assert!(
+            (i32::from(pixel[channel]) - background[channel]).abs() <= 1,
+            "pixel {at:?} = {pixel:?}, background {background:?}"
+        );
+    }
+    assert_eq!(pixel[3], 255);
+}
+
+/// Asserts that the pixel has the hue of the linear `colour` (Lambert + ambient scale the
+/// colour, keeping its hue).
+fn assert_hue(pixel: [u8; 4], at: (u32, u32), colour: [f32; 3]) {
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(pixel[c])));
+    let expected = chromaticity(colour);
+    assert!(
+        seen.dot(expected) > 0.995,
+        "pixel {at:?} = {pixel:?}: hue {seen:?}, expected {expected:?}"
+    );
 }
 
 /// Direction of an RGB colour (its hue and saturation, without its brightness).
@@ -67,28 +105,64 @@ fn box_on_a_plane() {
     assert!(colours.len() > 10, "only {} colours", colours.len());
 
     // Background in a corner where nothing is drawn.
-    let background = BACKGROUND.map(|c| (encode_srgb(c) * 255.0).round() as i32);
-    let corner = image.pixel(0, 0);
-    for channel in 0..3 {
-        assert!(
-            (i32::from(corner[channel]) - background[channel]).abs() <= 1,
-            "corner {corner:?}, background {background:?}"
-        );
-    }
-    assert_eq!(corner[3], 255);
+    assert_background(image.pixel(0, 0), (0, 0));
 
-    // The box's centre, projected with the renderer's matrix, lands on one of its lit faces:
-    // the pixel has the box's hue (Lambert + ambient scale the colour, keeping its hue).
-    let centre = world.pose(cube).unwrap().position;
-    let clip = camera.view_projection(WIDTH as f32 / HEIGHT as f32) * centre.extend(1.0);
-    let ndc = clip.truncate() / clip.w;
-    let x = ((ndc.x + 1.0) * 0.5 * WIDTH as f32) as u32;
-    let y = ((1.0 - ndc.y) * 0.5 * HEIGHT as f32) as u32;
-    let pixel = image.pixel(x, y);
-    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(pixel[c])));
-    let expected = chromaticity(body_colour(cube.index() as usize));
-    assert!(
-        seen.dot(expected) > 0.995,
-        "pixel ({x}, {y}) = {pixel:?}: hue {seen:?}, the box's is {expected:?}"
+    // The box's centre lands on one of its lit faces.
+    let at = project(&camera, world.pose(cube).unwrap().position);
+    assert_hue(
+        image.pixel(at.0, at.1),
+        at,
+        body_colour(cube.index() as usize),
     );
+}
+
+#[test]
+fn box_on_a_triangle_mesh_floor() {
+    // A floor 4 m square at y = 0, two triangles facing up; no ground plane.
+    let corners = vec![
+        Vec3::new(-2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, 2.0),
+        Vec3::new(2.0, 0.0, -2.0),
+        Vec3::new(-2.0, 0.0, -2.0),
+    ];
+    let floor = TriMesh::new(corners, vec![[0, 1, 2], [0, 2, 3]]).unwrap();
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::trimesh(floor)))
+        .unwrap();
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(3.0, 5.0, 7.0), Vec3::ZERO);
+
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default())
+        .unwrap();
+
+    // The floor where its points project, in front of the box and behind it.
+    for point in [
+        Vec3::new(1.5, 0.0, 1.5),
+        Vec3::new(-1.5, 0.0, 1.5),
+        Vec3::new(-1.5, 0.0, -1.5),
+    ] {
+        let at = project(&camera, point);
+        assert_hue(image.pixel(at.0, at.1), at, TRIMESH_COLOUR);
+    }
+    // The box stands on it.
+    let at = project(&camera, world.pose(cube).unwrap().position);
+    assert_hue(
+        image.pixel(at.0, at.1),
+        at,
+        body_colour(cube.index() as usize),
+    );
+    // Beside the floor, in its plane, and in a corner: the background.
+    for point in [Vec3::new(3.0, 0.0, 0.0), Vec3::new(-3.0, 0.0, 0.0)] {
+        let at = project(&camera, point);
+        assert_background(image.pixel(at.0, at.1), at);
+    }
+    assert_background(image.pixel(0, 0), (0, 0));
 }

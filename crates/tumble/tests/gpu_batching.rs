@@ -104,3 +104,41 @@ fn gpu_colors_equal_cpu_colors() {
     assert!(star.has_overflow);
     assert_eq!(star.histogram.last(), Some(&6));
 }
+
+/// Encoded in two parts (a few rounds, the colors read back unfinished, then the rest), the
+/// batching gives the colors of one pass: what the step does when it encodes fewer rounds.
+#[test]
+fn rounds_in_two_parts_give_the_same_colors() {
+    let context = gpu_common::context();
+    let mut gpu = GpuBatching::new(&context).unwrap();
+    let mut state = 0x5eed_u64;
+    let edges = random_edges(&mut state, 400, 3000);
+    for batcher in Batcher::ALL {
+        let mut whole = Coloring::default();
+        gpu.run(
+            &context,
+            edges.iter().copied(),
+            400,
+            30,
+            batcher,
+            &mut whole,
+        )
+        .unwrap();
+        gpu.upload(&context, edges.iter().copied()).unwrap();
+        context
+            .submit_pass("first rounds", |pass| {
+                gpu.encode_rounds(&context, pass, 400, 30, batcher, 2)
+            })
+            .unwrap();
+        let mut parts = Coloring::default();
+        assert!(
+            !gpu.read_back(&context, &mut parts).unwrap(),
+            "{batcher}: two rounds batched all {} constraints",
+            edges.len()
+        );
+        context.submit_pass("other rounds", |pass| gpu.encode_rest(pass, 2));
+        assert!(gpu.read_back(&context, &mut parts).unwrap());
+        assert_eq!(parts.colors, whole.colors, "{batcher}");
+        assert_eq!(parts.histogram, whole.histogram, "{batcher}");
+    }
+}

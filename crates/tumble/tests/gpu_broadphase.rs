@@ -1,4 +1,5 @@
-//! GPU collision front half against the CPU: world AABBs (within a stated tolerance), the LBVH
+//! GPU collision front half against the CPU: world AABBs (within a stated tolerance; for hulls,
+//! meshes and compounds, boxes that hold the CPU's), the LBVH
 //! broadphase (exactly the brute-force overlap pairs, both traversals, bitwise repeatable, no
 //! pair lost when the key buffer starts far too small, deep degenerate trees), and the pair
 //! cache's diff (the CPU `PairCache`'s added, removed and kept pairs exactly).
@@ -46,6 +47,21 @@ fn rotation(random: &mut Random) -> Quat {
     } else {
         q.normalize()
     }
+}
+
+/// Two children off the origin, one turned: its box about the origin is looser than its own.
+fn off_centre_compound(random: &mut Random) -> Shape {
+    use tumble::math::Transform;
+    use tumble::shape::CompoundChild;
+    let ball = CompoundChild {
+        shape: Shape::sphere(between(random, 0.05, 1.0)),
+        pose: Transform::from_position(vector(random, 2.0)),
+    };
+    let block = CompoundChild {
+        shape: Shape::cuboid(Vec3::new(0.5, 0.2, 0.1)),
+        pose: Transform::new(vector(random, 2.0), rotation(random)),
+    };
+    Shape::compound(vec![ball, block]).unwrap()
 }
 
 /// Every overlapping pair (touching counts) with at least one dynamic body, sorted: a sweep
@@ -109,7 +125,7 @@ fn aabbs_match_cpu() {
         let mut velocities = Vec::new();
         let mut colliders = Vec::new();
         for body in 0..count {
-            let shape = match random.below(5) {
+            let shape = match random.below(8) {
                 0 => Shape::sphere(between(&mut random, 0.05, 2.0)),
                 1 => Shape::capsule(
                     between(&mut random, 0.05, 1.0),
@@ -120,6 +136,28 @@ fn aabbs_match_cpu() {
                     between(&mut random, 0.05, 2.0),
                     between(&mut random, 0.05, 2.0),
                 )),
+                // Shapes the kernel bounds by a box about the body origin (see below).
+                5 => {
+                    let offset = vector(&mut random, 1.0);
+                    let points: Vec<Vec3> = tumble::scene::barrel_points()
+                        .into_iter()
+                        .map(|p| p + offset)
+                        .collect();
+                    Shape::convex_hull(&points).unwrap()
+                }
+                6 => off_centre_compound(&mut random),
+                7 => Shape::trimesh(
+                    tumble::shape::TriMesh::new(
+                        vec![
+                            Vec3::new(5.0, 1.0, -2.0),
+                            Vec3::new(5.0, 1.0, 2.0),
+                            Vec3::new(9.0, 1.0, -2.0),
+                            Vec3::new(9.0, 1.0, 2.0),
+                        ],
+                        vec![[0, 1, 2], [2, 1, 3]],
+                    )
+                    .unwrap(),
+                ),
                 // Planes: axis-aligned (bounded on that axis) and tilted (unbounded).
                 _ => match body % 3 {
                     0 => Shape::plane(Vec3::Y, between(&mut random, -5.0, 5.0)),
@@ -151,8 +189,43 @@ fn aabbs_match_cpu() {
             });
         }
         let (margin, dt) = (0.02, 1.0 / 60.0);
+        let mut exact = Vec::new();
+        compute_aabbs(&poses, &velocities, &colliders, margin, dt, &mut exact);
+        // Hulls, meshes and compounds have no vertices on the GPU: the kernel turns the box of
+        // half extents `ColliderData::params` about the body origin, as the CPU turns a cuboid.
+        let boxed: Vec<Collider> = colliders
+            .iter()
+            .map(|collider| match collider.shape {
+                Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::Compound(_) => Collider {
+                    shape: Shape::cuboid(collider.data().params.truncate()),
+                    ..collider.clone()
+                },
+                _ => collider.clone(),
+            })
+            .collect();
         let mut expected = Vec::new();
-        compute_aabbs(&poses, &velocities, &colliders, margin, dt, &mut expected);
+        compute_aabbs(&poses, &velocities, &boxed, margin, dt, &mut expected);
+        // Tolerance: both executors compute the same expressions, but a GPU may fuse a
+        // multiply-add or order a dot product differently; each coordinate is a sum of a few
+        // rounded terms no larger than the body's position, shape extent, motion and margin, so
+        // it can differ by a few f32 roundings (ε = 2^-23) of their sum. The bounding box and
+        // the shape's own box round apart as much where they touch (a flat mesh's face).
+        let tolerance = |body: usize| {
+            let scale = poses[body].position.abs().max_element()
+                + boxed[body].shape.bounding_radius()
+                + velocities[body].linear.abs().max_element() * dt
+                + margin
+                + 1.0;
+            16.0 * f32::EPSILON * scale
+        };
+        for (body, (bound, cpu)) in expected.iter().zip(&exact).enumerate() {
+            let slack = Vec3::splat(tolerance(body));
+            assert!(
+                (bound.min - slack).cmple(cpu.min).all()
+                    && (bound.max + slack).cmpge(cpu.max).all(),
+                "body {body}: the bounding box {bound:?} does not hold {cpu:?}"
+            );
+        }
         let mut found = Vec::new();
         stage
             .run(
@@ -167,16 +240,7 @@ fn aabbs_match_cpu() {
             .expect("gpu aabbs");
         assert_eq!(found.len(), count);
         for (body, (gpu, cpu)) in found.iter().zip(&expected).enumerate() {
-            // Tolerance: both executors compute the same expressions, but a GPU may fuse a
-            // multiply-add or order a dot product differently; each coordinate is a sum of a
-            // few rounded terms no larger than the body's position, shape extent, motion and
-            // margin, so it can differ by a few f32 roundings (ε = 2^-23) of their sum.
-            let scale = poses[body].position.abs().max_element()
-                + colliders[body].shape.bounding_radius()
-                + velocities[body].linear.abs().max_element() * dt
-                + margin
-                + 1.0;
-            let tolerance = 16.0 * f32::EPSILON * scale;
+            let tolerance = tolerance(body);
             for (g, c) in [(gpu.min, cpu.min), (gpu.max, cpu.max)] {
                 // Plane boxes hold ±PLANE_AABB_EXTENT exactly on both sides.
                 assert!(

@@ -91,8 +91,8 @@ fn primitive_parameter_blocks_match_rust() {
             radix_sort::wgsl(key_words),
             vec![rust_layout!(radix_sort::RadixParams {
                 count,
-                shift,
-                word,
+                pass_index,
+                passes,
                 tile_count
             })],
         );
@@ -558,6 +558,22 @@ fn solver_structs_match_rust() {
     );
 }
 
+/// The impulses the solver reads back when the rows stay on the device. The source also holds
+/// the constraint structs, whose layouts `solver_structs_match_rust` checks.
+#[test]
+fn batched_impulses_match_rust() {
+    use tumble::stages::solver::batched::{BatchedImpulses, wgsl};
+    check_with_gpu_only(
+        wgsl(),
+        vec![rust_layout!(BatchedImpulses {
+            normal,
+            tangent1,
+            tangent2
+        })],
+        &["Softness", "Row", "ConstraintPoint", "ContactConstraint"],
+    );
+}
+
 /// The parameter blocks of the rows and batching kernels. The rows' source also holds the body,
 /// manifold and constraint structs, whose layouts the narrowphase and solver tests check.
 #[test]
@@ -589,17 +605,15 @@ fn row_and_batching_parameters_match_rust() {
             "ContactConstraint",
         ],
     );
-    check(
+    // Tally is two u32 words on the host ([u32; 2]: batched, count).
+    check_with_gpu_only(
         batching::wgsl(),
         vec![rust_layout!(BatchParams {
-            count,
             body_count,
             round,
             batcher,
-            ordered,
-            _pad0,
-            _pad1,
-            _pad2
+            ordered
         })],
+        &["Tally"],
     );
 }

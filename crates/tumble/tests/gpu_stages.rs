@@ -153,6 +153,48 @@ fn batching_on_the_gpu_gives_the_cpu_step_exactly() {
     }
 }
 
+/// Rows, batching and solver all on the GPU keep the contact rows on the device (gathered
+/// there into batch order, only impulses read back): the same step, bit for bit, as the rows
+/// and the solver on the GPU with the batching between them on the CPU, which gives the same
+/// colors but sends the rows through the host. A bouncing ball takes the restitution sweep.
+#[test]
+fn rows_kept_on_the_gpu_give_the_step_through_the_host_exactly() {
+    let _turn = gpu_common::context();
+    let mut chained = world_on(&[Stage::Constraints, Stage::Batching, Stage::Solver]);
+    let mut through_host = world_on(&[Stage::Constraints, Stage::Solver]);
+    for world in [&mut chained, &mut through_host] {
+        world
+            .add_body(
+                BodyDesc::dynamic(Shape::sphere(0.3))
+                    .position(Vec3::new(-2.0, 1.0, 0.0))
+                    .restitution(0.8),
+            )
+            .unwrap();
+    }
+    let bodies: Vec<BodyHandle> = chained.bodies().collect();
+    let mut most_contacts = 0;
+    for step in 0..90 {
+        chained.try_step().unwrap();
+        through_host.try_step().unwrap();
+        let (a, b) = (chained.stats(), through_host.stats());
+        assert_eq!(
+            (a.manifolds, a.contacts, &a.batch_histogram),
+            (b.manifolds, b.contacts, &b.batch_histogram),
+            "step {step}"
+        );
+        most_contacts = most_contacts.max(a.contacts);
+        for &body in &bodies {
+            assert_eq!(chained.pose(body), through_host.pose(body), "step {step}");
+            assert_eq!(
+                chained.angular_velocity(body),
+                through_host.angular_velocity(body),
+                "step {step}"
+            );
+        }
+    }
+    assert!(most_contacts > 10, "too few contacts to compare");
+}
+
 /// With the narrowphase on the GPU, pairs with a hull or a mesh (no kernel yet) are computed on
 /// the host: a barrel rests on the plane and a ball and a barrel on a mesh as on the CPU. (The
 /// kernel once read a sphere–mesh pair as capsule–capsule and gave hull pairs no contact.)
@@ -225,4 +267,142 @@ fn hulls_and_meshes_beside_the_gpu_narrowphase_follow_the_cpu() {
         distance < 1e-3,
         "the GPU narrowphase world drifted {distance} m"
     );
+}
+
+/// Compounds beside GPU stages: their pairs are host work (`narrowphase::gpu_pair` is false
+/// for them), and the GPU AABB kernel bounds them by a turned box that holds the CPU's. A
+/// dumbbell on the plane, a table with a box on its top, and a compound of a hull cube and a
+/// ball on a mesh rest as on the CPU, with the collision stages or the whole step on the GPU.
+/// (Before the kernel bounded them, a compound's box was the plane's ±1e15 and it paired with
+/// every body.)
+#[test]
+fn compounds_beside_gpu_stages_follow_the_cpu() {
+    use tumble::math::Transform;
+    use tumble::shape::{Compound, CompoundChild, TriMesh};
+    let _turn = gpu_common::context();
+    let child = |shape: Shape, position: Vec3| CompoundChild {
+        shape,
+        pose: Transform::from_position(position),
+    };
+    let dumbbell = Shape::compound(vec![
+        child(Shape::sphere(0.25), Vec3::new(-0.5, 0.0, 0.0)),
+        CompoundChild {
+            shape: Shape::capsule(0.05, 0.4),
+            pose: Transform::new(
+                Vec3::ZERO,
+                Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+            ),
+        },
+        child(Shape::sphere(0.25), Vec3::new(0.5, 0.0, 0.0)),
+    ])
+    .unwrap();
+    // Legs 0.7 m tall under a 0.1 m top, given from the floor under the table's middle.
+    let mut table = vec![child(
+        Shape::cuboid(Vec3::new(0.6, 0.05, 0.4)),
+        Vec3::new(0.0, 0.75, 0.0),
+    )];
+    for (x, z) in [(-0.5, -0.3), (0.5, -0.3), (-0.5, 0.3), (0.5, 0.3)] {
+        table.push(child(
+            Shape::cuboid(Vec3::new(0.05, 0.35, 0.05)),
+            Vec3::new(x, 0.35, z),
+        ));
+    }
+    let table_centroid = Compound::new(table.clone())
+        .unwrap()
+        .local_frame()
+        .position
+        .y;
+    let table = Shape::compound(table).unwrap();
+    let corners: Vec<Vec3> = (0..8)
+        .map(|i| {
+            0.2 * Vec3::new(
+                [-1.0, 1.0][i & 1],
+                [-1.0, 1.0][(i >> 1) & 1],
+                [-1.0, 1.0][i >> 2],
+            )
+        })
+        .collect();
+    let cube_and_ball = Shape::compound(vec![
+        child(Shape::convex_hull(&corners).unwrap(), Vec3::ZERO),
+        child(Shape::sphere(0.2), Vec3::X),
+    ])
+    .unwrap();
+    let world = |stages: &[Stage]| {
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        // A 4 m square of two triangles at y = 1, facing up, beside the origin.
+        let floor = TriMesh::new(
+            vec![
+                Vec3::new(5.0, 1.0, -2.0),
+                Vec3::new(5.0, 1.0, 2.0),
+                Vec3::new(9.0, 1.0, -2.0),
+                Vec3::new(9.0, 1.0, 2.0),
+            ],
+            vec![[0, 1, 2], [2, 1, 3]],
+        )
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::trimesh(floor)))
+            .unwrap();
+        let bodies = [
+            world
+                .add_body(BodyDesc::dynamic(dumbbell.clone()).position(Vec3::new(0.0, 0.5, -2.0)))
+                .unwrap(),
+            world
+                .add_body(BodyDesc::dynamic(table.clone()).position(Vec3::new(0.0, 0.1, 1.0)))
+                .unwrap(),
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.1)))
+                        .position(Vec3::new(0.2, 1.0, 1.0)),
+                )
+                .unwrap(),
+            world
+                .add_body(
+                    BodyDesc::dynamic(cube_and_ball.clone()).position(Vec3::new(6.5, 1.4, 0.0)),
+                )
+                .unwrap(),
+        ];
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        (world, bodies)
+    };
+    let stage_sets: [&[Stage]; 3] = [
+        &[Stage::Narrowphase],
+        &[Stage::Aabb, Stage::Broadphase, Stage::Narrowphase],
+        &Stage::ALL,
+    ];
+    for stages in stage_sets {
+        let (mut cpu, bodies) = world(&[]);
+        let (mut gpu, _) = world(stages);
+        for _ in 0..120 {
+            cpu.step();
+            gpu.try_step().unwrap();
+        }
+        let heights = bodies.map(|body| gpu.pose(body).unwrap().position.y);
+        let expected = [0.25, table_centroid, 0.9, 1.2];
+        for (name, (y, rest)) in ["dumbbell", "table", "box", "cube and ball"]
+            .iter()
+            .zip(heights.into_iter().zip(expected))
+        {
+            assert!(
+                (y - rest).abs() < 2e-3,
+                "{stages:?}: the {name} rests at y = {y}, not {rest}"
+            );
+        }
+        let distance = max_distance(&cpu, &gpu, &bodies);
+        assert!(
+            distance < 1e-3,
+            "{stages:?}: the GPU world drifted {distance} m"
+        );
+    }
 }

@@ -322,3 +322,96 @@ fn a_scene_file_without_settings_gets_the_engine_defaults() {
     let scene = Scene::from_json(r#"{ "bodies": [] }"#).unwrap();
     assert_eq!(scene.config, tumble::StepConfig::default());
 }
+
+/// A body whose shape is a compound of `children` (JSON list items).
+fn scene_with_compound(children: &str) -> String {
+    scene_with_body(&format!(
+        r#"{{ "shape": {{ "compound": {{ "children": [ {children} ] }} }} }}"#
+    ))
+}
+
+#[test]
+fn each_bad_compound_child_names_its_field() {
+    let ball = r#"{ "shape": { "sphere": { "radius": 0.2 } }, "position": [0.5, 0, 0] }"#;
+    let cases = [
+        (
+            scene_with_compound(""),
+            "bodies[1].shape.compound.children: a compound needs at least one child shape",
+        ),
+        (
+            scene_with_compound(&format!(
+                r#"{ball}, {{ "shape": {{ "plane": {{ "normal": [0, 1, 0] }} }} }}"#
+            )),
+            "bodies[1].shape.compound.children[1].shape: a compound's children must be convex",
+        ),
+        (
+            scene_with_compound(&format!(
+                r#"{{ "shape": {{ "compound": {{ "children": [ {ball} ] }} }} }}"#
+            )),
+            "bodies[1].shape.compound.children[0].shape: a compound's children must be convex \
+             (sphere, box, capsule, convex_hull), not compound",
+        ),
+        (
+            scene_with_compound(r#"{ "shape": { "sphere": { "radius": 0 } } }"#),
+            "bodies[1].shape.compound.children[0].shape: child 0: sizes must be finite and > 0",
+        ),
+        (
+            scene_with_compound(&format!(
+                r#"{ball}, {{ "shape": {{ "capsule": {{ "radius": 0.1, "half_height": -1 }} }} }}"#
+            )),
+            "bodies[1].shape.compound.children[1].shape: child 1: sizes must be finite and > 0",
+        ),
+        (
+            scene_with_compound(
+                r#"{ "shape": { "sphere": { "radius": 1 } }, "rotation": [0, 0, 0, 0] }"#,
+            ),
+            "bodies[1].shape.compound.children[0].rotation: child 0: rotation is the zero \
+             quaternion",
+        ),
+        (
+            scene_with_compound(
+                r#"{ "shape": { "sphere": { "radius": 1 } }, "position": [0, 1e39, 0] }"#,
+            ),
+            "bodies[1].shape.compound.children[0].position[1]: number out of range",
+        ),
+        (
+            scene_with_compound(r#"{ "shape": { "sphere": { "radius": 1 } }, "scale": 2 }"#),
+            "bodies[1].shape.compound.children[0].scale: unknown field `scale`",
+        ),
+        (
+            scene_with_compound(
+                r#"{ "shape": { "convex_hull": { "points": [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] } } }"#,
+            ),
+            "bodies[1].shape.compound.children[0].shape.convex_hull.points: all points are \
+             coplanar",
+        ),
+    ];
+    for (json, expected) in cases {
+        let message = error_of(&json);
+        assert!(
+            message.contains(expected),
+            "error {message:?} should contain {expected:?}"
+        );
+        assert!(!message.contains('\n'), "one line: {message:?}");
+    }
+}
+
+#[test]
+fn a_compound_scene_loads_and_falls() {
+    let json = scene_with_compound(
+        r#"{ "shape": { "sphere": { "radius": 0.2 } }, "position": [-0.5, 1, 0] },
+           { "shape": { "box": { "half_extents": [0.5, 0.05, 0.05] } }, "position": [0, 1, 0],
+             "rotation": [0, 0, 0, 2] },
+           { "shape": { "sphere": { "radius": 0.2 } }, "position": [0.5, 1, 0] }"#,
+    );
+    let mut world = Scene::from_json(&json).unwrap().build().unwrap();
+    let body = world.bodies().nth(1).unwrap();
+    // The body frame is the compound's centroid, between the balls.
+    let start = world.pose(body).unwrap().position;
+    assert!(
+        (start - tumble::math::vec3(0.0, 1.0, 0.0)).length() < 1e-6,
+        "{start}"
+    );
+    world.step();
+    assert!(world.pose(body).unwrap().position.y < 1.0);
+}

@@ -17,8 +17,8 @@
 //!   there (unit length, world frame).
 //!
 //! Each shape has its own function in the shape's frame (the ray is moved into it, the hit moved
-//! back); [`cast_ray`] dispatches on the shape in one `match`, where convex hulls and meshes
-//! join when they land.
+//! back); [`cast_ray`] dispatches on the shape in one `match`. A compound is the nearest hit
+//! of its children.
 
 mod shape_cast;
 mod sphere_cast;
@@ -27,7 +27,7 @@ pub use shape_cast::{CastError, ShapeSweep, cast_shape};
 pub use sphere_cast::cast_sphere;
 
 use crate::math::{Transform, Vec3};
-use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Shape, Sphere, TriMesh};
+use crate::shape::{Capsule, Compound, ConvexHull, Cuboid, Plane, Shape, Sphere, TriMesh};
 
 /// Why a ray could not be made.
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
@@ -140,6 +140,11 @@ pub fn cast_ray(shape: &Shape, pose: &Transform, ray: &Ray) -> Option<ShapeHit> 
         Shape::Plane(plane) => ray_plane(plane, origin, direction),
         Shape::ConvexHull(hull) => ray_hull(hull, origin, direction),
         Shape::TriMesh(mesh) => ray_mesh(mesh, origin, direction, ray.max_distance),
+        Shape::Compound(compound) => {
+            return nearest_child_hit(compound, pose, |child, child_pose| {
+                cast_ray(child, child_pose, ray)
+            });
+        }
     }?;
     if hit.distance > ray.max_distance {
         return None;
@@ -312,6 +317,24 @@ fn cylinder_side_hit(
         distance,
         normal: normal.normalize_or(-direction),
     })
+}
+
+/// The nearest of `cast(child shape, child pose)` over the compound's children at `pose`; on
+/// a tie the lowest child, so the answer does not depend on float noise in the order.
+fn nearest_child_hit(
+    compound: &Compound,
+    pose: &Transform,
+    mut cast: impl FnMut(&Shape, &Transform) -> Option<ShapeHit>,
+) -> Option<ShapeHit> {
+    let mut nearest: Option<ShapeHit> = None;
+    for child in compound.children() {
+        if let Some(hit) = cast(&child.shape, &pose.mul_transform(&child.pose))
+            && nearest.is_none_or(|best| hit.distance < best.distance)
+        {
+            nearest = Some(hit);
+        }
+    }
+    nearest
 }
 
 /// Ray against the solid half-space n·x <= offset: from outside, only a ray heading into the

@@ -7,7 +7,7 @@
 //! reused by the next body added), so indices — and the broadphase pair keys built from them —
 //! stay valid while other bodies come and go.
 
-use crate::math::{Quat, Vec3, Vec4};
+use crate::math::{Quat, Transform, Vec3, Vec4};
 use crate::shape::Shape;
 
 /// Names a body in a [`World`](crate::World). Carries the slot's generation, so a handle to a
@@ -101,10 +101,13 @@ impl Collider {
             Shape::Capsule(c) => Vec4::new(c.radius, c.half_height, 0.0, 0.0),
             Shape::Cuboid(c) => c.half_extents.extend(0.0),
             Shape::Plane(p) => p.normal.extend(p.offset),
-            // The GPU narrowphase does not collide meshes yet: only the kind is uploaded.
-            Shape::TriMesh(_) => Vec4::ZERO,
-            // The GPU stages do not read hulls yet: the kind alone marks the collider.
-            Shape::ConvexHull(_) => Vec4::ZERO,
+            // The GPU narrowphase leaves hulls, meshes and compounds to the host
+            // (`narrowphase::gpu_pair`); the AABB kernel bounds them as a box of these half
+            // extents about the body origin, which holds the shape's local box.
+            Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::Compound(_) => {
+                let local = self.shape.aabb(&Transform::IDENTITY);
+                local.min.abs().max(local.max.abs()).extend(0.0)
+            }
         };
         ColliderData {
             kind: self.shape.kind() as u32,
@@ -129,7 +132,9 @@ pub struct ColliderData {
     /// [`Shape::bounding_radius`] (m), for the narrowphase's closing-speed bound.
     pub bounding_radius: f32,
     /// Sphere: (radius, 0, 0, 0); capsule: (radius, half_height, 0, 0); cuboid: (half
-    /// extents, 0); plane: (unit normal, offset); convex hull: zero.
+    /// extents, 0); plane: (unit normal, offset); convex hull, triangle mesh and compound: (half
+    /// extents of a box centred on the body origin that holds the shape, 0), for the AABB
+    /// kernel.
     pub params: Vec4,
 }
 const _: () = assert!(size_of::<ColliderData>() == 32);
@@ -330,8 +335,9 @@ fn validate_shape(shape: &Shape) -> Result<(), BodyError> {
         }
         // Checked when the mesh was built (TriMesh::new).
         Shape::TriMesh(_) => Ok(()),
-        // A hull is checked when it is built (`ConvexHull::new`).
-        Shape::ConvexHull(_) => Ok(()),
+        // Hulls and compounds are checked when they are built (`ConvexHull::new`,
+        // `Compound::new`).
+        Shape::ConvexHull(_) | Shape::Compound(_) => Ok(()),
     }
 }
 
@@ -354,6 +360,11 @@ pub enum BodyError {
     DynamicPlane,
     #[error("a triangle mesh is static only (mass 0); use a convex shape for moving bodies")]
     DynamicTriMesh,
+    #[error(
+        "a compound of {children} children on a mesh of {triangles} triangles needs more than \
+         2^32 child manifold keys; split the mesh or the compound"
+    )]
+    CompoundMeshKeys { children: usize, triangles: usize },
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
     #[error("body name {0:?} is used twice")]

@@ -6,10 +6,11 @@ const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_CAPSULE: u32 = 1u;
 const SHAPE_CUBOID: u32 = 2u;
 const SHAPE_PLANE: u32 = 3u;
-// The GPU narrowphase reads neither hulls nor meshes yet; the values keep the kinds in step
-// with Rust.
+// The GPU narrowphase reads no hulls, meshes or compounds yet (the AABB kernel bounds them by
+// a box, `ColliderData.params`); the values keep the kinds in step with Rust.
 const SHAPE_CONVEX_HULL: u32 = 4u;
 const SHAPE_TRIMESH: u32 = 5u;
+const SHAPE_COMPOUND: u32 = 6u;
 
 // Position and orientation of a body frame; rotation is a unit quaternion (x, y, z, w).
 struct BodyPose {

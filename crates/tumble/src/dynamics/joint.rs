@@ -239,6 +239,37 @@ pub struct JointState {
 }
 
 impl JointState {
+    /// A new joint's state: a joint of `kind` at `anchor` (world frame, m) made between bodies
+    /// at poses `(position, rotation)` a and b, with no impulses yet. Its frames are those
+    /// poses' view of the world axis and of a reference direction perpendicular to it, so all
+    /// its angles are zero at these poses. Peers (the benchmark's rapier adapter) build their
+    /// joint frames from this too.
+    pub fn new(
+        kind: JointKind,
+        anchor: Vec3,
+        (position_a, rotation_a): (Vec3, Quat),
+        (position_b, rotation_b): (Vec3, Quat),
+    ) -> Self {
+        let axis = match kind {
+            JointKind::Hinge { axis, .. } | JointKind::ConeTwist { axis, .. } => axis.normalize(),
+            JointKind::Point | JointKind::Fixed => Vec3::X,
+        };
+        let (reference, _) = tangent_basis(axis);
+        let (inverse_a, inverse_b) = (rotation_a.inverse(), rotation_b.inverse());
+        JointState {
+            local_anchor_a: inverse_a * (anchor - position_a),
+            local_anchor_b: inverse_b * (anchor - position_b),
+            local_axis_a: inverse_a * axis,
+            local_axis_b: inverse_b * axis,
+            local_reference_a: inverse_a * reference,
+            local_reference_b: inverse_b * reference,
+            relative_rotation: inverse_a * rotation_b,
+            point_impulse: Vec3::ZERO,
+            angular_impulse: [0.0; MAX_ANGULAR_ROWS],
+            broken: false,
+        }
+    }
+
     pub fn is_finite(&self) -> bool {
         [
             self.local_anchor_a,
@@ -286,33 +317,25 @@ pub const MAX_ANGULAR_ROWS: usize = 5;
 
 impl Joint {
     /// The joint of `desc` between bodies at poses `(position, rotation)` a and b.
-    pub fn new(
-        desc: &JointDesc,
-        (position_a, rotation_a): (Vec3, Quat),
-        (position_b, rotation_b): (Vec3, Quat),
-    ) -> Self {
-        let axis = match desc.kind {
-            JointKind::Hinge { axis, .. } | JointKind::ConeTwist { axis, .. } => axis.normalize(),
-            JointKind::Point | JointKind::Fixed => Vec3::X,
-        };
-        let (reference, _) = tangent_basis(axis);
-        let (inverse_a, inverse_b) = (rotation_a.inverse(), rotation_b.inverse());
-        Joint {
+    pub fn new(desc: &JointDesc, pose_a: (Vec3, Quat), pose_b: (Vec3, Quat)) -> Self {
+        let mut joint = Joint {
             kind: desc.kind,
             body_a: desc.body_a.index,
             body_b: desc.body_b.index,
-            local_anchor_a: inverse_a * (desc.anchor - position_a),
-            local_anchor_b: inverse_b * (desc.anchor - position_b),
-            local_axis_a: inverse_a * axis,
-            local_axis_b: inverse_b * axis,
-            local_reference_a: inverse_a * reference,
-            local_reference_b: inverse_b * reference,
-            relative_rotation: inverse_a * rotation_b,
+            local_anchor_a: Vec3::ZERO,
+            local_anchor_b: Vec3::ZERO,
+            local_axis_a: Vec3::X,
+            local_axis_b: Vec3::X,
+            local_reference_a: Vec3::Y,
+            local_reference_b: Vec3::Y,
+            relative_rotation: Quat::IDENTITY,
             break_impulse: desc.break_impulse,
             broken: false,
             point_impulse: Vec3::ZERO,
             angular_impulse: [0.0; MAX_ANGULAR_ROWS],
-        }
+        };
+        joint.restore(&JointState::new(desc.kind, desc.anchor, pose_a, pose_b));
+        joint
     }
 
     pub fn state(&self) -> JointState {

@@ -8,19 +8,25 @@ use crate::math::Aabb;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::batching::gpu::GpuBatching;
-use crate::stages::batching::{Batcher, Coloring};
+use crate::stages::batching::{Batcher, Coloring, MAX_ROUNDS};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
+use crate::stages::solver::batched::{BatchedImpulses, GpuBatched};
 use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
-/// Profile lines of one GPU stage: uploads, the kernels (GPU time), waiting on the host,
-/// downloads.
+/// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
+/// talk's batcher makes one batch a round), the colors batcher as many.
+const FIRST_BATCHING_ROUNDS: usize = 32;
+
+/// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
+/// time), submitting and waiting on the host, downloads.
 struct StageSpans {
     upload: SpanPath,
+    encode: SpanPath,
     kernel: SpanPath,
     wait: SpanPath,
     download: SpanPath,
@@ -28,40 +34,58 @@ struct StageSpans {
 
 const AABB: StageSpans = StageSpans {
     upload: &["aabb", "copy to gpu"],
+    encode: &["aabb", "encode"],
     kernel: &["aabb", "kernel"],
-    wait: &["aabb", "encode, submit and wait"],
+    wait: &["aabb", "submit and wait"],
     download: &["aabb", "copy to cpu"],
 };
 const BROADPHASE: StageSpans = StageSpans {
     upload: &["broadphase", "copy to gpu"],
+    encode: &["broadphase", "encode"],
     kernel: &["broadphase", "kernels"],
-    wait: &["broadphase", "encode, submit and wait"],
+    wait: &["broadphase", "submit and wait"],
     download: &["broadphase", "copy to cpu"],
 };
 const CONSTRAINTS: StageSpans = StageSpans {
     upload: &["constraints", "copy to gpu"],
+    encode: &["constraints", "encode"],
     kernel: &["constraints", "kernels"],
-    wait: &["constraints", "encode, submit and wait"],
+    wait: &["constraints", "submit and wait"],
     download: &["constraints", "copy to cpu"],
 };
 const BATCHING: StageSpans = StageSpans {
     upload: &["batching", "copy to gpu"],
+    encode: &["batching", "encode"],
     kernel: &["batching", "kernels"],
-    wait: &["batching", "encode, submit and wait"],
+    wait: &["batching", "submit and wait"],
     download: &["batching", "copy to cpu"],
 };
 const SOLVER: StageSpans = StageSpans {
     upload: &["solver", "copy to gpu"],
+    encode: &["solver", "encode"],
     kernel: &["solver", "kernels"],
-    wait: &["solver", "encode, submit and wait"],
+    wait: &["solver", "submit and wait"],
     download: &["solver", "copy to cpu"],
 };
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
+    encode: &["narrowphase", "encode"],
     kernel: &["narrowphase", "kernel"],
-    wait: &["narrowphase", "encode, submit and wait"],
+    wait: &["narrowphase", "submit and wait"],
     download: &["narrowphase", "copy to cpu"],
 };
+
+/// The manifold slots the GPU rows read: pairs, then children.
+pub(crate) enum RowSlots<'a> {
+    /// Uploaded from the host.
+    Host {
+        keys: &'a [u64],
+        contacts: &'a [PairContact],
+    },
+    /// This step's GPU narrowphase output, already on the device: every slot is a pair and the
+    /// narrowphase computed all of them ([`GpuStages::pair_contacts_on_device`]).
+    Narrowphase,
+}
 
 /// The step's body arrays, as the GPU stages read them.
 pub(crate) struct BodyInputs<'a> {
@@ -95,7 +119,11 @@ pub(crate) struct GpuStages {
     row_contacts: GpuVec<PairContact>,
     masses: GpuVec<BodyMass>,
     batching: GpuBatching,
+    /// Batching rounds encoded before the colors are first read back (grows when too few).
+    batching_rounds: usize,
     solver: GpuSolver,
+    /// The batches kept on the device when rows, batching and solver all run here.
+    batched: GpuBatched,
     /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
     /// joints) on the device.
     solver_bodies: GpuVec<SolverBody>,
@@ -109,6 +137,11 @@ pub(crate) struct GpuStages {
     old_contacts: GpuVec<PairContact>,
     contacts: GpuVec<PairContact>,
     skipped: GpuVec<u64>,
+    /// Zero joint offsets for [`Self::solve_batched`], kept to avoid allocating each step.
+    no_joint_offsets: Vec<u32>,
+    /// The narrowphase ran on the GPU this step and computed every pair there: its output
+    /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
+    pair_contacts_fresh: bool,
     /// Host scratch, reused: the identity map, the packed colliders, downloaded contacts.
     identity: Vec<u32>,
     collider_data: Vec<ColliderData>,
@@ -140,7 +173,9 @@ impl GpuStages {
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
             masses: GpuVec::with_capacity(&context, "masses", 0)?,
             batching: GpuBatching::new(&context)?,
+            batching_rounds: FIRST_BATCHING_ROUNDS,
             solver: GpuSolver::new(&context)?,
+            batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
@@ -151,6 +186,8 @@ impl GpuStages {
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
+            pair_contacts_fresh: false,
+            no_joint_offsets: Vec::new(),
             identity: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
@@ -174,6 +211,13 @@ impl GpuStages {
     /// A new step: the host's poses and velocities are newer than the device's.
     pub fn begin_step(&mut self) {
         self.bodies.uploaded_this_step = false;
+        self.pair_contacts_fresh = false;
+    }
+
+    /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
+    /// [`RowSlots::Narrowphase`] can stand for the pair cache.
+    pub fn pair_contacts_on_device(&self) -> bool {
+        self.pair_contacts_fresh
     }
 
     /// Stage 1 on the GPU: [`compute_aabbs`](crate::stages::aabb::compute_aabbs)'s contract.
@@ -311,11 +355,15 @@ impl GpuStages {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
             gpu_pair(&colliders[a as usize].shape, &colliders[b as usize].shape)
         };
+        let mut host_pairs = 0;
         for ((contact, downloaded), &key) in contacts.iter_mut().zip(&self.downloaded).zip(keys) {
             if on_gpu(key) {
                 *contact = *downloaded;
+            } else {
+                host_pairs += 1;
             }
         }
+        self.pair_contacts_fresh = host_pairs == 0;
         record_copy(profiler, NARROWPHASE.download, elapsed_ms(start));
         profiler.scope("cpu pairs", || {
             update_contacts_where(keys, contacts, inputs, |a, b| !gpu_pair(a, b))
@@ -326,20 +374,32 @@ impl GpuStages {
 
 impl GpuStages {
     /// Stage 5 on the GPU for contacts:
-    /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract, the
-    /// manifold slots given as `keys` and `contacts` (pairs, then children).
+    /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract over the
+    /// manifold `slots`. With no `out` the constraints stay on the device for
+    /// [`Self::solve_batched`].
     pub fn build_constraints(
         &mut self,
         profiler: &mut Profiler,
-        keys: &[u64],
-        contacts: &[PairContact],
+        slots: RowSlots,
         inputs: &RowInputs,
-        out: &mut Vec<ContactConstraint>,
+        out: Option<&mut Vec<ContactConstraint>>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
-        self.row_keys.upload(context, keys)?;
-        self.row_contacts.upload(context, contacts)?;
+        let from_narrowphase = match slots {
+            RowSlots::Host { keys, contacts } => {
+                self.row_keys.upload(context, keys)?;
+                self.row_contacts.upload(context, contacts)?;
+                false
+            }
+            RowSlots::Narrowphase => {
+                debug_assert!(
+                    self.pair_contacts_fresh,
+                    "no GPU narrowphase output this step"
+                );
+                true
+            }
+        };
         self.masses.upload(context, inputs.masses)?;
         let bodies = BodyInputs {
             poses: inputs.poses,
@@ -348,9 +408,14 @@ impl GpuStages {
         };
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
         record_copy(profiler, CONSTRAINTS.upload, elapsed_ms(start));
+        let (keys, contacts) = if from_narrowphase {
+            (&self.keys, &self.contacts)
+        } else {
+            (&self.row_keys, &self.row_contacts)
+        };
         let device_inputs = GpuRowInputs {
-            keys: &self.row_keys,
-            contacts: &self.row_contacts,
+            keys,
+            contacts,
             poses: &self.bodies.poses,
             velocities: &self.bodies.velocities,
             masses: &self.masses,
@@ -366,9 +431,11 @@ impl GpuStages {
             &CONSTRAINTS,
             |pass| rows.encode(context, pass, &device_inputs),
         )?;
-        let start = Instant::now();
-        self.rows.read_back(context, out)?;
-        record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
+        if let Some(out) = out {
+            let start = Instant::now();
+            self.rows.read_back(context, out)?;
+            record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
+        }
         Ok(())
     }
 
@@ -387,13 +454,28 @@ impl GpuStages {
         let start = Instant::now();
         self.batching.upload(context, bodies)?;
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
+        // Most of the 64 rounds find nothing left: encode as many as the last steps needed,
+        // and the rest only when some constraint is still unbatched after them.
+        let rounds = self.batching_rounds;
         let batching = &mut self.batching;
         run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-            batching.encode(context, pass, body_count, ordered, batcher)
+            batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
         })?;
         let start = Instant::now();
-        self.batching.read_back(context, coloring)?;
+        let complete = self.batching.read_back(context, coloring)?;
         record_copy(profiler, BATCHING.download, elapsed_ms(start));
+        if !complete {
+            let batching = &self.batching;
+            run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
+                batching.encode_rest(pass, rounds);
+                Ok(())
+            })?;
+            let start = Instant::now();
+            let complete = self.batching.read_back(context, coloring)?;
+            debug_assert!(complete, "every round and the finish ran");
+            record_copy(profiler, BATCHING.download, elapsed_ms(start));
+            self.batching_rounds = (2 * rounds).min(MAX_ROUNDS);
+        }
         Ok(())
     }
 
@@ -449,8 +531,70 @@ impl GpuStages {
     }
 }
 
-/// Encodes one stage's kernels into a measured pass, submits and waits: the host's wait is a
-/// CPU line, the kernels' time a GPU line when the adapter has timestamps.
+impl GpuStages {
+    /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts that
+    /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
+    /// is the constraint at batched place i; `offsets` the batch offsets), solved as
+    /// [`Self::solve`] does, and only their impulses come back into `impulses`, in batch order.
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve_batched(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &mut [SolverBody],
+        order: &[u32],
+        offsets: &[u32],
+        has_overflow: bool,
+        settings: SolverSettings,
+        restitution: bool,
+        impulses: &mut Vec<BatchedImpulses>,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        self.solver_bodies.upload(context, bodies)?;
+        self.batch_offsets.upload(context, offsets)?;
+        self.batched.upload(context, order)?;
+        // This path is contacts only: every batch has no joint.
+        self.no_joint_offsets.clear();
+        self.no_joint_offsets.resize(offsets.len(), 0);
+        self.joint_batch_offsets
+            .upload(context, &self.no_joint_offsets)?;
+        self.batched_joints.resize(context, 0)?;
+        record_copy(profiler, SOLVER.upload, elapsed_ms(start));
+        let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
+        let (batched, rows) = (&mut self.batched, &self.rows);
+        let (device_offsets, joints, joint_offsets) = (
+            &self.batch_offsets,
+            &self.batched_joints,
+            &self.joint_batch_offsets,
+        );
+        let no_joint_offsets = &self.no_joint_offsets;
+        run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
+            batched.encode_gather(context, pass, &rows.constraints);
+            let device_batched = DeviceBatched {
+                contacts: &batched.constraints,
+                contact_offsets: device_offsets,
+                joints,
+                joint_offsets,
+                host_contact_offsets: offsets,
+                host_joint_offsets: no_joint_offsets,
+                has_overflow,
+            };
+            solver.encode(pass, device_bodies, &device_batched, settings, restitution);
+            batched.encode_read_impulses(pass);
+            Ok(())
+        })?;
+        let start = Instant::now();
+        self.solver_bodies
+            .download_into(context, &mut self.downloaded_bodies)?;
+        bodies.copy_from_slice(&self.downloaded_bodies);
+        self.batched.impulses.download_into(context, impulses)?;
+        record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        Ok(())
+    }
+}
+
+/// Encodes one stage's kernels into a measured pass, submits and waits: the host's encoding
+/// and its wait are CPU lines, the kernels' time a GPU line when the adapter has timestamps.
 fn run_pass(
     context: &GpuContext,
     gpu_profiler: &mut GpuProfiler,
@@ -472,7 +616,10 @@ fn run_pass(
         encode(&mut pass)?;
     }
     gpu_profiler.resolve(&mut encoder);
-    context.queue.submit([encoder.finish()]);
+    let commands = encoder.finish();
+    profiler.record(spans.encode, SpanKind::Cpu, elapsed_ms(start));
+    let start = Instant::now();
+    context.queue.submit([commands]);
     context.wait()?;
     profiler.record(spans.wait, SpanKind::Cpu, elapsed_ms(start));
     gpu_profiler.collect(context, profiler)
@@ -501,4 +648,91 @@ fn upload_bodies(
 
 fn elapsed_ms(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::{Quat, Vec3};
+    use crate::pipeline::config::{Softness, StepConfig};
+    use crate::stages::constraints::world_inverse_inertia;
+    use crate::{BodyDesc, Shape, World};
+
+    /// The rows read from the GPU narrowphase's output are the rows read from the host's copy
+    /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
+    #[test]
+    fn rows_from_the_narrowphase_output_equal_rows_from_the_host() {
+        let mut gpu =
+            GpuStages::new().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for level in 0..6 {
+            let turn = Quat::from_rotation_y(0.4 * level as f32);
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(Vec3::new(0.1 * level as f32, 0.5 + level as f32, 0.0))
+                        .rotation(turn),
+                )
+                .unwrap();
+        }
+        for _ in 0..40 {
+            world.step();
+        }
+        let config = *world.config();
+        let mut profiler = Profiler::new("test");
+        let keys = world.pairs.keys().to_vec();
+        let mut contacts = world.pairs.values().to_vec();
+        let inputs = NarrowphaseInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            colliders: &world.colliders,
+            margin: config.contact_margin,
+            dt: config.dt,
+            skipped: &world.jointed_pairs,
+            keep_resting: None,
+        };
+        gpu.begin_step();
+        gpu.update_contacts(&mut profiler, &keys, &mut contacts, &inputs)
+            .unwrap();
+        assert!(
+            gpu.pair_contacts_on_device(),
+            "every pair is a GPU pair here"
+        );
+        assert!(contacts.iter().any(|c| c.manifold.count > 0), "no contact");
+        let mut inertia = Vec::new();
+        world_inverse_inertia(&world.poses, &world.masses, &mut inertia);
+        let row_inputs = RowInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            masses: &world.masses,
+            colliders: &world.colliders,
+            inverse_inertia: &inertia,
+            softness: Softness::new(30.0, 10.0, 1.0 / 480.0),
+            static_softness: Softness::new(60.0, 10.0, 1.0 / 480.0),
+        };
+        let (mut from_device, mut from_host) = (Vec::new(), Vec::new());
+        gpu.build_constraints(
+            &mut profiler,
+            RowSlots::Narrowphase,
+            &row_inputs,
+            Some(&mut from_device),
+        )
+        .unwrap();
+        let slots = RowSlots::Host {
+            keys: &keys,
+            contacts: &contacts,
+        };
+        gpu.build_constraints(&mut profiler, slots, &row_inputs, Some(&mut from_host))
+            .unwrap();
+        assert!(!from_host.is_empty());
+        let bytes = |rows: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(rows).to_vec();
+        assert_eq!(bytes(&from_device), bytes(&from_host));
+    }
 }

@@ -4,14 +4,16 @@ use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::BodyInputs;
+use crate::pipeline::gpu_stages::{BodyInputs, RowSlots};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
-use crate::stages::batching::{Coloring, color_constraints, group_by_batch};
+use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::{
     ContactConstraint, DRAG_JOINT, JointConstraint, RowInputs, build_constraints,
-    build_joint_constraints, drag_constraint, world_inverse_inertia,
+    build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint,
+    world_inverse_inertia,
 };
+use crate::stages::solver::batched::BatchedImpulses;
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
 
@@ -29,6 +31,11 @@ pub(crate) struct StepScratch {
     inverse_inertia: Vec<Mat3>,
     contacts: Vec<ContactConstraint>,
     joints: Vec<JointConstraint>,
+    /// With rows, batching and solver on the GPU the contact rows stay there: what the host
+    /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
+    row_summaries: Vec<RowSummary>,
+    batch_order: Vec<u32>,
+    batched_impulses: Vec<BatchedImpulses>,
     coloring: Coloring,
     /// `contacts` and `joints` permuted into batch order, the layout the solver sweeps.
     batched_contacts: Vec<ContactConstraint>,
@@ -144,8 +151,8 @@ impl World {
             }
         };
         if narrowphase.is_ok() {
-            // Pairs with a mesh: one child manifold per touching triangle (on the CPU: the GPU
-            // narrowphase has no meshes yet).
+            // Pairs with a mesh or a compound: one child manifold per touching triangle or
+            // child pair (on the CPU: the GPU narrowphase has neither yet).
             narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
         }
         profiler.end();
@@ -160,7 +167,7 @@ impl World {
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
 
-        // 5. Constraint rows: contacts, then joints. Stiffness is capped by the sub-step rate
+        // 5. Constraint rows: joints (always built here), then contacts. Stiffness is capped by the sub-step rate
         //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
         profiler.begin("constraints");
         let h = dt / config.substeps as f32;
@@ -182,39 +189,6 @@ impl World {
             softness,
             static_softness,
         };
-        match (self.devices.get(Stage::Constraints), &mut self.gpu) {
-            (Executor::Gpu, Some(gpu)) => {
-                // The GPU reads every manifold slot from one array: pairs, then children.
-                scratch.slot_keys.clear();
-                scratch.slot_keys.extend_from_slice(self.pairs.keys());
-                scratch
-                    .slot_keys
-                    .extend(self.children.keys().iter().map(|&(key, _)| key));
-                scratch.slot_contacts.clear();
-                scratch.slot_contacts.extend_from_slice(self.pairs.values());
-                scratch
-                    .slot_contacts
-                    .extend_from_slice(self.children.values());
-                let built = gpu.build_constraints(
-                    profiler,
-                    &scratch.slot_keys,
-                    &scratch.slot_contacts,
-                    &inputs,
-                    &mut scratch.contacts,
-                );
-                if built.is_err() {
-                    profiler.end();
-                }
-                built?;
-            }
-            _ => build_constraints(
-                self.pairs.keys(),
-                self.pairs.values(),
-                &self.children,
-                &inputs,
-                &mut scratch.contacts,
-            ),
-        }
         build_joint_constraints(
             &self.joints,
             &self.poses,
@@ -237,12 +211,84 @@ impl World {
                 h,
             ));
         }
+        // Rows, batching and solver all on the GPU, and no joint rows (those are built here):
+        // the contact rows stay on the device from build to solve.
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        let chained = self.gpu.is_some()
+            && on_gpu(Stage::Constraints)
+            && on_gpu(Stage::Batching)
+            && on_gpu(Stage::Solver)
+            && scratch.joints.is_empty();
+        scratch.contacts.clear();
+        scratch.row_summaries.clear();
+        match (self.devices.get(Stage::Constraints), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) => {
+                let slots = if self.children.is_empty() && gpu.pair_contacts_on_device() {
+                    // The GPU narrowphase's output is the pair cache: no copy, no upload.
+                    RowSlots::Narrowphase
+                } else {
+                    // The GPU reads every manifold slot from one array: pairs, then children.
+                    scratch.slot_keys.clear();
+                    scratch.slot_keys.extend_from_slice(self.pairs.keys());
+                    scratch
+                        .slot_keys
+                        .extend(self.children.keys().iter().map(|&(key, _)| key));
+                    scratch.slot_contacts.clear();
+                    scratch.slot_contacts.extend_from_slice(self.pairs.values());
+                    scratch
+                        .slot_contacts
+                        .extend_from_slice(self.children.values());
+                    RowSlots::Host {
+                        keys: &scratch.slot_keys,
+                        contacts: &scratch.slot_contacts,
+                    }
+                };
+                let built = gpu.build_constraints(
+                    profiler,
+                    slots,
+                    &inputs,
+                    (!chained).then_some(&mut scratch.contacts),
+                );
+                if built.is_err() {
+                    profiler.end();
+                }
+                built?;
+                if chained {
+                    let slots = constraint_slots(
+                        self.pairs.keys(),
+                        self.pairs.values(),
+                        &self.children,
+                        &self.masses,
+                    );
+                    let colliders = &self.colliders;
+                    scratch
+                        .row_summaries
+                        .extend(slots.map(|(slot, key, contact)| {
+                            RowSummary::new(slot, key, contact, &self.masses, colliders)
+                        }));
+                }
+            }
+            _ => build_constraints(
+                self.pairs.keys(),
+                self.pairs.values(),
+                &self.children,
+                &inputs,
+                &mut scratch.contacts,
+            ),
+        }
         profiler.end();
 
         // 6. Batching: joints and contacts colored together, then laid out batch after batch.
         profiler.begin("batching");
+        let mut summary_bodies = scratch.row_summaries.iter().map(|r| r.bodies);
+        let mut contact_bodies = scratch.contacts.iter().map(|c| (c.body_a, c.body_b));
+        let contact_bodies: &mut dyn Iterator<Item = (u32, u32)> = if chained {
+            &mut summary_bodies
+        } else {
+            &mut contact_bodies
+        };
         let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
-        let bodies = bodies.chain(scratch.contacts.iter().map(|c| (c.body_a, c.body_b)));
+        let bodies = bodies.chain(contact_bodies);
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
                 profiler,
@@ -276,19 +322,32 @@ impl World {
             &mut scratch.batched_joints,
             &mut scratch.joint_offsets,
         );
-        group_by_batch(
-            &scratch.contacts,
-            contact_colors,
-            coloring,
-            &mut scratch.batched_contacts,
-            &mut scratch.contact_offsets,
-        );
         // Which batch each pair's manifold went to, for the viewer's colored batches.
         self.pair_batches.clear();
         self.pair_batches
             .resize(self.pairs.len() + self.children.len(), NO_BATCH);
-        for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
-            self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
+        if chained {
+            // The device gathers the rows into this order.
+            batch_order(
+                contact_colors,
+                coloring,
+                &mut scratch.batch_order,
+                &mut scratch.contact_offsets,
+            );
+            for (row, &color) in scratch.row_summaries.iter().zip(contact_colors) {
+                self.pair_batches[row.slot as usize] = coloring.batch_of(color) as u32;
+            }
+        } else {
+            group_by_batch(
+                &scratch.contacts,
+                contact_colors,
+                coloring,
+                &mut scratch.batched_contacts,
+                &mut scratch.contact_offsets,
+            );
+            for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
+                self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
+            }
         }
         profiler.end();
 
@@ -311,6 +370,20 @@ impl World {
             has_overflow: scratch.coloring.has_overflow,
         };
         let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) if chained => {
+                let restitution = scratch.row_summaries.iter().any(|r| r.restitution);
+                gpu.solve_batched(
+                    profiler,
+                    &mut scratch.solver_bodies,
+                    &scratch.batch_order,
+                    &scratch.contact_offsets,
+                    scratch.coloring.has_overflow,
+                    settings,
+                    restitution,
+                    &mut scratch.batched_impulses,
+                )
+            }
+            // With joints the rows come through the host (the chained path is contacts only).
             (Executor::Gpu, Some(gpu)) => {
                 gpu.solve(profiler, &mut scratch.solver_bodies, &mut batched, settings)
             }
@@ -325,11 +398,21 @@ impl World {
             profiler.end();
         }
         solved?;
-        store_contact_impulses(
-            &scratch.batched_contacts,
-            self.pairs.values_mut(),
-            self.children.values_mut(),
-        );
+        if chained {
+            store_batched_impulses(
+                &scratch.batched_impulses,
+                &scratch.batch_order,
+                &scratch.row_summaries,
+                self.pairs.values_mut(),
+                self.children.values_mut(),
+            );
+        } else {
+            store_contact_impulses(
+                &scratch.batched_contacts,
+                self.pairs.values_mut(),
+                self.children.values_mut(),
+            );
+        }
         let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
         if let Some(drag) = self.drag.as_mut()
             && let Some(solved) = scratch
@@ -466,6 +549,68 @@ fn store_contact_impulses(
     }
 }
 
+/// What the host keeps of a contact row that stays on the device: its manifold slot, the
+/// bodies the batching sees, its point count, whether it bounces.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RowSummary {
+    slot: u32,
+    bodies: (u32, u32),
+    point_count: u32,
+    restitution: bool,
+}
+
+impl RowSummary {
+    fn new(
+        slot: u32,
+        key: u64,
+        contact: &narrowphase::PairContact,
+        masses: &[crate::dynamics::body::BodyMass],
+        colliders: &[crate::dynamics::body::Collider],
+    ) -> Self {
+        let (a, b) = crate::stages::pairs::pair_bodies(key);
+        Self {
+            slot,
+            bodies: constraint_bodies(key, masses),
+            point_count: contact.manifold.count,
+            // As the rows compute it: the larger of the two restitutions.
+            restitution: colliders[a as usize]
+                .restitution
+                .max(colliders[b as usize].restitution)
+                > 0.0,
+        }
+    }
+}
+
+/// [`store_contact_impulses`] for rows that stayed on the device: `impulses[i]` belongs to
+/// row `order[i]`.
+fn store_batched_impulses(
+    impulses: &[BatchedImpulses],
+    order: &[u32],
+    rows: &[RowSummary],
+    contacts: &mut [narrowphase::PairContact],
+    children: &mut [narrowphase::PairContact],
+) {
+    let pair_count = contacts.len();
+    for (solved, &row) in impulses.iter().zip(order) {
+        let row = rows[row as usize];
+        let slot = row.slot as usize;
+        let contact = if slot < pair_count {
+            &mut contacts[slot]
+        } else {
+            &mut children[slot - pair_count]
+        };
+        for (k, impulse) in contact
+            .impulses
+            .iter_mut()
+            .enumerate()
+            .take(row.point_count as usize)
+        {
+            impulse.normal = solved.normal[k];
+            impulse.tangent = [solved.tangent1[k], solved.tangent2[k]];
+        }
+    }
+}
+
 /// Solved impulses back into the joints; a joint whose impulse passed its threshold breaks.
 /// Returns whether one broke.
 fn store_joint_impulses(
@@ -524,11 +669,12 @@ fn collect_stats(
         child_manifolds: children.len(),
         child_manifolds_added: children.added(),
         child_manifolds_removed: children.removed(),
-        manifolds: scratch.contacts.len(),
+        manifolds: scratch.contacts.len() + scratch.row_summaries.len(),
         contacts: scratch
             .contacts
             .iter()
             .map(|c| c.point_count as usize)
+            .chain(scratch.row_summaries.iter().map(|r| r.point_count as usize))
             .sum(),
         max_penetration,
         joints: scratch.joints.len(),

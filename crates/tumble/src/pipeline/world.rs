@@ -210,18 +210,48 @@ impl World {
         {
             return Err(BodyError::DuplicateName(name.clone()));
         }
-        let dynamic = !desc.is_static();
-        // A hull's body frame is its principal centroid frame: compose it with the desc's pose
-        // and keep the hull in that frame, so the body (and a dump of it) has the COM pose.
-        let (pose, shape) = match &desc.shape {
-            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => {
-                let frame = Transform::new(desc.position, desc.unit_rotation())
-                    .mul_transform(&hull.local_frame());
-                (
-                    BodyPose::new(frame.position, frame.rotation),
-                    Shape::ConvexHull(Arc::new(hull.in_own_frame())),
-                )
+        let live_colliders = self
+            .colliders
+            .iter()
+            .zip(&self.slots)
+            .filter(|(_, slot)| slot.is_live());
+        // A compound on a mesh keys its child manifolds `child * triangles + triangle` in a
+        // u32 (the child cache's and the dump's child index).
+        let too_many_keys = |a: &Shape, b: &Shape| match (a, b) {
+            (Shape::Compound(compound), Shape::TriMesh(mesh))
+            | (Shape::TriMesh(mesh), Shape::Compound(compound)) => {
+                let keys = compound.children().len() as u64 * mesh.triangles().len() as u64;
+                (keys > 1 << 32).then_some(BodyError::CompoundMeshKeys {
+                    children: compound.children().len(),
+                    triangles: mesh.triangles().len(),
+                })
             }
+            _ => None,
+        };
+        if let Some(error) = live_colliders
+            .clone()
+            .find_map(|(c, _)| too_many_keys(&desc.shape, &c.shape))
+        {
+            return Err(error);
+        }
+        let dynamic = !desc.is_static();
+        // A hull's or a compound's body frame is its principal centroid frame: compose it with
+        // the desc's pose and keep the shape in that frame, so the body (and a dump of it) has
+        // the COM pose.
+        let in_frame = |local_frame: Transform| {
+            let frame =
+                Transform::new(desc.position, desc.unit_rotation()).mul_transform(&local_frame);
+            BodyPose::new(frame.position, frame.rotation)
+        };
+        let (pose, shape) = match &desc.shape {
+            Shape::ConvexHull(hull) if hull.local_frame() != Transform::IDENTITY => (
+                in_frame(hull.local_frame()),
+                Shape::ConvexHull(Arc::new(hull.in_own_frame())),
+            ),
+            Shape::Compound(compound) if compound.local_frame() != Transform::IDENTITY => (
+                in_frame(compound.local_frame()),
+                Shape::Compound(Arc::new(compound.in_own_frame())),
+            ),
             shape => (
                 BodyPose::new(desc.position, desc.unit_rotation()),
                 shape.clone(),

@@ -33,6 +33,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
         "the 1000 barrels of convex-hulls falling on a generated landscape of about 100k triangles",
     ),
     (
+        "compounds",
+        "1000 compound bodies, dumbbells (two balls on a rod) and tables (a top on four legs), in 10 layers of 10 x 10 falling on a plane",
+    ),
+    (
         "raycast",
         "about 1000 boxes, spheres and capsules dropped on a landscape of about 100k triangles, a fan of 1000 rays cast each step",
     ),
@@ -49,6 +53,7 @@ pub fn builtin(name: &str, scale: f32) -> Result<Scene, SceneError> {
         "ragdolls" => Ok(ragdolls(scale)),
         "convex-hulls" => Ok(convex_hulls(scale)),
         "convex-trimesh" => convex_trimesh(scale),
+        "compounds" => Ok(compounds(scale)),
         "raycast" => raycast(scale),
         _ => Err(SceneError::UnknownScene(name.to_string())),
     }
@@ -166,6 +171,77 @@ fn add_barrel_layers(scene: &mut Scene, scale: f32, ground_height: impl Fn(f32, 
         offset -= 0.05 * (side as f32 - 1.0);
         y += PITCH;
     }
+}
+
+/// The `convex-hulls` layout with compounds: dumbbells and tables in a checkerboard, each
+/// layer turned a quarter turn from the last so bars land across bars.
+fn compounds(scale: f32) -> Scene {
+    use crate::math::{Quat, Transform};
+    use crate::shape::CompoundChild;
+    const PITCH: f32 = 2.0;
+    let target = 1000.0 * scale;
+    let side = ((10.0 * scale.cbrt()).round() as usize).max(1);
+    let layers = ((target / (side * side) as f32).round() as usize).max(1);
+    let part = |shape: Shape, position: Vec3, rotation: Quat| CompoundChild {
+        shape,
+        pose: Transform::new(position, rotation),
+    };
+    // Two 0.25 m balls on a 0.05 m rod, 1.5 m long in all.
+    let dumbbell = Shape::compound(vec![
+        part(
+            Shape::sphere(0.25),
+            Vec3::new(-0.5, 0.0, 0.0),
+            Quat::IDENTITY,
+        ),
+        part(
+            Shape::capsule(0.05, 0.4),
+            Vec3::ZERO,
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        ),
+        part(
+            Shape::sphere(0.25),
+            Vec3::new(0.5, 0.0, 0.0),
+            Quat::IDENTITY,
+        ),
+    ])
+    .expect("the dumbbell's children are convex and sized");
+    // A 1.2 x 0.1 x 0.8 m top on four 0.6 m legs.
+    let mut table = vec![part(
+        Shape::cuboid(Vec3::new(0.6, 0.05, 0.4)),
+        Vec3::new(0.0, 0.3, 0.0),
+        Quat::IDENTITY,
+    )];
+    for (x, z) in [(-0.5, -0.3), (0.5, -0.3), (-0.5, 0.3), (0.5, 0.3)] {
+        table.push(part(
+            Shape::cuboid(Vec3::new(0.05, 0.3, 0.05)),
+            Vec3::new(x, -0.05, z),
+            Quat::IDENTITY,
+        ));
+    }
+    let table = Shape::compound(table).expect("the table's children are convex and sized");
+    let mut scene = Scene::new(StepConfig::default());
+    scene.bodies.push(ground());
+    let mut offset = -(side as f32) * PITCH * 0.5;
+    let mut y = 1.0;
+    for layer in 0..layers {
+        let turn = Quat::from_rotation_y(std::f32::consts::FRAC_PI_2 * (layer % 2) as f32);
+        for j in 0..side {
+            for i in 0..side {
+                let position = Vec3::new(offset + i as f32 * PITCH, y, offset + j as f32 * PITCH);
+                let shape = if (i + j + layer) % 2 == 0 {
+                    dumbbell.clone()
+                } else {
+                    table.clone()
+                };
+                scene
+                    .bodies
+                    .push(BodyDesc::dynamic(shape).position(position).rotation(turn));
+            }
+        }
+        offset -= 0.05 * (side as f32 - 1.0);
+        y += PITCH;
+    }
+    scene
 }
 
 /// A square pyramid, a brick wall and a tower of 1 m boxes, all resting on the ground.

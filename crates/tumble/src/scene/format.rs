@@ -9,10 +9,10 @@
 
 use crate::dynamics::body::{BodyDesc, BodyError};
 use crate::dynamics::joint::{JointDesc, JointKind, JointState, MAX_ANGULAR_ROWS, Motor};
-use crate::math::{Quat, Vec3};
+use crate::math::{Quat, Transform, Vec3};
 use crate::pipeline::config::StepConfig;
 use crate::pipeline::world::World;
-use crate::shape::{Shape, TriMesh};
+use crate::shape::{CompoundChild, CompoundError, Shape, TriMesh};
 use crate::stages::narrowphase::{PairContact, PointImpulse};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -132,6 +132,24 @@ pub enum ShapeFile {
     ConvexHull {
         points: Vec<[f32; 3]>,
     },
+    /// Convex shapes (sphere, box, capsule, convex hull) at poses in the body frame. The body
+    /// is placed at the compound's principal centroid frame; a dump writes the children in that
+    /// frame and the body's pose.
+    Compound {
+        children: Vec<CompoundChildFile>,
+    },
+}
+
+/// One child of a compound: its shape at `position` (m) and `rotation` (`[x, y, z, w]`,
+/// normalized by the loader) in the body frame. Defaults: origin, identity.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CompoundChildFile {
+    pub shape: ShapeFile,
+    #[serde(default)]
+    pub position: [f32; 3],
+    #[serde(default = "default_rotation")]
+    pub rotation: [f32; 4],
 }
 
 /// One joint. `anchor` and `axis` are in the world frame at the poses of `bodies`; which of the
@@ -341,6 +359,22 @@ impl SceneJoint {
             break_impulse: None,
             state: None,
         }
+    }
+
+    /// The joint's state as [`Scene::build`] gives it to the world: the dumped `state`, or a
+    /// new joint's at the poses of its bodies in `bodies` (the scene's). `None` if either
+    /// body index is out of range.
+    pub fn state_in(&self, bodies: &[BodyDesc]) -> Option<JointState> {
+        if let Some(state) = self.state {
+            return Some(state);
+        }
+        let pose = |body: &BodyDesc| (body.position, body.unit_rotation());
+        Some(JointState::new(
+            self.kind,
+            self.anchor,
+            pose(bodies.get(self.body_a)?),
+            pose(bodies.get(self.body_b)?),
+        ))
     }
 }
 
@@ -728,6 +762,7 @@ fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String
             Shape::convex_hull(&points)
                 .map_err(|error| ("shape.convex_hull.points".to_string(), error.to_string()))?
         }
+        ShapeFile::Compound { children } => compound(children)?,
     };
     // `World::add_body` normalizes a rotation that is off unit length.
     let rotation = Quat::from_array(body.rotation);
@@ -745,6 +780,62 @@ fn body_desc(body: &BodyFile, folder: &Path) -> Result<BodyDesc, (String, String
     desc.validate()
         .map_err(|error| (field_of(&body.shape, &error), error.requirement()))?;
     Ok(desc)
+}
+
+/// The compound of `children`, or (field, message) of the first bad child.
+fn compound(children: &[CompoundChildFile]) -> Result<Shape, (String, String)> {
+    let field = |index: usize, part: &str| format!("shape.compound.children[{index}].{part}");
+    let mut parts = Vec::with_capacity(children.len());
+    for (index, child) in children.iter().enumerate() {
+        let shape = match &child.shape {
+            ShapeFile::Sphere { radius } => Shape::sphere(*radius),
+            ShapeFile::Box { half_extents } => Shape::cuboid(Vec3::from_array(*half_extents)),
+            ShapeFile::Capsule {
+                radius,
+                half_height,
+            } => Shape::capsule(*radius, *half_height),
+            ShapeFile::ConvexHull { points } => {
+                let points: Vec<Vec3> = points.iter().map(|&p| Vec3::from_array(p)).collect();
+                Shape::convex_hull(&points).map_err(|error| {
+                    (field(index, "shape.convex_hull.points"), error.to_string())
+                })?
+            }
+            other @ (ShapeFile::Plane { .. }
+            | ShapeFile::Trimesh { .. }
+            | ShapeFile::Obj { .. }
+            | ShapeFile::Compound { .. }) => {
+                return Err((
+                    field(index, "shape"),
+                    format!(
+                        "a compound's children must be convex (sphere, box, capsule, \
+                         convex_hull), not {}",
+                        shape_name(other)
+                    ),
+                ));
+            }
+        };
+        parts.push(CompoundChild {
+            shape,
+            pose: Transform::new(
+                Vec3::from_array(child.position),
+                Quat::from_array(child.rotation),
+            ),
+        });
+    }
+    Shape::compound(parts).map_err(|error| {
+        let at = match &error {
+            CompoundError::Empty | CompoundError::TooManyChildren { .. } => {
+                "shape.compound.children".to_string()
+            }
+            CompoundError::UnsupportedChild { index, .. }
+            | CompoundError::BadChildSize { index, .. } => field(*index, "shape"),
+            CompoundError::PositionNotFinite { index } => field(*index, "position"),
+            CompoundError::RotationNotFinite { index } | CompoundError::ZeroRotation { index } => {
+                field(*index, "rotation")
+            }
+        };
+        (at, error.to_string())
+    })
 }
 
 fn contact_file(bodies: [usize; 2], child: Option<u32>, contact: &PairContact) -> ContactFile {
@@ -823,9 +914,9 @@ fn read_obj(path: &Path) -> Result<(Vec<Vec3>, Vec<[u32; 3]>), String> {
     Ok((vertices, triangles))
 }
 
-/// The scene-file field a body error is about.
-fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
-    let shape_name = match shape {
+/// The shape's key in a scene file.
+fn shape_name(shape: &ShapeFile) -> &'static str {
+    match shape {
         ShapeFile::Sphere { .. } => "sphere",
         ShapeFile::Box { .. } => "box",
         ShapeFile::Capsule { .. } => "capsule",
@@ -833,7 +924,13 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         ShapeFile::Trimesh { .. } => "trimesh",
         ShapeFile::Obj { .. } => "obj",
         ShapeFile::ConvexHull { .. } => "convex_hull",
-    };
+        ShapeFile::Compound { .. } => "compound",
+    }
+}
+
+/// The scene-file field a body error is about.
+fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
+    let shape_name = shape_name(shape);
     match error {
         BodyError::NotFinite { field }
         | BodyError::NotPositive { field, .. }
@@ -847,11 +944,28 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::ZeroNormal => "shape.plane.normal".into(),
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
+        BodyError::CompoundMeshKeys { .. } => format!("shape.{shape_name}"),
     }
 }
 
 fn body_file(desc: &BodyDesc) -> BodyFile {
-    let shape = match &desc.shape {
+    BodyFile {
+        name: desc.name.clone(),
+        shape: shape_file(&desc.shape),
+        mass: desc.mass,
+        position: desc.position.to_array(),
+        rotation: desc.rotation.to_array(),
+        linear_velocity: desc.linear_velocity.to_array(),
+        angular_velocity: desc.angular_velocity.to_array(),
+        friction: desc.friction,
+        restitution: desc.restitution,
+        sleep_timer: 0.0,
+        island: None,
+    }
+}
+
+fn shape_file(shape: &Shape) -> ShapeFile {
+    match shape {
         Shape::Sphere(s) => ShapeFile::Sphere { radius: s.radius },
         Shape::Cuboid(c) => ShapeFile::Box {
             half_extents: c.half_extents.to_array(),
@@ -874,19 +988,18 @@ fn body_file(desc: &BodyDesc) -> BodyFile {
         Shape::ConvexHull(hull) => ShapeFile::ConvexHull {
             points: hull.vertices().iter().map(|v| v.to_array()).collect(),
         },
-    };
-    BodyFile {
-        name: desc.name.clone(),
-        shape,
-        mass: desc.mass,
-        position: desc.position.to_array(),
-        rotation: desc.rotation.to_array(),
-        linear_velocity: desc.linear_velocity.to_array(),
-        angular_velocity: desc.angular_velocity.to_array(),
-        friction: desc.friction,
-        restitution: desc.restitution,
-        sleep_timer: 0.0,
-        island: None,
+        // The children in the compound frame the body's pose refers to, as for hulls.
+        Shape::Compound(compound) => ShapeFile::Compound {
+            children: compound
+                .children()
+                .iter()
+                .map(|child| CompoundChildFile {
+                    shape: shape_file(&child.shape),
+                    position: child.pose.position.to_array(),
+                    rotation: child.pose.rotation.to_array(),
+                })
+                .collect(),
+        },
     }
 }
 

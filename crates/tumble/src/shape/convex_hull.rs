@@ -568,14 +568,14 @@ fn mass_moments(points: &[DVec3], topology: &Topology) -> (DVec3, DMat3, DMat3) 
 }
 
 /// Largest off-diagonal entry of a symmetric tensor relative to its largest diagonal entry.
-fn off_diagonal_ratio(m: &DMat3) -> f64 {
+pub(super) fn off_diagonal_ratio(m: &DMat3) -> f64 {
     let off = m.x_axis.y.abs().max(m.x_axis.z.abs()).max(m.y_axis.z.abs());
     let diagonal = m.x_axis.x.abs().max(m.y_axis.y.abs()).max(m.z_axis.z.abs());
     off / diagonal
 }
 
 /// Eigenvectors (columns) of a symmetric 3×3 matrix by cyclic Jacobi rotations.
-fn jacobi_eigenvectors(m: DMat3) -> DMat3 {
+pub(super) fn jacobi_eigenvectors(m: DMat3) -> DMat3 {
     let mut a = m.to_cols_array_2d();
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
     for _sweep in 0..32 {

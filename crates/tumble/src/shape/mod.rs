@@ -1,14 +1,16 @@
 //! Collision shapes. Primitives are centred on their body frame; a plane and a triangle mesh
-//! are static only; a convex hull is stored in its principal centroid frame (see
-//! [`convex_hull`]). Hulls and meshes are shared behind an `Arc`, so `Shape` is `Clone` but
+//! are static only; a convex hull and a compound are stored in their principal centroid frames
+//! (see [`convex_hull`], [`compound`]). Hulls and meshes are shared behind an `Arc`, so `Shape` is `Clone` but
 //! not `Copy`.
 
+pub mod compound;
 pub mod convex_hull;
 pub mod trimesh;
 
 use std::sync::Arc;
 
 use crate::math::{Aabb, Transform, Vec3};
+pub use compound::{Compound, CompoundChild, CompoundError, MAX_COMPOUND_CHILDREN};
 pub use convex_hull::{ConvexHull, HullError};
 pub use trimesh::{TriMesh, TriMeshError};
 
@@ -26,6 +28,8 @@ pub enum Shape {
     ConvexHull(Arc<ConvexHull>),
     /// A static triangle mesh, in the body frame.
     TriMesh(Arc<TriMesh>),
+    /// Convex shapes at poses in the body frame.
+    Compound(Arc<Compound>),
 }
 
 /// A ball of `radius` (m) centred on the body origin.
@@ -65,6 +69,7 @@ pub enum ShapeKind {
     Plane = 3,
     ConvexHull = 4,
     TriMesh = 5,
+    Compound = 6,
 }
 
 /// Mass and rotational inertia of a body about its centre of mass.
@@ -111,6 +116,12 @@ impl Shape {
         })
     }
 
+    /// The compound of `children` (convex shapes at poses in the body frame); `Err` names the
+    /// first child that cannot be one.
+    pub fn compound(children: Vec<CompoundChild>) -> Result<Self, CompoundError> {
+        Ok(Shape::Compound(Arc::new(Compound::new(children)?)))
+    }
+
     /// The convex hull of `points` (m); `Err` when they enclose no volume.
     pub fn convex_hull(points: &[Vec3]) -> Result<Self, HullError> {
         Ok(Shape::ConvexHull(Arc::new(ConvexHull::new(points)?)))
@@ -124,6 +135,7 @@ impl Shape {
             Shape::Plane(_) => ShapeKind::Plane,
             Shape::TriMesh(_) => ShapeKind::TriMesh,
             Shape::ConvexHull(_) => ShapeKind::ConvexHull,
+            Shape::Compound(_) => ShapeKind::Compound,
         }
     }
 
@@ -181,6 +193,7 @@ impl Shape {
                 }
                 Aabb::new(min, max)
             }
+            Shape::Compound(compound) => compound.aabb(pose),
         }
     }
 
@@ -194,6 +207,7 @@ impl Shape {
             Shape::Plane(_) => 0.0,
             Shape::TriMesh(mesh) => mesh.bounding_radius(),
             Shape::ConvexHull(hull) => hull.bounding_radius(),
+            Shape::Compound(compound) => compound.bounding_radius(),
         }
     }
 
@@ -212,6 +226,7 @@ impl Shape {
             Shape::Capsule(c) => capsule_inertia(mass, c.radius, c.half_height),
             Shape::Plane(_) | Shape::TriMesh(_) => return MassProperties::STATIC,
             Shape::ConvexHull(hull) => mass * hull.unit_inertia(),
+            Shape::Compound(compound) => mass * compound.unit_inertia(),
         };
         MassProperties {
             inverse_mass: 1.0 / mass,
@@ -222,7 +237,7 @@ impl Shape {
 
 /// Inertia of a solid capsule (axis Y) about its centre: a cylinder plus two hemispheres with
 /// the mass split by volume, the hemispheres moved out by the parallel-axis theorem.
-fn capsule_inertia(mass: f32, r: f32, half_height: f32) -> Vec3 {
+pub(super) fn capsule_inertia(mass: f32, r: f32, half_height: f32) -> Vec3 {
     use std::f32::consts::PI;
     let h = 2.0 * half_height;
     let cylinder_volume = PI * r * r * h;

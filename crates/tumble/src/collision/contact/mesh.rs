@@ -60,8 +60,9 @@ pub fn collide_mesh(
             Shape::ConvexHull(hull) => {
                 hull_triangle(hull, &local_pose, &triangle, margin, &mut local)
             }
-            // Planes and meshes are static: they never meet a mesh.
-            Shape::Plane(_) | Shape::TriMesh(_) => return,
+            // A compound meets a mesh child by child (`stages::narrowphase::children`); planes
+            // and meshes are static: they never meet a mesh.
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::Compound(_) => return,
         }
         if local.count == 0 {
             continue;

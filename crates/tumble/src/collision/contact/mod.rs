@@ -42,6 +42,7 @@
 
 mod box_box;
 mod capsule;
+mod compound;
 mod hull;
 mod hull_triangle;
 mod mesh;
@@ -50,6 +51,7 @@ mod segment;
 mod sphere;
 mod triangle;
 
+pub use compound::{collide_compound, mix_child_ids};
 pub use mesh::collide_mesh;
 
 use crate::collision::manifold::{ContactPoint, Manifold};
@@ -177,8 +179,8 @@ fn collide_ordered(
             hull::hull_hull(a, pose_a, b, pose_b, margin, out)
         }
         // Plane–plane: two static half-spaces never need a contact. Meshes make one manifold
-        // per triangle and go through `collide_mesh` instead; mesh–plane and mesh–mesh are
-        // static–static. Every other combination reaches this function ordered by kind, so it
+        // per triangle and go through `collide_mesh` instead, compounds one per child pair
+        // through `collide_compound`; mesh–plane and mesh–mesh are static–static. Every other combination reaches this function ordered by kind, so it
         // is one of the arms above.
         _ => {}
     }

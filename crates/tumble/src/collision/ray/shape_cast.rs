@@ -29,7 +29,7 @@
 //! triangle mesh the moving shape's box is swept through the mesh's BVH, nearer nodes first,
 //! and each triangle met is a convex target of its own.
 
-use super::{Ray, RayError, ShapeHit};
+use super::{Ray, RayError, ShapeHit, nearest_child_hit};
 use crate::collision::gjk::{GjkResult, MinkowskiDifference, SupportMap, gjk};
 use crate::math::{Aabb, Quat, Transform, Vec3};
 use crate::shape::{Plane, Shape, ShapeKind, TriMesh};
@@ -119,7 +119,9 @@ impl<'a> ShapeSweep<'a> {
             Shape::Sphere(_) | Shape::Capsule(_) | Shape::Cuboid(_) => {
                 return Err(CastError::DegenerateShape(kind));
             }
-            Shape::Plane(_) | Shape::TriMesh(_) => return Err(CastError::NotConvex(kind)),
+            Shape::Plane(_) | Shape::TriMesh(_) | Shape::Compound(_) => {
+                return Err(CastError::NotConvex(kind));
+            }
         };
         if !pose.rotation.is_finite() {
             return Err(CastError::RotationNotFinite(pose.rotation));
@@ -198,6 +200,9 @@ pub fn cast_shape(sweep: &ShapeSweep, target: &Shape, pose: &Transform) -> Optio
         Shape::ConvexHull(hull) => sweep_convex(sweep, &**hull, pose),
         Shape::Plane(plane) => sweep_plane(sweep, plane, pose),
         Shape::TriMesh(mesh) => sweep_mesh(sweep, mesh, pose),
+        Shape::Compound(compound) => nearest_child_hit(compound, pose, |child, child_pose| {
+            cast_shape(sweep, child, child_pose)
+        }),
     }
 }
 

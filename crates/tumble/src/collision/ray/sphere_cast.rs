@@ -8,8 +8,8 @@
 
 use super::shape_cast::{ShapeSweep, cast_shape};
 use super::{
-    INSIDE, LocalHit, Ray, ShapeHit, cylinder_side_hit, ray_capsule, ray_cuboid, ray_plane,
-    ray_sphere,
+    INSIDE, LocalHit, Ray, ShapeHit, cylinder_side_hit, nearest_child_hit, ray_capsule, ray_cuboid,
+    ray_plane, ray_sphere,
 };
 use crate::math::{Transform, Vec3};
 use crate::shape::{Capsule, Cuboid, Plane, Shape, Sphere};
@@ -56,6 +56,11 @@ pub fn cast_sphere(radius: f32, shape: &Shape, pose: &Transform, ray: &Ray) -> O
         Shape::ConvexHull(_) | Shape::TriMesh(_) => {
             let ball = Sphere { radius };
             return cast_shape(&ShapeSweep::ball(&ball, ray), shape, pose);
+        }
+        Shape::Compound(compound) => {
+            return nearest_child_hit(compound, pose, |child, child_pose| {
+                cast_sphere(radius, child, child_pose, ray)
+            });
         }
     }?;
     if hit.distance > ray.max_distance {

@@ -325,7 +325,9 @@ fn signed_distance(shape: &Shape, p: Vec3) -> f32 {
             (p - on_axis).length() - c.radius
         }
         Shape::Plane(plane) => plane.normal.dot(p) - plane.offset,
-        Shape::ConvexHull(_) | Shape::TriMesh(_) => unreachable!("the oracle covers primitives"),
+        Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::Compound(_) => {
+            unreachable!("the oracle covers primitives")
+        }
     }
 }
 

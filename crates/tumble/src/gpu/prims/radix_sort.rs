@@ -1,15 +1,17 @@
 //! Stable key-value LSD radix sort on the GPU (8-bit digits), for u32 keys and for u64 keys
 //! (the broadphase's pair keys, two u32 words, low word first), with its CPU twin.
 //!
-//! Each pass is histogram → scan of the per-tile histograms → scatter (see
-//! `radix_sort.wgsl`); a 32-bit key takes 4 passes, fewer when the caller says how many key
-//! bits are used (cell ids of a 64³ grid need 18 bits: 3 passes). The sort reads the input
-//! buffers and writes the output buffers, ping-ponging through its own scratch so the last
-//! pass always lands in the output; the input is left as it was.
+//! Onesweep-style (see `radix_sort.wgsl`): one dispatch zeroes the sort's state, one counts
+//! the digits of every pass over the whole input, then one dispatch per pass ranks each tile,
+//! finds its place by a decoupled look-back and writes each digit's elements as one run. A
+//! 32-bit key takes 4 passes, fewer when the caller says how many key bits are used (cell ids
+//! of a 64³ grid need 18 bits: 3 passes). The sort reads the input buffers and writes the
+//! output buffers, ping-ponging through its own scratch so the last pass always lands in the
+//! output; the input is left as it was.
 //!
 //! Stability: equal keys keep their input order (the rank inside a tile is the position among
-//! equal digits, tiles are laid out in order by the scan), so sorting (key, index) pairs gives
-//! the same result on every device and every run.
+//! equal digits, tiles are laid out in order by the look-back), so sorting (key, index) pairs
+//! gives the same result on every device and every run.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -18,15 +20,24 @@ use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
-use crate::gpu::prims::scan::{ScanKind, scan_dispatches};
+use crate::gpu::prims::fill::fill_dispatch;
 
-/// Values per digit; one thread per digit value in the histogram.
+/// Values per digit.
 const RADIX: u32 = 256;
 const _: () = assert!(WORKGROUP_SIZE == RADIX, "a thread per digit value");
-/// Rounds of WORKGROUP_SIZE elements per tile: more rounds, fewer tiles to scan.
+/// Rounds of WORKGROUP_SIZE elements per tile: more rounds, fewer tiles to look back over and
+/// longer runs per digit in the output. At least 8, so that the rank masks (RADIX ×
+/// WORKGROUP_SIZE bits) fit in the tile's workgroup memory.
 const ROUNDS: u32 = 8;
-/// Elements per tile (one workgroup).
+const _: () = assert!(ROUNDS * WORKGROUP_SIZE >= RADIX * WORKGROUP_SIZE / 32);
+/// Elements per tile (one workgroup of a pass).
 pub const RADIX_TILE: u32 = ROUNDS * WORKGROUP_SIZE;
+/// Elements each thread of the histogram counts.
+const HISTOGRAM_ITEMS: u32 = 16;
+/// Times a look-back polls an earlier tile's status before counting that tile's digits itself.
+const POLLS: u32 = 64;
+/// The status words hold counts below 2^30 (two flag bits above).
+const MAX_COUNT: usize = (1 << 30) - 1;
 
 const WGSL: &str = include_str!("radix_sort.wgsl");
 const BINDINGS: [Binding; 6] = [
@@ -57,8 +68,8 @@ impl RadixKey for u64 {
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct RadixParams {
     pub count: u32,
-    pub shift: u32,
-    pub word: u32,
+    pub pass_index: u32,
+    pub passes: u32,
     pub tile_count: u32,
 }
 const _: () = assert!(size_of::<RadixParams>() == 16);
@@ -67,6 +78,8 @@ pub fn wgsl(key_words: u32) -> Source {
     Source::new()
         .constant_u32("KEY_WORDS", key_words)
         .constant_u32("ROUNDS", ROUNDS)
+        .constant_u32("HISTOGRAM_ITEMS", HISTOGRAM_ITEMS)
+        .constant_u32("POLLS", POLLS)
         .snippet("radix_sort.wgsl", WGSL)
 }
 
@@ -141,22 +154,32 @@ fn sort_dispatches<K: RadixKey>(
     count: usize,
     key_bits: u32,
 ) -> Result<Vec<Dispatch>, GpuError> {
-    let passes = passes_for(key_bits) as usize;
+    let passes = passes_for(key_bits);
     if count == 0 || passes == 0 {
         // Nothing to order: the output is the input.
         return copy_dispatches::<K>(context, buffers, count);
+    }
+    if count > MAX_COUNT {
+        return Err(GpuError::BufferTooLarge {
+            what: "radix sort (at most 2^30 - 1 keys)",
+            needed: (count * size_of::<K>()) as u64,
+            limit: (MAX_COUNT * size_of::<K>()) as u64,
+        });
     }
     let source = wgsl(K::WORDS);
     let histogram = Kernel::new(context, "radix histogram", &source, "histogram", &BINDINGS);
     let scatter = Kernel::new(context, "radix scatter", &source, "scatter", &BINDINGS);
     let tiles = workgroups_for(count, RADIX_TILE);
-    let counts_len = RADIX as usize * tiles as usize;
-    let counts = GpuVec::<u32>::with_capacity(context, "radix histogram", counts_len)?;
-    let offsets = GpuVec::<u32>::with_capacity(context, "radix offsets", counts_len)?;
+    // Digit counts and tickets of every pass, then the status of every (pass, tile, digit).
+    let max_passes = 4 * K::WORDS as usize;
+    let state_words =
+        max_passes * (RADIX as usize + 1) + passes as usize * tiles as usize * RADIX as usize;
+    let state = GpuVec::<u32>::with_capacity(context, "radix state", state_words)?;
     let scratch_keys = GpuVec::<K>::with_capacity(context, "radix scratch keys", count)?;
     let scratch_values = GpuVec::<u32>::with_capacity(context, "radix scratch values", count)?;
     // The chain of (keys, values) buffers: input, then alternating output and scratch so
     // that the last pass writes the output.
+    let passes = passes as usize;
     let chain: Vec<(&wgpu::Buffer, &wgpu::Buffer)> = (0..=passes)
         .map(|step| {
             if step == 0 {
@@ -169,41 +192,39 @@ fn sort_dispatches<K: RadixKey>(
         })
         .collect();
     let blocks: Vec<RadixParams> = (0..passes as u32)
-        .map(|pass| RadixParams {
+        .map(|pass_index| RadixParams {
             count: count as u32,
-            shift: (8 * pass) % 32,
-            word: 8 * pass / 32,
+            pass_index,
+            passes: passes as u32,
             tile_count: tiles,
         })
         .collect();
     let slots = UniformSlots::new(context, "radix params", &blocks);
-    let scan = scan_dispatches(
-        context,
-        counts.buffer(),
-        offsets.buffer(),
-        counts_len,
-        ScanKind::Exclusive,
-    )?;
-    let mut dispatches = Vec::new();
-    for pass in 0..passes {
+    let bind = |kernel: &Kernel, pass: usize| {
         let (keys_in, values_in) = chain[pass];
         let (keys_out, values_out) = chain[pass + 1];
-        let bind = |kernel: &Kernel, table: &wgpu::Buffer| {
-            kernel.bind(
-                context,
-                &[
-                    slots.binding(pass),
-                    keys_in.as_entire_buffer_binding(),
-                    values_in.as_entire_buffer_binding(),
-                    keys_out.as_entire_buffer_binding(),
-                    values_out.as_entire_buffer_binding(),
-                    table.as_entire_buffer_binding(),
-                ],
-            )
-        };
-        dispatches.push(histogram.dispatch(bind(&histogram, counts.buffer()), tiles));
-        dispatches.extend(scan.iter().cloned());
-        dispatches.push(scatter.dispatch(bind(&scatter, offsets.buffer()), tiles));
+        kernel.bind(
+            context,
+            &[
+                slots.binding(pass),
+                keys_in.as_entire_buffer_binding(),
+                values_in.as_entire_buffer_binding(),
+                keys_out.as_entire_buffer_binding(),
+                values_out.as_entire_buffer_binding(),
+                state.whole(),
+            ],
+        )
+    };
+    let mut dispatches = vec![
+        fill_dispatch(context, state.buffer(), state_words, 0)?,
+        // Pass 0's bindings: its input keys are the sort's input.
+        histogram.dispatch(
+            bind(&histogram, 0),
+            workgroups_for(count, HISTOGRAM_ITEMS * WORKGROUP_SIZE),
+        ),
+    ];
+    for pass in 0..passes {
+        dispatches.push(scatter.dispatch(bind(&scatter, pass), tiles));
     }
     Ok(dispatches)
 }

@@ -1,22 +1,32 @@
-// One pass of a stable LSD radix sort: 8-bit digits, key-value pairs, keys of KEY_WORDS u32
-// words (1: u32 keys; 2: u64 keys stored low word first). Injected: KEY_WORDS, ROUNDS.
+// Stable LSD radix sort of key-value pairs, 8-bit digits, one dispatch per digit in the manner
+// of Onesweep (Adinets & Merrill, 2022): the digit counts of the whole input are taken once, up
+// front, and each pass finds where its tile's runs go by a decoupled look-back over the tiles
+// before it. Keys are KEY_WORDS u32 words (1: u32 keys; 2: u64 keys, low word first).
+// Injected: KEY_WORDS, ROUNDS, HISTOGRAM_ITEMS, POLLS. `gpu::prims::radix_sort` zeroes `state` before
+// each sort.
 //
-// A tile is ROUNDS × WORKGROUP_SIZE consecutive elements, handled by one workgroup:
+//   histogram:  state.counts[pass][digit] = elements of the input with that digit, all passes
+//   scatter:    one pass; per tile of TILE = ROUNDS × WORKGROUP_SIZE elements:
+//     1. ticket (atomicAdd): the tile is the ticket, so a tile only looks back at tiles whose
+//        workgroups have started (workgroup ids come in no promised order);
+//     2. rank: each element's position among the tile's equal digits;
+//     3. publish the tile's digit counts (AGGREGATE), look back for the counts of all earlier
+//        tiles (counting a tile's digits itself when that tile is slow to publish: see
+//        `look_back`), publish those plus its own (PREFIX);
+//     4. place the elements in the tile's workgroup memory sorted by digit, then write them out
+//        in that order: each digit's elements go out as one contiguous run.
 //
-//   histogram: counts[digit × tile_count + tile] = elements of the tile with that digit
-//   (scan):    counts → offsets, exclusive, digit-major: where each (digit, tile) run starts
-//   scatter:   element → offsets[digit, tile] + its rank among equal digits of the tile
-//
-// The rank comes from per-digit bit masks of the round (bit t set when thread t has the
-// digit): popcount of the bits below t. It depends only on positions, never on which thread
-// ran first, so the sort is stable and deterministic without subgroups.
+// The rank comes from per-digit bit masks of each round of WORKGROUP_SIZE elements (bit t set
+// when thread t holds the digit): the popcount of the bits below t, plus the digit's count in
+// earlier rounds. It depends only on positions, never on which thread ran first, so the sort is
+// stable and deterministic without subgroups.
 
 struct RadixParams {
     count: u32,
-    // Bit offset of the digit inside the key word.
-    shift: u32,
-    // Which key word holds the digit.
-    word: u32,
+    // The digit this scatter sorts by: digit p is bits 8(p mod 4).. of key word p / 4.
+    pass_index: u32,
+    // Digits the histogram counts (passes of the whole sort).
+    passes: u32,
     tile_count: u32,
 }
 
@@ -25,20 +35,40 @@ struct RadixParams {
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(4) var<storage, read_write> values_out: array<u32>;
-// Histogram: written by `histogram`. Offsets (its scan): read by `scatter`.
-@group(0) @binding(5) var<storage, read_write> counts: array<u32>;
+// [pass × RADIX + digit]: digit counts of the input; [TICKETS + pass]: next ticket of a pass;
+// [STATUS + (pass × tile_count + tile) × RADIX + digit]: a tile's count of a digit, with a flag
+// in the top two bits (counts stay below 2^30, checked in Rust).
+@group(0) @binding(5) var<storage, read_write> state: array<atomic<u32>>;
 
 const RADIX: u32 = 256u;
+const MAX_PASSES: u32 = 4u * KEY_WORDS;
+const TICKETS: u32 = MAX_PASSES * RADIX;
+const STATUS: u32 = TICKETS + MAX_PASSES;
 const TILE: u32 = ROUNDS * WORKGROUP_SIZE;
 // 32-bit mask words per digit: one bit per thread of a round.
 const MASK_WORDS: u32 = WORKGROUP_SIZE / 32u;
+const FLAG_AGGREGATE: u32 = 1u << 30u;
+const FLAG_PREFIX: u32 = 2u << 30u;
+const COUNT_MASK: u32 = FLAG_AGGREGATE - 1u;
 
-var<workgroup> digit_counts: array<atomic<u32>, RADIX>;
-var<workgroup> masks: array<atomic<u32>, RADIX * MASK_WORDS>;
-var<workgroup> next_slot: array<u32, RADIX>;
+// In turn: the rank masks of a round (RADIX × MASK_WORDS ≤ TILE words, checked in Rust), the
+// scan of the digit counts, the tile in sorted order.
+var<workgroup> exchange: array<atomic<u32>, TILE>;
+// Per digit: elements of the tile seen so far (after ranking: the tile's count).
+var<workgroup> digit_count: array<u32, RADIX>;
+// Per digit: where its run starts in the sorted tile.
+var<workgroup> digit_start: array<u32, RADIX>;
+// Per digit: output index minus slot in the sorted tile.
+var<workgroup> digit_offset: array<u32, RADIX>;
+var<workgroup> ticket: u32;
+// The look-back's latest stuck tile + 1 (0: none), and its copy for a uniform read.
+var<workgroup> stuck_tile: atomic<u32>;
+var<workgroup> stuck_tile_read: u32;
+// Per pass: the input's digit counts (histogram only).
+var<workgroup> pass_counts: array<atomic<u32>, MAX_PASSES * RADIX>;
 
-fn digit_of(index: u32) -> u32 {
-    return (keys_in[index * KEY_WORDS + params.word] >> params.shift) & (RADIX - 1u);
+fn digit_of(key_word: u32, pass_index: u32) -> u32 {
+    return (key_word >> (8u * (pass_index % 4u))) & (RADIX - 1u);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -47,67 +77,237 @@ fn histogram(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let tile = flat_workgroup(workgroup, groups);
-    if tile >= params.tile_count {
+    let start = flat_workgroup(workgroup, groups) * HISTOGRAM_ITEMS * WORKGROUP_SIZE;
+    if start >= params.count {
         return;
     }
-    // WORKGROUP_SIZE == RADIX (checked in Rust): thread `local` owns digit `local`.
-    atomicStore(&digit_counts[local], 0u);
+    for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
+        atomicStore(&pass_counts[pass_index * RADIX + local], 0u);
+    }
+    workgroupBarrier();
+    for (var item = 0u; item < HISTOGRAM_ITEMS; item++) {
+        let index = start + item * WORKGROUP_SIZE + local;
+        if index < params.count {
+            for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
+                let key_word = keys_in[index * KEY_WORDS + pass_index / 4u];
+                atomicAdd(&pass_counts[pass_index * RADIX + digit_of(key_word, pass_index)], 1u);
+            }
+        }
+    }
+    workgroupBarrier();
+    for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
+        let count = atomicLoad(&pass_counts[pass_index * RADIX + local]);
+        if count != 0u {
+            atomicAdd(&state[pass_index * RADIX + local], count);
+        }
+    }
+}
+
+fn status_index(tile: u32, digit: u32) -> u32 {
+    return STATUS + (params.pass_index * params.tile_count + tile) * RADIX + digit;
+}
+
+// Status of (tile, digit), polled up to POLLS times; 0 if it has not been published.
+// Status words are written with atomicExchange and read with atomicOr(0): naga's GLSL output
+// turns atomicStore and atomicLoad into plain accesses, which llvmpipe's compiler may hoist out
+// of a poll loop or delay, so other tiles would never see a status (and always fall back).
+fn poll_status(tile: u32, digit: u32) -> u32 {
+    var seen = atomicOr(&state[status_index(tile, digit)], 0u);
+    for (var poll = 1u; poll < POLLS && seen == 0u; poll++) {
+        seen = atomicOr(&state[status_index(tile, digit)], 0u);
+    }
+    return seen;
+}
+
+// The count of digit `local` in tile `tile`, from the input (the look-back's fallback); call
+// from uniform control flow with `exchange` free.
+fn count_tile_digits(tile: u32, local: u32) -> u32 {
+    atomicStore(&exchange[local], 0u);
     workgroupBarrier();
     for (var round = 0u; round < ROUNDS; round++) {
         let index = tile * TILE + round * WORKGROUP_SIZE + local;
         if index < params.count {
-            atomicAdd(&digit_counts[digit_of(index)], 1u);
+            let key_word = keys_in[index * KEY_WORDS + params.pass_index / 4u];
+            atomicAdd(&exchange[digit_of(key_word, params.pass_index)], 1u);
         }
     }
     workgroupBarrier();
-    counts[local * params.tile_count + tile] = atomicLoad(&digit_counts[local]);
+    let count = atomicLoad(&exchange[local]);
+    workgroupBarrier();
+    return count;
+}
+
+// Thread d: the count of digit d in all tiles before `tile` (uniform). Each digit walks back
+// alone, adding AGGREGATEs until a PREFIX. A tile that has not published after POLLS polls is
+// not waited for: the workgroup counts its digits from the input itself (the decoupled
+// fallback of Smith, Levien & Owens, 2025), latest stuck tile first. So no workgroup waits on
+// another unboundedly, which Mesa's CPU drivers need: their thread pool may be descheduled
+// for milliseconds, and llvmpipe ends a shader's loops after 65535 iterations in all.
+// Call from uniform control flow with `exchange` free.
+fn look_back(tile: u32, local: u32) -> u32 {
+    var earlier = 0u;
+    // Tiles before `previous` are still to be added.
+    var previous = tile;
+    var done = tile == 0u;
+    loop {
+        if !done {
+            loop {
+                let seen = poll_status(previous - 1u, local);
+                if seen == 0u {
+                    break;
+                }
+                earlier += seen & COUNT_MASK;
+                previous -= 1u;
+                if (seen & FLAG_PREFIX) != 0u {
+                    done = true;
+                    break;
+                }
+            }
+            if !done {
+                atomicMax(&stuck_tile, previous);
+            }
+        }
+        workgroupBarrier();
+        if local == 0u {
+            stuck_tile_read = atomicExchange(&stuck_tile, 0u);
+        }
+        let stuck = workgroupUniformLoad(&stuck_tile_read);
+        if stuck == 0u {
+            break;
+        }
+        let count = count_tile_digits(stuck - 1u, local);
+        if !done && previous == stuck {
+            earlier += count;
+            previous -= 1u;
+            // Tile 0's counts are its PREFIX.
+            done = previous == 0u;
+        }
+    }
+    return earlier;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn scatter(
-    @builtin(local_invocation_index) local: u32,
-    @builtin(workgroup_id) workgroup: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let tile = flat_workgroup(workgroup, groups);
+fn scatter(@builtin(local_invocation_index) local: u32) {
+    if local == 0u {
+        ticket = atomicAdd(&state[TICKETS + params.pass_index], 1u);
+        atomicStore(&stuck_tile, 0u);
+    }
+    let tile = workgroupUniformLoad(&ticket);
     if tile >= params.tile_count {
         return;
     }
-    next_slot[local] = counts[local * params.tile_count + tile];
-    let word = local / 32u;
-    let below = (1u << (local % 32u)) - 1u;
+    let start = tile * TILE;
+    let key_word = params.pass_index / 4u;
+
+    // 2. Rank, a round of WORKGROUP_SIZE consecutive elements at a time.
+    var digits: array<u32, ROUNDS>;
+    var ranks: array<u32, ROUNDS>;
+    digit_count[local] = 0u;
+    let own_mask = local / 32u;
+    let own_bit = 1u << (local % 32u);
     for (var round = 0u; round < ROUNDS; round++) {
+        // Thread t clears (and below, counts) the masks of digit t.
         for (var mask = 0u; mask < MASK_WORDS; mask++) {
-            atomicStore(&masks[local * MASK_WORDS + mask], 0u);
+            atomicStore(&exchange[local * MASK_WORDS + mask], 0u);
         }
         workgroupBarrier();
-        let index = tile * TILE + round * WORKGROUP_SIZE + local;
-        let valid = index < params.count;
+        let index = start + round * WORKGROUP_SIZE + local;
         var digit = 0u;
-        if valid {
-            digit = digit_of(index);
-            atomicOr(&masks[digit * MASK_WORDS + word], 1u << (local % 32u));
+        if index < params.count {
+            digit = digit_of(keys_in[index * KEY_WORDS + key_word], params.pass_index);
+            atomicOr(&exchange[digit * MASK_WORDS + own_mask], own_bit);
         }
         workgroupBarrier();
-        if valid {
-            var rank = countOneBits(atomicLoad(&masks[digit * MASK_WORDS + word]) & below);
-            for (var mask = 0u; mask < word; mask++) {
-                rank += countOneBits(atomicLoad(&masks[digit * MASK_WORDS + mask]));
-            }
-            let destination = next_slot[digit] + rank;
-            for (var key_word = 0u; key_word < KEY_WORDS; key_word++) {
-                keys_out[destination * KEY_WORDS + key_word] = keys_in[index * KEY_WORDS + key_word];
-            }
-            values_out[destination] = values_in[index];
+        // (Meaningless past the end of the input; never used there.)
+        var rank = digit_count[digit] + countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + own_mask]) & (own_bit - 1u));
+        for (var mask = 0u; mask < own_mask; mask++) {
+            rank += countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + mask]));
         }
+        digits[round] = digit;
+        ranks[round] = rank;
         workgroupBarrier();
-        // Thread `local` advances digit `local` past this round's elements.
         var round_count = 0u;
         for (var mask = 0u; mask < MASK_WORDS; mask++) {
-            round_count += countOneBits(atomicLoad(&masks[local * MASK_WORDS + mask]));
+            round_count += countOneBits(atomicLoad(&exchange[local * MASK_WORDS + mask]));
         }
-        next_slot[local] += round_count;
+        digit_count[local] += round_count;
+    }
+    workgroupBarrier();
+
+    // 3. Thread d handles digit d: publish the tile's count...
+    let tile_digits = digit_count[local];
+    let own_status = status_index(tile, local);
+    atomicExchange(&state[own_status], select(FLAG_AGGREGATE, FLAG_PREFIX, tile == 0u) | tile_digits);
+    // ...scan (tile count, input count) over the digits, exclusive: where the digit's run
+    // starts in the sorted tile and in the output (Hillis–Steele, ping-ponging between
+    // exchange[0..2W] and exchange[2W..4W], a pair of words per digit)...
+    let own = vec2<u32>(tile_digits, atomicLoad(&state[params.pass_index * RADIX + local]));
+    atomicStore(&exchange[2u * local], own.x);
+    atomicStore(&exchange[2u * local + 1u], own.y);
+    workgroupBarrier();
+    var read_half = 0u;
+    for (var offset = 1u; offset < RADIX; offset <<= 1u) {
+        var sum = vec2<u32>(atomicLoad(&exchange[read_half + 2u * local]), atomicLoad(&exchange[read_half + 2u * local + 1u]));
+        if local >= offset {
+            let other = read_half + 2u * (local - offset);
+            sum += vec2<u32>(atomicLoad(&exchange[other]), atomicLoad(&exchange[other + 1u]));
+        }
+        read_half = 2u * RADIX - read_half;
+        atomicStore(&exchange[read_half + 2u * local], sum.x);
+        atomicStore(&exchange[read_half + 2u * local + 1u], sum.y);
         workgroupBarrier();
+    }
+    let before = vec2<u32>(atomicLoad(&exchange[read_half + 2u * local]), atomicLoad(&exchange[read_half + 2u * local + 1u])) - own;
+    // ...and look back: the digit's count in all earlier tiles of this pass.
+    let earlier = look_back(tile, local);
+    if tile > 0u {
+        atomicExchange(&state[own_status], FLAG_PREFIX | (earlier + tile_digits));
+    }
+    digit_start[local] = before.x;
+    digit_offset[local] = before.y + earlier - before.x;
+    workgroupBarrier();
+
+    // 4. Through workgroup memory in sorted order: first each slot's output index, then each
+    // key word and the value. Slots below `filled` hold the tile's elements.
+    let filled = min(TILE, params.count - start);
+    var slots: array<u32, ROUNDS>;
+    for (var round = 0u; round < ROUNDS; round++) {
+        let digit = digits[round];
+        slots[round] = digit_start[digit] + ranks[round];
+        if start + round * WORKGROUP_SIZE + local < params.count {
+            atomicStore(&exchange[slots[round]], digit_offset[digit] + slots[round]);
+        }
+    }
+    workgroupBarrier();
+    var destinations: array<u32, ROUNDS>;
+    for (var round = 0u; round < ROUNDS; round++) {
+        destinations[round] = atomicLoad(&exchange[round * WORKGROUP_SIZE + local]);
+    }
+    for (var word = 0u; word <= KEY_WORDS; word++) {
+        workgroupBarrier();
+        for (var round = 0u; round < ROUNDS; round++) {
+            let index = start + round * WORKGROUP_SIZE + local;
+            if index < params.count {
+                var moved: u32;
+                if word < KEY_WORDS {
+                    moved = keys_in[index * KEY_WORDS + word];
+                } else {
+                    moved = values_in[index];
+                }
+                atomicStore(&exchange[slots[round]], moved);
+            }
+        }
+        workgroupBarrier();
+        for (var round = 0u; round < ROUNDS; round++) {
+            let slot = round * WORKGROUP_SIZE + local;
+            if slot < filled {
+                let moved = atomicLoad(&exchange[slot]);
+                if word < KEY_WORDS {
+                    keys_out[destinations[round] * KEY_WORDS + word] = moved;
+                } else {
+                    values_out[destinations[round]] = moved;
+                }
+            }
+        }
     }
 }

@@ -52,7 +52,9 @@ fn world_aabbs(
             low = pose.position - extent;
             high = pose.position + extent;
         }
-        case SHAPE_CUBOID: {
+        // Hulls, meshes and compounds upload the half extents of a box about the body origin
+        // that holds them (`Collider::data`): their box turned, a bound of the CPU's.
+        case SHAPE_CUBOID, SHAPE_CONVEX_HULL, SHAPE_TRIMESH, SHAPE_COMPOUND: {
             let extent = box_extent(q, collider.params.xyz);
             low = pose.position - extent;
             high = pose.position + extent;

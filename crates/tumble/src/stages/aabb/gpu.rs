@@ -3,8 +3,9 @@
 //! box at the pose, grown by the margin, unioned with itself moved by `linear_velocity · dt`.
 //!
 //! The kernel repeats glam's arithmetic term by term; results agree with the CPU to a few f32
-//! roundings (a GPU may fuse a multiply-add), not bitwise. Output is [`Aabb`] (24 bytes), the
-//! same array the CPU stage writes.
+//! roundings (a GPU may fuse a multiply-add), not bitwise; for hulls, meshes and compounds it
+//! turns a box that holds the shape (see [`super`]), so theirs hold the CPU's. Output is
+//! [`Aabb`] (24 bytes), the same array the CPU stage writes.
 
 use bytemuck::{Pod, Zeroable};
 

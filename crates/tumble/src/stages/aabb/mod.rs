@@ -6,7 +6,11 @@
 //! by `linear_velocity · dt`, expanded by `margin`; slots of removed bodies are left as they are
 //! (the broadphase no longer holds them).
 //!
-//! The GPU executor ([`gpu`]) computes the same boxes on the device, to a few f32 roundings.
+//! The GPU executor ([`gpu`]) computes the same boxes on the device, to a few f32 roundings,
+//! for spheres, capsules, boxes and planes. A hull, mesh or compound has no vertices there: it
+//! gets the turned box of `ColliderData::params` (half extents about the body origin holding
+//! the shape), which holds the CPU's box and is as tight when the shape's local box is centred
+//! on the origin.
 
 pub mod gpu;
 

@@ -1,18 +1,22 @@
 // Batching rounds (see `stages/batching/mod.rs`): in each round every unbatched constraint
 // claims its dynamic bodies with its priority (atomicMin into the round's half of `locks`),
 // then the constraints that hold all their bodies' locks are batched. The constants
-// MAX_COLORS, STATIC_BODY and the batcher ids come from Rust.
+// MAX_COLORS, STATIC_BODY, UNBATCHED and the batcher ids come from Rust.
 
 struct BatchParams {
-    count: u32,
     body_count: u32,
     round: u32,
     batcher: u32,
     // The first `ordered` constraints (joints) rank by index.
     ordered: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+}
+
+// The constraint count lives in a buffer, not in the parameters, so the dispatches (sized for
+// the buffers' capacity) are built once and serve every step.
+struct Tally {
+    // How many constraints have a batch: the rounds stop working once all have one.
+    batched: atomic<u32>,
+    count: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BatchParams;
@@ -25,10 +29,8 @@ struct BatchParams {
 @group(0) @binding(3) var<storage, read_write> locks: array<atomic<u32>>;
 // Per body: the colors its constraints have (low word, high word).
 @group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
-// How many constraints have a batch: the rounds stop working once all have one.
-@group(0) @binding(5) var<storage, read_write> batched: atomic<u32>;
+@group(0) @binding(5) var<storage, read_write> tally: Tally;
 
-const UNBATCHED: u32 = 0xffffffffu;
 const NO_LOCK: u32 = 0xffffffffu;
 
 // Twin of `priority` in `mod.rs`: joints by index, then a bijective 31-bit hash above 2^31.
@@ -53,7 +55,7 @@ fn thread_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
 // Every round's kernels return at once when all constraints have a batch: the rounds are
 // encoded up to MAX_ROUNDS, most of them usually find nothing left.
 fn all_batched() -> bool {
-    return atomicLoad(&batched) == params.count;
+    return atomicLoad(&tally.batched) == tally.count;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -63,7 +65,7 @@ fn start(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let i = thread_index(id, workgroup, groups);
-    if i < params.count {
+    if i < tally.count {
         colors[i] = UNBATCHED;
     }
     if i < params.body_count {
@@ -72,7 +74,7 @@ fn start(
         masks[i] = vec2<u32>(0u);
     }
     if i == 0u {
-        atomicStore(&batched, 0u);
+        atomicStore(&tally.batched, 0u);
     }
 }
 
@@ -83,7 +85,7 @@ fn claim(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let i = thread_index(id, workgroup, groups);
-    if all_batched() || i >= params.count || colors[i] != UNBATCHED {
+    if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
     let half = (params.round % 2u) * params.body_count;
@@ -114,7 +116,7 @@ fn commit(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let i = thread_index(id, workgroup, groups);
-    if all_batched() || i >= params.count || colors[i] != UNBATCHED {
+    if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
     let half = (params.round % 2u) * params.body_count;
@@ -152,7 +154,7 @@ fn commit(
         }
     }
     colors[i] = color;
-    atomicAdd(&batched, 1u);
+    atomicAdd(&tally.batched, 1u);
 }
 
 // After the last round: what is left goes to the overflow batch.
@@ -163,7 +165,7 @@ fn finish(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let i = thread_index(id, workgroup, groups);
-    if i >= params.count || colors[i] != UNBATCHED {
+    if i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
     colors[i] = MAX_COLORS;

@@ -15,6 +15,8 @@ use crate::gpu::kernel::{
 use crate::stages::constraints::STATIC_BODY;
 
 const WGSL: &str = include_str!("batching.wgsl");
+/// The color of a constraint no round has batched yet.
+const UNBATCHED: u32 = u32::MAX;
 const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
     Binding::StorageRead,
@@ -28,26 +30,24 @@ const BINDINGS: [Binding; 6] = [
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct BatchParams {
-    pub count: u32,
     pub body_count: u32,
     pub round: u32,
     pub batcher: u32,
     pub ordered: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
-    pub _pad2: u32,
 }
 
 pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("MAX_COLORS", MAX_COLORS as u32)
         .constant_u32("STATIC_BODY", STATIC_BODY)
+        .constant_u32("UNBATCHED", UNBATCHED)
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
         .snippet("batching.wgsl", WGSL)
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,
-/// batched count), constraint count, body count, ordered count, batcher.
+/// tally), constraint capacity, body count, ordered count, batcher. Not the constraint count,
+/// which changes every step: the kernels read it from the tally.
 type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
 
 /// The GPU batching of one world, its buffers reused from step to step.
@@ -59,8 +59,8 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
-    /// How many constraints have a batch (the rounds' early exit).
-    batched: GpuVec<u32>,
+    /// How many constraints have a batch (the rounds' early exit), and how many there are.
+    tally: GpuVec<[u32; 2]>,
     cached: Option<(BatchKey, Vec<Dispatch>)>,
     /// Host scratch: the bodies to upload, the colors read back.
     host_bodies: Vec<[u32; 2]>,
@@ -74,7 +74,7 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
-            batched: GpuVec::from_slice(context, "batched count", &[0])?,
+            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0]])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
@@ -91,43 +91,78 @@ impl GpuBatching {
         ordered: usize,
         batcher: Batcher,
     ) -> Result<(), GpuError> {
+        self.encode_rounds(context, pass, body_count, ordered, batcher, MAX_ROUNDS)?;
+        self.encode_rest(pass, MAX_ROUNDS);
+        Ok(())
+    }
+
+    /// The first part of [`Self::encode`]: the start and rounds `0..rounds`. Rounds after the
+    /// last constraint is batched only return, but each is two dispatches: a caller that expects
+    /// fewer rounds encodes these, reads the colors back and, if some constraint has none yet
+    /// ([`Self::read_back`] says so), finishes with [`Self::encode_rest`] in a second pass.
+    /// The colors are the same either way.
+    pub fn encode_rounds(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        body_count: usize,
+        ordered: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) -> Result<(), GpuError> {
         let count = self.bodies.len();
+        if count == 0 {
+            self.colors.resize(context, 0)?;
+            return Ok(());
+        }
+        // Lands before this submission's commands run.
+        self.tally.upload(context, &[[0, count as u32]])?;
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * body_count)?;
         self.masks.resize(context, body_count)?;
+        let capacity = self.bodies.capacity();
         let buffers = [
             self.bodies.buffer().clone(),
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
-            self.batched.buffer().clone(),
+            self.tally.buffer().clone(),
         ];
-        let key = (buffers, count, body_count, ordered, batcher);
+        let key = (buffers, capacity, body_count, ordered, batcher);
         if self
             .cached
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let dispatches = self.dispatches(context, count, body_count, ordered, batcher);
+            let dispatches = self.dispatches(context, capacity, body_count, ordered, batcher);
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
-            encode_all(pass, dispatches);
+            encode_all(pass, &dispatches[..1 + 2 * rounds.min(MAX_ROUNDS)]);
         }
         Ok(())
     }
 
+    /// The rest of [`Self::encode`] after [`Self::encode_rounds`] with `rounds`: the remaining
+    /// rounds and the finish, which sends what is still unbatched to the overflow batch.
+    pub fn encode_rest(&self, pass: &mut wgpu::ComputePass<'_>, rounds: usize) {
+        if self.bodies.is_empty() {
+            return;
+        }
+        if let Some((_, dispatches)) = &self.cached {
+            encode_all(pass, &dispatches[1 + 2 * rounds.min(MAX_ROUNDS)..]);
+        }
+    }
+
+    /// The dispatches for up to `capacity` constraints.
     fn dispatches(
         &self,
         context: &GpuContext,
-        count: usize,
+        capacity: usize,
         body_count: usize,
         ordered: usize,
         batcher: Batcher,
     ) -> Vec<Dispatch> {
-        if count == 0 {
-            return Vec::new();
-        }
         let source = wgsl();
         let kernel = |entry: &str| {
             Kernel::new(
@@ -146,14 +181,10 @@ impl GpuBatching {
         );
         let blocks: Vec<BatchParams> = (0..MAX_ROUNDS as u32)
             .map(|round| BatchParams {
-                count: count as u32,
                 body_count: body_count as u32,
                 round,
                 batcher: batcher as u32,
                 ordered: ordered as u32,
-                _pad0: 0,
-                _pad1: 0,
-                _pad2: 0,
             })
             .collect();
         let slots = UniformSlots::new(context, "batching params", &blocks);
@@ -166,12 +197,12 @@ impl GpuBatching {
                     self.colors.whole(),
                     self.locks.whole(),
                     self.masks.whole(),
-                    self.batched.whole(),
+                    self.tally.whole(),
                 ],
             )
         };
-        let groups = workgroups_for(count, WORKGROUP_SIZE);
-        let start_groups = workgroups_for(count.max(body_count).max(1), WORKGROUP_SIZE);
+        let groups = workgroups_for(capacity, WORKGROUP_SIZE);
+        let start_groups = workgroups_for(capacity.max(body_count), WORKGROUP_SIZE);
         let mut dispatches = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
             dispatches.push(claim.dispatch(bind(&claim, round), groups));
@@ -197,7 +228,9 @@ impl GpuBatching {
         context.submit_pass("batching", |pass| {
             self.encode(context, pass, body_count, ordered, batcher)
         })?;
-        self.read_back(context, coloring)
+        let complete = self.read_back(context, coloring)?;
+        debug_assert!(complete, "every round and the finish ran");
+        Ok(())
     }
 
     /// Uploads the constraints' bodies.
@@ -211,18 +244,23 @@ impl GpuBatching {
         self.bodies.upload(context, &self.host_bodies)
     }
 
-    /// Reads the colors of the last encoded batching into `coloring`.
+    /// Reads the colors of the last encoded batching into `coloring`. Returns false when some
+    /// constraint has no color yet (only after [`Self::encode_rounds`] without the rest):
+    /// `coloring` is then left as it was.
     pub fn read_back(
         &mut self,
         context: &GpuContext,
         coloring: &mut Coloring,
-    ) -> Result<(), GpuError> {
+    ) -> Result<bool, GpuError> {
         self.colors.download_into(context, &mut self.host_colors)?;
+        if self.host_colors.contains(&UNBATCHED) {
+            return Ok(false);
+        }
         coloring.colors.clear();
         coloring
             .colors
             .extend(self.host_colors.iter().map(|&color| color as u8));
         coloring.count_batches();
-        Ok(())
+        Ok(true)
     }
 }

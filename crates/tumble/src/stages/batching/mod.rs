@@ -254,8 +254,40 @@ pub fn group_by_batch<T: Copy>(
     offsets: &mut Vec<u32>,
 ) {
     debug_assert_eq!(items.len(), colors.len());
-    // Counting sort without scratch: `offsets[b + 1]` first counts batch b, then holds its
-    // start and serves as the write cursor, ending at its end = the start of batch b + 1.
+    batch_starts(colors, coloring, offsets);
+    out.clear();
+    if items.is_empty() {
+        return;
+    }
+    out.resize(items.len(), items[0]);
+    for (item, &color) in items.iter().zip(colors) {
+        let slot = &mut offsets[coloring.batch_of(color) + 1];
+        out[*slot as usize] = *item;
+        *slot += 1;
+    }
+}
+
+/// [`group_by_batch`] of the indices `0..colors.len()`: `order[k]` is the item that goes to
+/// place k (what a device gathers by).
+pub fn batch_order(
+    colors: &[u8],
+    coloring: &Coloring,
+    order: &mut Vec<u32>,
+    offsets: &mut Vec<u32>,
+) {
+    batch_starts(colors, coloring, offsets);
+    order.clear();
+    order.resize(colors.len(), 0);
+    for (item, &color) in colors.iter().enumerate() {
+        let slot = &mut offsets[coloring.batch_of(color) + 1];
+        order[*slot as usize] = item as u32;
+        *slot += 1;
+    }
+}
+
+/// Counting sort without scratch, first half: `offsets[b + 1]` first counts batch b, then is
+/// set to its start, to serve as the write cursor that ends at its end = the start of b + 1.
+fn batch_starts(colors: &[u8], coloring: &Coloring, offsets: &mut Vec<u32>) {
     offsets.clear();
     offsets.resize(coloring.batch_count + 1, 0);
     for &color in colors {
@@ -266,16 +298,6 @@ pub fn group_by_batch<T: Copy>(
         let count = offsets[batch + 1];
         offsets[batch + 1] = start;
         start += count;
-    }
-    out.clear();
-    if items.is_empty() {
-        return;
-    }
-    out.resize(items.len(), items[0]);
-    for (item, &color) in items.iter().zip(colors) {
-        let slot = &mut offsets[coloring.batch_of(color) + 1];
-        out[*slot as usize] = *item;
-        *slot += 1;
     }
 }
 
@@ -295,6 +317,11 @@ mod tests {
         let indices: Vec<usize> = (0..coloring.colors.len()).collect();
         let (mut out, mut offsets) = (Vec::new(), Vec::new());
         group_by_batch(&indices, &coloring.colors, coloring, &mut out, &mut offsets);
+        // The order a device gathers by is the same layout.
+        let (mut order, mut order_offsets) = (Vec::new(), Vec::new());
+        batch_order(&coloring.colors, coloring, &mut order, &mut order_offsets);
+        assert_eq!(order_offsets, offsets);
+        assert!(order.iter().zip(&out).all(|(&a, &b)| a as usize == b));
         offsets
             .windows(2)
             .map(|w| out[w[0] as usize..w[1] as usize].to_vec())

@@ -154,18 +154,47 @@ pub fn build_constraints(
     out: &mut Vec<ContactConstraint>,
 ) {
     out.clear();
+    out.extend(
+        constraint_slots(keys, contacts, children, inputs.masses)
+            .map(|(slot, key, contact)| build_constraint(slot, key, contact, inputs)),
+    );
+}
+
+/// The manifold slots that get a constraint, in constraint order: (slot, pair key, manifold).
+/// Both executors build exactly these (rows.wgsl's `has_constraint` is the GPU's twin).
+pub fn constraint_slots<'a>(
+    keys: &'a [u64],
+    contacts: &'a [PairContact],
+    children: &'a ChildCache,
+    masses: &'a [BodyMass],
+) -> impl Iterator<Item = (u32, u64, &'a PairContact)> + 'a {
     let child_pairs = children.keys().iter().map(|&(key, _)| key);
     let all_keys = keys.iter().copied().chain(child_pairs);
     let all_contacts = contacts.iter().chain(children.values());
-    let resting = |body: u32| inputs.masses[body as usize].inverse_mass == 0.0;
-    for (slot, (contact, key)) in all_contacts.zip(all_keys).enumerate() {
-        let (a, b) = pair_bodies(key);
-        // No points, or two sleeping bodies (or one asleep on a static one): nothing to solve.
-        if contact.manifold.count == 0 || (resting(a) && resting(b)) {
-            continue;
+    let resting = |body: u32| masses[body as usize].inverse_mass == 0.0;
+    all_contacts
+        .zip(all_keys)
+        .enumerate()
+        .filter_map(move |(slot, (contact, key))| {
+            let (a, b) = pair_bodies(key);
+            // No points, or two sleeping bodies (or one asleep on a static one): nothing to
+            // solve.
+            let skip = contact.manifold.count == 0 || (resting(a) && resting(b));
+            (!skip).then_some((slot as u32, key, contact))
+        })
+}
+
+/// The bodies a constraint on the pair `key` moves: [`STATIC_BODY`] for a side without mass.
+pub fn constraint_bodies(key: u64, masses: &[BodyMass]) -> (u32, u32) {
+    let (a, b) = pair_bodies(key);
+    let moving = |body: u32| {
+        if masses[body as usize].inverse_mass > 0.0 {
+            body
+        } else {
+            STATIC_BODY
         }
-        out.push(build_constraint(slot as u32, key, contact, inputs));
-    }
+    };
+    (moving(a), moving(b))
 }
 
 fn build_constraint(
@@ -183,9 +212,10 @@ fn build_constraint(
     let normal = contact.manifold.normal;
     let (t1, t2) = tangent_basis(normal);
     let against_static = mass_a == 0.0 || mass_b == 0.0;
+    let (body_a, body_b) = constraint_bodies(key, inputs.masses);
     let mut constraint = ContactConstraint {
-        body_a: if mass_a > 0.0 { a } else { STATIC_BODY },
-        body_b: if mass_b > 0.0 { b } else { STATIC_BODY },
+        body_a,
+        body_b,
         pair,
         point_count: contact.manifold.count,
         normal,

@@ -7,7 +7,7 @@ pub mod joint;
 
 pub use contact::{
     CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row, RowInputs, build_constraints,
-    world_inverse_inertia,
+    constraint_bodies, constraint_slots, world_inverse_inertia,
 };
 pub use joint::{
     AngularRow, DRAG_JOINT, Drag, JOINT_CONSTRAINT_WGSL, JointConstraint, JointFrame, RowKind,

@@ -99,16 +99,18 @@ fn build(
     let bodies = slot_bodies(slot);
     let a = bodies.x;
     let b = bodies.y;
-    let contact = contacts[slot];
+    // Through pointers, a point at a time: a copy of the whole contact or constraint indexed by
+    // the loop variable would be spilled to local memory at every index (see solver.wgsl).
+    let contact = &contacts[slot];
     let mass_a = masses[a].inverse_mass;
     let mass_b = masses[b].inverse_mass;
-    let normal = contact.manifold.normal;
+    let normal = (*contact).manifold.normal;
     let tangents = tangent_basis(normal);
     var c: ContactConstraint;
     c.body_a = select(STATIC_BODY, a, mass_a > 0.0);
     c.body_b = select(STATIC_BODY, b, mass_b > 0.0);
     c.pair = slot;
-    c.point_count = contact.manifold.count;
+    c.point_count = (*contact).manifold.count;
     c.normal = normal;
     c.friction = sqrt(colliders[a].friction * colliders[b].friction);
     c.tangent1 = tangents[0];
@@ -127,9 +129,12 @@ fn build(
     let inertia_b = world_inverse_inertia(b);
     let va = velocities[a];
     let vb = velocities[b];
-    for (var i = 0u; i < contact.manifold.count; i++) {
-        let point = contact.manifold.points[i];
-        let warm = contact.impulses[i];
+    // The header with zeroed points, then the points in place.
+    let out = &constraints[places[slot]];
+    *out = c;
+    for (var i = 0u; i < c.point_count; i++) {
+        let point = (*contact).manifold.points[i];
+        let warm = (*contact).impulses[i];
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
         var p: ConstraintPoint;
@@ -142,7 +147,6 @@ fn build(
         p.separation = point.separation;
         p.approach_velocity = dot3(normal, va.linear - vb.linear) + dot3(p.normal.arm_a, va.angular)
             - dot3(p.normal.arm_b, vb.angular);
-        c.points[i] = p;
+        (*out).points[i] = p;
     }
-    constraints[places[slot]] = c;
 }

@@ -1,6 +1,6 @@
 //! Child contacts: the manifolds of pairs that need more than one normal — a body on a triangle
-//! mesh touches several triangles, each with its own face — kept persistent from step to step
-//! like the pairs themselves.
+//! mesh touches several triangles, each with its own face; a compound touches with several
+//! children — kept persistent from step to step like the pairs themselves.
 //!
 //! # Layout
 //!
@@ -39,14 +39,16 @@
 //! concatenated in pair order).
 
 use super::{MATCH_DISTANCE, NarrowphaseInputs, PairContact, PointImpulse, closing_speed_bound};
-use crate::collision::contact::collide_mesh;
+use crate::collision::contact::{collide_compound, collide_mesh, mix_child_ids};
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
-use crate::math::Quat;
+use crate::math::{Quat, Transform};
 use crate::shape::{Shape, TriMesh};
 use crate::stages::pairs::pair_bodies;
 use rayon::prelude::*;
 
-/// (pair key, child index): the child index is the (lowest merged) triangle of the mesh.
+/// (pair key, child index): the child index is the (lowest merged) triangle of the mesh,
+/// `child_a * children_b + child_b` for a pair with a compound (`collide_compound`), or
+/// `child * triangles + triangle` for a compound on a mesh.
 pub type ChildKey = (u64, u32);
 
 /// Cosine of the angle (0.5°) under which two triangles' contact normals count as one plane and
@@ -251,13 +253,15 @@ fn merge_coplanar(
     merged
 }
 
-/// True when the pair's contacts go through the child cache.
+/// True when the pair's contacts go through the child cache: pairs with a mesh (a manifold per
+/// triangle) or a compound (a manifold per child pair).
 pub fn has_children(a: &Shape, b: &Shape) -> bool {
-    matches!(a, Shape::TriMesh(_)) || matches!(b, Shape::TriMesh(_))
+    let split = |shape: &Shape| matches!(shape, Shape::TriMesh(_) | Shape::Compound(_));
+    split(a) || split(b)
 }
 
-/// CPU executor: the child manifolds of every pair with a mesh (keys from the pair cache,
-/// sorted), into `children`.
+/// CPU executor: the child manifolds of every pair with a mesh or a compound (keys from the
+/// pair cache, sorted), into `children`.
 pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children: &mut ChildCache) {
     let NarrowphaseInputs {
         poses,
@@ -287,43 +291,79 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
                     &colliders[a],
                     &colliders[b],
                 );
-            // The mesh is the second argument of `collide_mesh`; when it is body A the normal
-            // is flipped to run from B to A.
-            let (mesh_body, other, flip) = if matches!(colliders[b].shape, Shape::TriMesh(_)) {
-                (b, a, false)
-            } else {
-                (a, b, true)
-            };
-            let Shape::TriMesh(mesh) = &colliders[mesh_body].shape else {
-                // Not reached: the filter kept only pairs with a mesh.
-                return Vec::new();
-            };
-            let mut found = Vec::new();
-            collide_mesh(
-                &colliders[other].shape,
-                &poses[other].transform(),
-                mesh,
-                &poses[mesh_body].transform(),
-                margin,
-                &mut found,
-            );
-            let pose_a = poses[a].transform();
-            merge_coplanar(found, mesh, poses[mesh_body].rotation)
-                .into_iter()
-                .map(|(triangle, mut manifold)| {
-                    if flip {
-                        manifold = manifold.flipped();
+            let (shape_a, shape_b) = (&colliders[a].shape, &colliders[b].shape);
+            let (pose_a, pose_b) = (poses[a].transform(), poses[b].transform());
+            let found = match (shape_a, shape_b) {
+                (_, Shape::TriMesh(mesh)) => mesh_children(shape_a, &pose_a, mesh, &pose_b, margin),
+                // The mesh is the second argument of `collide_mesh`: flip the normal to run
+                // from B to A.
+                (Shape::TriMesh(mesh), _) => {
+                    let mut found = mesh_children(shape_b, &pose_b, mesh, &pose_a, margin);
+                    for (_, manifold) in &mut found {
+                        *manifold = manifold.flipped();
                     }
+                    found
+                }
+                _ => {
+                    let mut found = Vec::new();
+                    collide_compound(shape_a, &pose_a, shape_b, &pose_b, margin, &mut found);
+                    found
+                }
+            };
+            found
+                .into_iter()
+                .map(|(child, mut manifold)| {
                     let count = manifold.count as usize;
                     for point in &mut manifold.points[..count] {
                         point.anchor = pose_a.inverse_transform_point(point.position);
                     }
-                    ((key, triangle), manifold)
+                    ((key, child), manifold)
                 })
                 .collect()
         })
         .collect();
     children.replace(per_pair.into_iter().flatten());
+}
+
+/// The triangle manifolds of `shape` (at `pose`) on `mesh` (at `mesh_pose`), coplanar ones
+/// merged, normals from the mesh to the shape, sorted by child index. A compound's children
+/// each get their own: child index `child * triangles + triangle` (`World::add_body` keeps it
+/// in a u32), ids mixed with the child's so that children never trade impulses by id.
+fn mesh_children(
+    shape: &Shape,
+    pose: &Transform,
+    mesh: &TriMesh,
+    mesh_pose: &Transform,
+    margin: f32,
+) -> Vec<(u32, Manifold)> {
+    let mut found = Vec::new();
+    let Shape::Compound(compound) = shape else {
+        collide_mesh(shape, pose, mesh, mesh_pose, margin, &mut found);
+        return merge_coplanar(found, mesh, mesh_pose.rotation);
+    };
+    let triangles = mesh.triangles().len() as u32;
+    let mut all = Vec::new();
+    for (index, child) in compound.children().iter().enumerate() {
+        let child_pose = pose.mul_transform(&child.pose);
+        collide_mesh(
+            &child.shape,
+            &child_pose,
+            mesh,
+            mesh_pose,
+            margin,
+            &mut found,
+        );
+        let first = index as u32 * triangles;
+        all.extend(
+            merge_coplanar(std::mem::take(&mut found), mesh, mesh_pose.rotation)
+                .into_iter()
+                .map(|(triangle, mut manifold)| {
+                    mix_child_ids(&mut manifold, index as u32);
+                    (first + triangle, manifold)
+                }),
+        );
+    }
+    all
 }
 
 #[cfg(test)]

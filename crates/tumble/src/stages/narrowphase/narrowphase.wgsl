@@ -105,8 +105,9 @@ fn collide_ordered(
     pose_b: BodyPose,
     margin: f32,
 ) {
-    // Hulls and meshes are host work (`narrowphase::gpu_pair`); without this their kinds
-    // would alias primitive pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5).
+    // Hulls, meshes and compounds are host work (`narrowphase::gpu_pair`); without this their
+    // kinds would alias primitive pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5;
+    // sphere–compound, 0 * 4 + 6, is capsule–box's 6). `b` holds the larger kind.
     if b.kind > SHAPE_PLANE {
         return;
     }

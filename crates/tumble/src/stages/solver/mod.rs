@@ -26,6 +26,7 @@
 //! Guarantees: a batch's constraints touch disjoint dynamic bodies (stage 6), so solving them in
 //! parallel gives bitwise the same result as solving them in order, for any thread count.
 
+pub mod batched;
 mod contact;
 pub mod gpu;
 mod joint;

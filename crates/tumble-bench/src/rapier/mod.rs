@@ -23,6 +23,9 @@
 //!   `max_ccd_substeps = 0`, which also turns off rapier's automatic CCD against fixed bodies).
 //! - Rapier's own speed features stay on, as a user gets them: contact recycling (a pair that
 //!   barely moved keeps its contacts without a narrowphase update) and contact clustering.
+//! - Joints: each Tumble joint becomes the rapier joint of the same kind with the same frames,
+//!   contacts between its bodies off; a joint rapier cannot hold as Tumble does refuses the
+//!   scene instead of being dropped ([`joints`]).
 //!
 //! # Solver settings
 //!
@@ -36,6 +39,8 @@
 //!   against fixed bodies, as both engines do). The like-for-like comparison of work.
 //! - [`SolverSettings::RapierDefault`] (engine `rapier-default`): rapier's own defaults for the
 //!   solver (4 sub-steps, 30 Hz contacts with ζ = 10) with the same dt, materials and margins.
+
+pub mod joints;
 
 use crate::engine::{BodyState, ContactSample, Simulation};
 use rapier3d::prelude::*;
@@ -82,14 +87,18 @@ pub fn integration_parameters(scene: &Scene, settings: SolverSettings) -> Integr
     }
 }
 
-/// The scene as a rapier world; the handles are the scene's bodies, in order.
-pub fn translate(scene: &Scene, settings: SolverSettings) -> (PhysicsWorld, Vec<RigidBodyHandle>) {
+/// The scene as a rapier world; the handles are the scene's bodies, in order. `Err` says why
+/// the scene cannot go to rapier faithfully (a joint rapier lacks, [`joints`]).
+pub fn translate(
+    scene: &Scene,
+    settings: SolverSettings,
+) -> Result<(PhysicsWorld, Vec<RigidBodyHandle>), String> {
     let mut world = PhysicsWorld {
         gravity: vector(scene.config.gravity),
         integration_parameters: integration_parameters(scene, settings),
         ..PhysicsWorld::default()
     };
-    let handles = scene
+    let handles: Vec<_> = scene
         .bodies
         .iter()
         .map(|desc| {
@@ -97,11 +106,33 @@ pub fn translate(scene: &Scene, settings: SolverSettings) -> (PhysicsWorld, Vec<
             world.insert(body, collider).0
         })
         .collect();
-    (world, handles)
+    joints::insert_joints(&mut world, scene, &handles, settings)?;
+    Ok((world, handles))
 }
 
 fn vector(v: tumble::math::Vec3) -> Vector {
     Vector::new(v.x, v.y, v.z)
+}
+
+/// A compound's child as a parry shape: `Compound::new` admits only these four kinds.
+fn convex_child(shape: &tumble::Shape) -> SharedShape {
+    match shape {
+        tumble::Shape::Sphere(sphere) => SharedShape::ball(sphere.radius),
+        tumble::Shape::Cuboid(cuboid) => {
+            let h = cuboid.half_extents;
+            SharedShape::cuboid(h.x, h.y, h.z)
+        }
+        tumble::Shape::Capsule(capsule) => {
+            SharedShape::capsule_y(capsule.half_height, capsule.radius)
+        }
+        tumble::Shape::ConvexHull(hull) => {
+            let points: Vec<_> = hull.vertices().iter().map(|&v| vector(v)).collect();
+            SharedShape::convex_hull(&points).expect("a tumble hull is a valid parry hull")
+        }
+        tumble::Shape::Plane(_) | tumble::Shape::TriMesh(_) | tumble::Shape::Compound(_) => {
+            unreachable!("Compound::new refuses {:?} children", shape.kind())
+        }
+    }
 }
 
 fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
@@ -154,6 +185,22 @@ fn body_and_collider(desc: &BodyDesc) -> (RigidBodyBuilder, ColliderBuilder) {
             // A ConvexHull encloses volume by construction, so parry's hull of it exists.
             ColliderBuilder::convex_hull(&points).expect("a tumble hull is a valid parry hull")
         }
+        // The body frame is the compound's (its centroid), so the children go in at their
+        // stored poses; rapier weighs them by volume as Tumble does.
+        tumble::Shape::Compound(compound) => ColliderBuilder::compound(
+            compound
+                .children()
+                .iter()
+                .map(|child| {
+                    let q = child.pose.rotation;
+                    let pose = Pose::from_parts(
+                        vector(child.pose.position),
+                        Rotation::from_xyzw(q.x, q.y, q.z, q.w),
+                    );
+                    (pose, convex_child(&child.shape))
+                })
+                .collect(),
+        ),
     }
     .friction(desc.friction)
     .friction_combine_rule(CoefficientCombineRule::GeometricMean)
@@ -189,20 +236,21 @@ struct RapierStages {
 }
 
 impl RapierSimulation {
-    pub fn new(scene: &Scene, settings: SolverSettings) -> Self {
-        let (world, handles) = translate(scene, settings);
+    /// `Err` says why the scene cannot run on rapier faithfully ([`translate`]).
+    pub fn new(scene: &Scene, settings: SolverSettings) -> Result<Self, String> {
+        let (world, handles) = translate(scene, settings)?;
         let dynamic_bodies = handles
             .into_iter()
             .zip(&scene.bodies)
             .filter(|(_, desc)| !desc.is_static())
             .map(|(handle, _)| handle)
             .collect();
-        Self {
+        Ok(Self {
             world,
             dynamic_bodies,
             stage_totals: RapierStages::default(),
             steps_since_reset: 0,
-        }
+        })
     }
 }
 
@@ -328,7 +376,7 @@ mod tests {
     #[test]
     fn translation_keeps_shapes_masses_and_materials() {
         let scene = scene();
-        let (world, handles) = translate(&scene, SolverSettings::Matched);
+        let (world, handles) = translate(&scene, SolverSettings::Matched).unwrap();
         assert_eq!(handles.len(), scene.bodies.len());
         for (desc, &handle) in scene.bodies.iter().zip(&handles) {
             let body = &world.bodies[handle];
@@ -399,6 +447,10 @@ mod tests {
                 Shape::TriMesh(mesh) => {
                     let rapier_mesh = shape.as_trimesh().unwrap();
                     assert_eq!(rapier_mesh.indices(), mesh.triangles());
+                }
+                Shape::Compound(compound) => {
+                    let parts = shape.as_compound().unwrap().shapes();
+                    assert_eq!(parts.len(), compound.children().len());
                 }
                 Shape::ConvexHull(hull) => {
                     let points = shape.as_convex_polyhedron().unwrap().points();

@@ -1,0 +1,54 @@
+// The batches on the device, for a step whose rows, batching and solver all run on the GPU
+// (stages/solver/batched.rs): `gather` lays the rows' constraints out in batch order (the host
+// sends the order: a counting sort of the colors, group_by_batch's twin), and after the solve
+// `impulses` copies each batched constraint's accumulated impulses into a small record, so the
+// host reads 48 bytes a constraint for its warm start instead of the whole constraint.
+
+// Per batched constraint: the accumulated impulse of each point (x, y, z, w = points 0..3)
+// along the normal and the two tangents. Unused points are 0.
+struct BatchedImpulses {
+    normal: vec4<f32>,
+    tangent1: vec4<f32>,
+    tangent2: vec4<f32>,
+}
+
+// Word 0: the number of constraints (in a buffer, so the dispatches serve every step).
+@group(0) @binding(0) var<storage, read> count: array<u32>;
+// order[i]: the constraint (in the rows' order) that goes to batched place i.
+@group(0) @binding(1) var<storage, read> order: array<u32>;
+@group(0) @binding(2) var<storage, read> constraints: array<ContactConstraint>;
+@group(0) @binding(3) var<storage, read_write> batched: array<ContactConstraint>;
+@group(0) @binding(4) var<storage, read_write> impulses: array<BatchedImpulses>;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn gather(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    if index < count[0] {
+        batched[index] = constraints[order[index]];
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn read_impulses(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    if index >= count[0] {
+        return;
+    }
+    // Through a pointer, point by point (a loop-indexed copy would spill, see solver.wgsl).
+    let c = &batched[index];
+    var out = BatchedImpulses(vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0));
+    for (var i = 0u; i < (*c).point_count; i++) {
+        out.normal[i] = (*c).points[i].normal.impulse;
+        out.tangent1[i] = (*c).points[i].tangent[0].impulse;
+        out.tangent2[i] = (*c).points[i].tangent[1].impulse;
+    }
+    impulses[index] = out;
+}
