@@ -56,9 +56,12 @@ use super::hull::{
     CROSSING_BIT, EDGE_CONTACT_BIT, Polyhedron, REFERENCE_IS_A_BIT, edge_contact, face_contact,
     face_query,
 };
-use super::triangle::{FACE_RELATIVE_TOLERANCE, Feature};
+use super::triangle::{
+    FACE_RELATIVE_TOLERANCE, Feature, face_over_inactive_features, push_from_frame,
+    triangle_in_frame,
+};
 use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater, push_contact};
-use crate::collision::manifold::{ContactPoint, Manifold};
+use crate::collision::manifold::Manifold;
 use crate::math::{Transform, Vec3};
 use crate::shape::ConvexHull;
 use crate::shape::convex_hull::{HullEdge, HullFace};
@@ -156,13 +159,7 @@ pub(crate) fn hull_triangle(
     out: &mut Manifold,
 ) {
     // Work in the hull's frame: its vertices, faces and edges stay as stored.
-    let local = Triangle {
-        vertices: triangle
-            .vertices
-            .map(|v| hull_pose.inverse_transform_point(v)),
-        normal: hull_pose.inverse_transform_vector(triangle.normal),
-        active_edges: triangle.active_edges,
-    };
+    let local = triangle_in_frame(triangle, hull_pose);
     let flat = FlatTriangle::new(&local);
     let (hull_view, triangle_view) = (Polyhedron::of_hull(hull), flat.view());
     let Some(axis) = separating_axis(&hull_view, &triangle_view, &local, margin) else {
@@ -170,40 +167,31 @@ pub(crate) fn hull_triangle(
     };
     let mut local_out = Manifold::default();
     contact_on_axis(&hull_view, &triangle_view, axis, margin, &mut local_out);
-    // Internal edges: a sideways normal from a seam of the front side is replaced by the face.
-    let front = local.normal.dot(-local.vertices[0]) >= 0.0;
-    let on_inactive_features = match axis {
-        Axis::TriangleFace(_) => false,
-        // As for boxes, an edge pair's point counts as on the edge, even at its end.
-        Axis::Edges(_, triangle_edge, _) => !local.edge_is_active(triangle_edge),
-        Axis::HullFace(_) => local_out.points().iter().all(|point| {
+    let normal = local_out.normal;
+    face_over_inactive_features(
+        &local,
+        matches!(axis, Axis::TriangleFace(_)),
+        &mut local_out,
+        |point| match axis {
+            // As for boxes, an edge pair's point counts as on the edge, even at its end.
+            Axis::Edges(_, triangle_edge, _) => Feature::Edge(triangle_edge),
             // The point's twin on the triangle: B's surface lies `separation` behind A's.
-            let on_triangle = point.position - local_out.normal * (0.5 * point.separation);
-            let feature = triangle_feature(&local, on_triangle);
-            feature != Feature::Face && !local.feature_is_active(feature)
-        }),
-    };
-    if front && local_out.count > 0 && on_inactive_features {
-        local_out = Manifold::default();
-        let deepest = hull_view.support(-local.normal);
-        if local.normal.dot(deepest - local.vertices[0]) < margin {
-            contact_on_axis(
-                &hull_view,
-                &triangle_view,
-                Axis::TriangleFace(0),
-                margin,
-                &mut local_out,
-            );
-        }
-    }
-    out.normal = hull_pose.transform_vector(local_out.normal);
-    for point in local_out.points() {
-        out.push(ContactPoint::new(
-            hull_pose.transform_point(point.position),
-            point.separation,
-            point.id,
-        ));
-    }
+            _ => triangle_feature(&local, point.position - normal * (0.5 * point.separation)),
+        },
+        |face_out| {
+            let deepest = hull_view.support(-local.normal);
+            if local.normal.dot(deepest - local.vertices[0]) < margin {
+                contact_on_axis(
+                    &hull_view,
+                    &triangle_view,
+                    Axis::TriangleFace(0),
+                    margin,
+                    face_out,
+                );
+            }
+        },
+    );
+    push_from_frame(&local_out, hull_pose, out);
 }
 
 /// The axis of least penetration with the preferences of the module docs, or `None` when some

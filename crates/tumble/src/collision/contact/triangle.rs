@@ -330,49 +330,83 @@ pub(crate) fn box_triangle(
     out: &mut Manifold,
 ) {
     // Work in the box frame: the box is axis aligned at the origin.
-    let local = Triangle {
-        vertices: triangle
-            .vertices
-            .map(|v| box_pose.inverse_transform_point(v)),
-        normal: box_pose.inverse_transform_vector(triangle.normal),
-        active_edges: triangle.active_edges,
-    };
+    let local = triangle_in_frame(triangle, box_pose);
     let half = cuboid.half_extents;
     let Some((axis, normal)) = separating_axis(half, &local, margin) else {
         return;
     };
     let mut local_out = Manifold::default();
     box_triangle_points(half, &local, axis, normal, margin, &mut local_out);
-    // Internal edges: a sideways normal from a seam of the front side is replaced by the face.
-    let front = local.normal.dot(-local.vertices[0]) >= 0.0;
-    if front
-        && !matches!(axis, Axis::TriangleFace)
-        && local_out.count > 0
-        && local_out.points().iter().all(|point| {
-            let feature = triangle_feature(point.id);
-            feature != Feature::Face && !local.feature_is_active(feature)
-        })
-    {
-        local_out = Manifold::default();
-        let (face_separation, _) = axis_separation(half, &local, local.normal);
-        if face_separation < margin {
-            box_triangle_points(
-                half,
-                &local,
-                Axis::TriangleFace,
-                local.normal,
-                margin,
-                &mut local_out,
-            );
-        }
+    face_over_inactive_features(
+        &local,
+        matches!(axis, Axis::TriangleFace),
+        &mut local_out,
+        |point| triangle_feature(point.id),
+        |face_out| {
+            let (face_separation, _) = axis_separation(half, &local, local.normal);
+            if face_separation < margin {
+                box_triangle_points(
+                    half,
+                    &local,
+                    Axis::TriangleFace,
+                    local.normal,
+                    margin,
+                    face_out,
+                );
+            }
+        },
+    );
+    push_from_frame(&local_out, box_pose, out);
+}
+
+/// `triangle` moved into the frame of `pose` (a box's or a hull's), where the polyhedral pairs
+/// work.
+pub(super) fn triangle_in_frame(triangle: &Triangle, pose: &Transform) -> Triangle {
+    Triangle {
+        vertices: triangle.vertices.map(|v| pose.inverse_transform_point(v)),
+        normal: pose.inverse_transform_vector(triangle.normal),
+        active_edges: triangle.active_edges,
     }
-    out.normal = box_pose.transform_vector(local_out.normal);
-    for point in local_out.points() {
+}
+
+/// Appends `local` (a manifold in the frame of `pose`) to `out`, moved back out of that frame.
+pub(super) fn push_from_frame(local: &Manifold, pose: &Transform, out: &mut Manifold) {
+    out.normal = pose.transform_vector(local.normal);
+    for point in local.points() {
         out.push(ContactPoint::new(
-            box_pose.transform_point(point.position),
+            pose.transform_point(point.position),
             point.separation,
             point.id,
         ));
+    }
+}
+
+/// Internal edges for the polyhedral pairs (box and hull against a triangle; module docs): on
+/// the triangle's front side, a contact `out` found on an axis other than the triangle's face
+/// (`on_triangle_face` false) whose every point lies on an inactive edge or vertex is a
+/// sideways normal from a seam, and is replaced by what `face_contact` makes with the
+/// triangle's front face as the reference (nothing when that face separates them by the
+/// margin). `feature_of` names the triangle feature a point of `out` lies on. All in the
+/// shape's frame, where `local` is the triangle and the shape sits at the origin.
+pub(super) fn face_over_inactive_features(
+    local: &Triangle,
+    on_triangle_face: bool,
+    out: &mut Manifold,
+    feature_of: impl Fn(&ContactPoint) -> Feature,
+    face_contact: impl FnOnce(&mut Manifold),
+) {
+    // The shape (at the origin) is on the front side of the triangle's plane.
+    let front = local.normal.dot(-local.vertices[0]) >= 0.0;
+    if !front || on_triangle_face || out.count == 0 {
+        return;
+    }
+    let on_inactive_features = out.points().iter().all(|point| {
+        let feature = feature_of(point);
+        feature != Feature::Face && !local.feature_is_active(feature)
+    });
+    if on_inactive_features {
+        *out = Manifold::default();
+        face_contact(out);
     }
 }
 
