@@ -143,10 +143,25 @@ impl Bvh {
     /// Calls `found` with every primitive whose leaf box overlaps `aabb` and whose own box
     /// overlaps it too (`primitive_aabbs` are the boxes the tree was built from).
     pub fn query_aabb(&self, aabb: &Aabb, primitive_aabbs: &[Aabb], mut found: impl FnMut(u32)) {
+        self.query(
+            |node| node.aabb().overlaps(aabb),
+            |primitive| {
+                if primitive_aabbs[primitive as usize].overlaps(aabb) {
+                    found(primitive);
+                }
+            },
+        );
+    }
+
+    /// Calls `found` with every primitive of every leaf reached through nodes, the root
+    /// included, that pass `enter`: an overlap query with a test of the caller's (a compound
+    /// tests its nodes' boxes turned into the world, `Compound::children_near`). Left child
+    /// first, so the order is fixed.
+    pub fn query(&self, mut enter: impl FnMut(&BvhNode) -> bool, mut found: impl FnMut(u32)) {
         let Some(root) = self.nodes.first() else {
             return;
         };
-        if !root.aabb().overlaps(aabb) {
+        if !enter(root) {
             return;
         }
         // Depth is bounded by the primitive count, not by a constant: a Vec, not an array.
@@ -156,15 +171,13 @@ impl Bvh {
             if node.is_leaf() {
                 let range = node.first as usize..(node.first + node.count) as usize;
                 for &primitive in &self.primitives[range] {
-                    if primitive_aabbs[primitive as usize].overlaps(aabb) {
-                        found(primitive);
-                    }
+                    found(primitive);
                 }
                 continue;
             }
             // Right pushed first: the left child is visited first.
             for child in [node.first + 1, node.first] {
-                if self.nodes[child as usize].aabb().overlaps(aabb) {
+                if enter(&self.nodes[child as usize]) {
                     stack.push(child);
                 }
             }

@@ -27,6 +27,7 @@ pub use shape_cast::{CastError, ShapeSweep, cast_shape};
 pub use sphere_cast::cast_sphere;
 
 use crate::math::{Transform, Vec3};
+use crate::shape::compound::CHILD_QUERY_SLACK;
 use crate::shape::{Capsule, Compound, ConvexHull, Cuboid, Plane, Shape, Sphere, TriMesh};
 
 /// Why a ray could not be made.
@@ -141,7 +142,7 @@ pub fn cast_ray(shape: &Shape, pose: &Transform, ray: &Ray) -> Option<ShapeHit> 
         Shape::ConvexHull(hull) => ray_hull(hull, origin, direction),
         Shape::TriMesh(mesh) => ray_mesh(mesh, origin, direction, ray.max_distance),
         Shape::Compound(compound) => {
-            return nearest_child_hit(compound, pose, |child, child_pose| {
+            return nearest_child_hit(compound, pose, ray, 0.0, |child, child_pose| {
                 cast_ray(child, child_pose, ray)
             });
         }
@@ -321,20 +322,55 @@ fn cylinder_side_hit(
 
 /// The nearest of `cast(child shape, child pose)` over the compound's children at `pose`; on
 /// a tie the lowest child, so the answer does not depend on float noise in the order.
+///
+/// `path` is what `cast` follows and `radius` (m) bounds how far from the path the cast
+/// shape reaches (0 for a ray). With a child BVH, only the children whose boxes (compound
+/// frame) the path enters, grown by `radius` and the compound's query slack, are cast: a
+/// child the cast touches at distance `t` has a point within `radius` of the path's point at
+/// `t`, inside that grown box. Each is cast exactly as the flat loop casts it, and the nearest
+/// is taken by (distance, child index), so the hit is the flat loop's bit for bit.
 fn nearest_child_hit(
     compound: &Compound,
     pose: &Transform,
+    path: &Ray,
+    radius: f32,
     mut cast: impl FnMut(&Shape, &Transform) -> Option<ShapeHit>,
 ) -> Option<ShapeHit> {
-    let mut nearest: Option<ShapeHit> = None;
-    for child in compound.children() {
+    let children = compound.children();
+    let mut nearest: Option<(ShapeHit, u32)> = None;
+    let mut try_child = |index: u32| {
+        let child = &children[index as usize];
         if let Some(hit) = cast(&child.shape, &pose.mul_transform(&child.pose))
-            && nearest.is_none_or(|best| hit.distance < best.distance)
+            && nearest.is_none_or(|(best, best_index)| {
+                (hit.distance, index) < (best.distance, best_index)
+            })
         {
-            nearest = Some(hit);
+            nearest = Some((hit, index));
         }
-    }
-    nearest
+    };
+    let Some(bvh) = compound.child_bvh() else {
+        (0..children.len() as u32).for_each(try_child);
+        return nearest.map(|(hit, _)| hit);
+    };
+    let origin = pose.inverse_transform_point(path.origin);
+    let direction = pose.inverse_transform_vector(path.direction);
+    // Slack at the scale of the path's start as well as of the compound: rounding in moving
+    // the path into the compound frame grows with both.
+    let slack =
+        compound.query_slack(pose) + CHILD_QUERY_SLACK * (origin.abs().max_element() + radius);
+    // Not pruned behind the nearest hit found so far: a cast's distance is exact only up to
+    // its own tolerance, and every child the path passes is cast, as the flat loop does.
+    bvh.sweep(
+        origin,
+        Vec3::splat(radius + slack),
+        direction,
+        path.max_distance + slack,
+        |index, max_t| {
+            try_child(index);
+            max_t
+        },
+    );
+    nearest.map(|(hit, _)| hit)
 }
 
 /// Ray against the solid half-space n·x <= offset: from outside, only a ray heading into the

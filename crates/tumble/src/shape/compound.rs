@@ -21,8 +21,23 @@
 //!
 //! A pair with a compound collides child by child (`collide_compound`; on a triangle mesh, each
 //! child against the triangles); each touching child pair keeps its own manifold in the
-//! narrowphase's child cache. Hull children meet no meshes, as hulls do not. Children are a flat list: every
-//! child is tested, which suits the tens of children a compound built by hand has.
+//! narrowphase's child cache. Hull children meet no meshes, as hulls do not.
+//!
+//! # Child BVH
+//!
+//! A compound of more than [`CHILD_BVH_THRESHOLD`] children keeps a [`Bvh`] over its children's
+//! boxes in the compound frame, built once in [`Compound::new`]; pairs, rays and casts then test
+//! only the children near the other shape or along the path instead of every child. The tree
+//! only narrows the candidates: each candidate still goes through exactly the test the flat list
+//! applies, in ascending child order, so both paths give the same contacts and hits bit for bit
+//! ([`Compound::with_child_bvh`] switches the tree off or on to compare them).
+//!
+//! The tree lives in the compound frame while the pair test compares world boxes (each child's
+//! box at its world pose). A node's box, turned by the compound's rotation, is bounded by the
+//! world box of that turned box, which contains the world box of every child below it (a
+//! child's world box is the tightest box around the turned child, which lies inside the turned
+//! node box). So a node whose turned box misses the query holds no child the flat test keeps.
+//! Rounding separates the two computations by a few ulps; [`CHILD_QUERY_SLACK`] covers that.
 
 use std::sync::Arc;
 
@@ -30,11 +45,26 @@ use glam::{DMat3, DVec3};
 
 use super::convex_hull::{RELATIVE_TOLERANCE, jacobi_eigenvectors, off_diagonal_ratio};
 use super::{Shape, ShapeKind, capsule_inertia};
-use crate::math::{Aabb, Quat, Transform};
+use crate::collision::bvh::{Bvh, BvhNode};
+use crate::math::{Aabb, Mat3, Quat, Transform, Vec3};
 
 /// Most children a compound may have: child manifolds are keyed by `child_a * children_b +
 /// child_b` in a `u32`, which this keeps in range for two compounds of this size.
 pub const MAX_COMPOUND_CHILDREN: usize = 1 << 15;
+
+/// Most children a compound tests as a flat list; past this, [`Compound::new`] builds a child
+/// BVH (module docs). A tree over so few children has two or three leaves of up to
+/// [`MAX_LEAF_SIZE`](crate::collision::bvh::MAX_LEAF_SIZE), and turning its node boxes costs
+/// about what testing the children's own boxes does, so it saves nothing below this; a
+/// hand-built compound (a dumbbell, a table, a chair) stays under it.
+pub const CHILD_BVH_THRESHOLD: usize = 8;
+
+/// Fraction of the query's scale (m per m: the compound's distance from the origin plus its
+/// bounding radius) by which the child BVH's node tests are widened, so that rounding never lets
+/// them drop a child the flat test keeps: 1e-5 is about 80 ulps of f32, where the two
+/// computations (a node's turned box, a child's box at its composed pose) differ by a few. A
+/// wider test only costs a few extra candidates, each then tested exactly.
+pub const CHILD_QUERY_SLACK: f32 = 1.0e-5;
 
 /// One convex part of a compound at `pose` in the compound's frame.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,6 +102,10 @@ pub enum CompoundError {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Compound {
     children: Vec<CompoundChild>,
+    /// Each child's box in the compound frame, what the child BVH is built from.
+    child_aabbs: Vec<Aabb>,
+    /// Over `child_aabbs`, when there are more than [`CHILD_BVH_THRESHOLD`] children.
+    child_bvh: Option<Bvh>,
     local_frame: Transform,
     /// Principal moments of inertia per kg of mass (m²).
     unit_inertia: glam::Vec3,
@@ -129,8 +163,15 @@ impl Compound {
             .iter()
             .map(|child| child.pose.position.length() + child.shape.bounding_radius())
             .fold(0.0, f32::max);
+        let child_aabbs: Vec<Aabb> = children
+            .iter()
+            .map(|child| child.shape.aabb(&child.pose))
+            .collect();
+        let child_bvh = (children.len() > CHILD_BVH_THRESHOLD).then(|| Bvh::build(&child_aabbs));
         Ok(Self {
             children,
+            child_aabbs,
+            child_bvh,
             local_frame,
             unit_inertia: (principal_inertia / volume).as_vec3(),
             bounding_radius,
@@ -140,6 +181,59 @@ impl Compound {
     /// The children, poses in the compound frame.
     pub fn children(&self) -> &[CompoundChild] {
         &self.children
+    }
+
+    /// Each child's box in the compound frame (m), by child index.
+    pub fn child_aabbs(&self) -> &[Aabb] {
+        &self.child_aabbs
+    }
+
+    /// The BVH over [`child_aabbs`](Self::child_aabbs), if the compound has one (module docs).
+    pub fn child_bvh(&self) -> Option<&Bvh> {
+        self.child_bvh.as_ref()
+    }
+
+    /// The same compound with its child BVH built (`true`) or dropped (`false`), whatever its
+    /// number of children. Contacts and hits are the same bit for bit either way, only the time
+    /// differs: for tests and benchmarks that compare the two paths.
+    #[must_use]
+    pub fn with_child_bvh(mut self, enabled: bool) -> Self {
+        self.child_bvh = enabled.then(|| Bvh::build(&self.child_aabbs));
+        self
+    }
+
+    /// Appends to `near`, in ascending order, the index of every child whose world box at
+    /// `pose` (`child.shape.aabb(&pose.mul_transform(&child.pose))`) overlaps `aabb`, and, with a
+    /// child BVH, possibly a few more whose boxes come close: callers test each candidate
+    /// exactly. Without a BVH that is every child.
+    pub fn children_near(&self, pose: &Transform, aabb: &Aabb, near: &mut Vec<u32>) {
+        let start = near.len();
+        let Some(bvh) = &self.child_bvh else {
+            // At most MAX_COMPOUND_CHILDREN (checked in `new`), well inside u32.
+            near.extend(0..self.children.len() as u32);
+            return;
+        };
+        let turned = TurnedNodes::new(pose, self.query_slack(pose));
+        bvh.query(
+            |node| turned.world_box(node).overlaps(aabb),
+            |child| near.push(child),
+        );
+        // The walk's order is deterministic but not ascending; the flat list is.
+        near[start..].sort_unstable();
+    }
+
+    /// A box (world frame, m) around every child's world box at `pose`: the child BVH's root
+    /// turned (and widened by the slack) when there is a tree, else the exact union.
+    pub fn bounds_superset(&self, pose: &Transform) -> Aabb {
+        match self.child_bvh.as_ref().and_then(|bvh| bvh.nodes().first()) {
+            Some(root) => TurnedNodes::new(pose, self.query_slack(pose)).world_box(root),
+            None => self.aabb(pose),
+        }
+    }
+
+    /// [`CHILD_QUERY_SLACK`] at the scale of this compound at `pose` (m).
+    pub fn query_slack(&self, pose: &Transform) -> f32 {
+        CHILD_QUERY_SLACK * (pose.position.abs().max_element() + self.bounding_radius)
     }
 
     /// The compound frame (centroid, principal axes) in the frame the children were given in.
@@ -176,6 +270,36 @@ impl Compound {
             .next()
             .expect("a compound has a child (checked in new)");
         children.fold(first, |all, aabb| all.union(&aabb))
+    }
+}
+
+/// World boxes of child-BVH nodes for a compound at one pose (module docs).
+struct TurnedNodes {
+    pose: Transform,
+    /// `|R|`: the world half extents of a turned box are `|R| · half_extents`.
+    abs_rotation: Mat3,
+    slack: f32,
+}
+
+impl TurnedNodes {
+    fn new(pose: &Transform, slack: f32) -> Self {
+        let rotation = Mat3::from_quat(pose.rotation);
+        Self {
+            pose: *pose,
+            abs_rotation: Mat3::from_cols(
+                rotation.x_axis.abs(),
+                rotation.y_axis.abs(),
+                rotation.z_axis.abs(),
+            ),
+            slack,
+        }
+    }
+
+    /// The world box of `node`'s box turned by the pose, widened by the slack.
+    fn world_box(&self, node: &BvhNode) -> Aabb {
+        let local = node.aabb();
+        let half_extents: Vec3 = self.abs_rotation * local.half_extents() + Vec3::splat(self.slack);
+        Aabb::from_center_half_extents(self.pose.transform_point(local.center()), half_extents)
     }
 }
 
@@ -284,6 +408,53 @@ fn volume_and_unit_inertia(shape: &Shape) -> (f64, DVec3) {
 
 fn diagonal(m: &DMat3) -> DVec3 {
     DVec3::new(m.x_axis.x, m.y_axis.y, m.z_axis.z)
+}
+
+/// Test scenery: `count` children (spheres, boxes, capsules and barrel hulls, 0.1 to 0.3 m)
+/// at random turns on a jittered grid of 0.5 m cells, so that neighbours sometimes overlap,
+/// and a random pose (turned, up to `reach` m from the origin) to put the compound at.
+#[cfg(test)]
+pub(crate) fn random_children(
+    rng: &mut crate::collision::dbvt::tests::TestRng,
+    count: usize,
+) -> Vec<CompoundChild> {
+    let side = (count as f32).cbrt().ceil() as usize;
+    let hull = Shape::convex_hull(
+        &crate::scene::barrel_points()
+            .iter()
+            .map(|point| 0.4 * *point)
+            .collect::<Vec<_>>(),
+    )
+    .expect("the barrel is a hull");
+    (0..count)
+        .map(|index| {
+            let cell = Vec3::new(
+                (index % side) as f32,
+                (index / side % side) as f32,
+                (index / (side * side)) as f32,
+            );
+            let position =
+                0.5 * (cell - Vec3::splat(0.5 * (side - 1) as f32)) + rng.vec3(-0.1, 0.1);
+            let size = rng.range(0.1, 0.3);
+            let shape = match rng.below(4) {
+                0 => Shape::sphere(size),
+                1 => Shape::cuboid(rng.vec3(0.05, size)),
+                2 => Shape::capsule(0.5 * size, size),
+                _ => hull.clone(),
+            };
+            CompoundChild {
+                shape,
+                pose: Transform::new(position, random_rotation(rng)),
+            }
+        })
+        .collect()
+}
+
+/// A random unit quaternion (test scenery).
+#[cfg(test)]
+pub(crate) fn random_rotation(rng: &mut crate::collision::dbvt::tests::TestRng) -> Quat {
+    let q = rng.vec3(-1.0, 1.0).extend(rng.range(-1.0, 1.0));
+    Quat::from_vec4(q).normalize()
 }
 
 #[cfg(test)]
@@ -434,6 +605,43 @@ mod tests {
             "{aabb:?}"
         );
         assert!((aabb.max - vec3(5.5, 1.5, 0.5)).length() < 1e-5, "{aabb:?}");
+    }
+
+    /// `children_near` offers every child whose world box overlaps the query, including one
+    /// that only touches it at a corner: the case where rounding in the turned node boxes would
+    /// drop a child without [`CHILD_QUERY_SLACK`]. Near the origin and 1 km out.
+    #[test]
+    fn children_near_offers_every_child_whose_box_touches_the_query() {
+        let mut rng = crate::collision::dbvt::tests::TestRng::new(3);
+        let compound = Compound::new(random_children(&mut rng, 64)).unwrap();
+        assert!(compound.child_bvh().is_some());
+        let mut near = Vec::new();
+        for trial in 0..2000 {
+            let centre = [Vec3::ZERO, vec3(1000.0, -20.0, 500.0)][trial % 2];
+            // Square turns keep node boxes tight, where rounding decides a touch.
+            let rotation = match trial % 3 {
+                0 => Quat::IDENTITY,
+                1 => Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+                _ => random_rotation(&mut rng),
+            };
+            let pose = Transform::new(centre + rng.vec3(-1.0, 1.0), rotation);
+            let index = rng.below(64);
+            let child = &compound.children()[index];
+            let world = child.shape.aabb(&pose.mul_transform(&child.pose));
+            // A unit box touching the child's world box at its max or min corner.
+            let query = if trial % 4 < 2 {
+                Aabb::new(world.max, world.max + Vec3::ONE)
+            } else {
+                Aabb::new(world.min - Vec3::ONE, world.min)
+            };
+            near.clear();
+            compound.children_near(&pose, &query, &mut near);
+            assert!(
+                near.contains(&(index as u32)),
+                "trial {trial}: child {index}"
+            );
+            assert!(near.is_sorted());
+        }
     }
 
     #[test]

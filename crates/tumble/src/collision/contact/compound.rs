@@ -2,10 +2,14 @@
 //! that is not a compound is its own single child), each touching child pair giving its own
 //! manifold, as a mesh's triangles do (a dumbbell on the floor touches it with two spheres,
 //! each with its own normal and its own persistent manifold in the narrowphase's child cache).
+//!
+//! A compound with a child BVH (`shape::compound`, module docs) offers only the children near
+//! the other side as candidates; every candidate pair then takes the flat path's box test and
+//! contact function, in the same ascending order, so the manifolds are the same bit for bit.
 
 use super::collide;
 use crate::collision::manifold::Manifold;
-use crate::math::Transform;
+use crate::math::{Aabb, Transform};
 use crate::shape::Shape;
 
 /// Mixes a child pair's index into its points' feature ids, so that equal ids of different
@@ -28,11 +32,22 @@ pub fn collide_compound(
 ) {
     found.clear();
     let children_b = part_count(b);
-    for_each_part(a, pose_a, |index_a, part_a, part_pose_a| {
+    // A's children that may touch B at all: near a box around all of B's children's boxes, so
+    // no child pair the box test below keeps is left out.
+    let b_bounds = || match b {
+        Shape::Compound(compound) => compound.bounds_superset(pose_b),
+        _ => b.aabb(pose_b),
+    };
+    let (mut near_a, mut near_b) = (Vec::new(), Vec::new());
+    parts_near(a, pose_a, || b_bounds().expanded(margin), &mut near_a);
+    for &index_a in &near_a {
+        let (part_a, part_pose_a) = part(a, pose_a, index_a);
         let bounds_a = part_a.aabb(&part_pose_a).expanded(margin);
-        for_each_part(b, pose_b, |index_b, part_b, part_pose_b| {
+        parts_near(b, pose_b, || bounds_a, &mut near_b);
+        for &index_b in &near_b {
+            let (part_b, part_pose_b) = part(b, pose_b, index_b);
             if !bounds_a.overlaps(&part_b.aabb(&part_pose_b)) {
-                return;
+                continue;
             }
             let mut manifold = Manifold::default();
             collide(
@@ -44,13 +59,13 @@ pub fn collide_compound(
                 &mut manifold,
             );
             if manifold.count == 0 {
-                return;
+                continue;
             }
             let child = index_a * children_b + index_b;
             mix_child_ids(&mut manifold, child);
             found.push((child, manifold));
-        });
-    });
+        }
+    }
 }
 
 /// Makes the feature ids of `manifold`, found for child (pair) `child`, differ from those of
@@ -72,14 +87,102 @@ fn part_count(shape: &Shape) -> u32 {
     }
 }
 
-/// Calls `visit(index, part, world pose)` for each child of `shape` at `pose`, in order.
-fn for_each_part(shape: &Shape, pose: &Transform, mut visit: impl FnMut(u32, &Shape, Transform)) {
+/// Sets `near` to the indices, ascending, of the children of `shape` at `pose` that
+/// [`Compound::children_near`] offers for the box `query()` (built only for a compound with a
+/// child BVH; without one, every child), or to `[0]` for a shape that is not a compound.
+fn parts_near(shape: &Shape, pose: &Transform, query: impl FnOnce() -> Aabb, near: &mut Vec<u32>) {
+    near.clear();
+    match shape {
+        Shape::Compound(compound) if compound.child_bvh().is_some() => {
+            compound.children_near(pose, &query(), near);
+        }
+        _ => near.extend(0..part_count(shape)),
+    }
+}
+
+/// Child `index` of `shape` (the shape itself, index 0, when it is not a compound) and its
+/// world pose when `shape` is at `pose`.
+fn part<'a>(shape: &'a Shape, pose: &Transform, index: u32) -> (&'a Shape, Transform) {
     match shape {
         Shape::Compound(compound) => {
-            for (index, child) in compound.children().iter().enumerate() {
-                visit(index as u32, &child.shape, pose.mul_transform(&child.pose));
-            }
+            let child = &compound.children()[index as usize];
+            (&child.shape, pose.mul_transform(&child.pose))
         }
-        _ => visit(0, shape, *pose),
+        _ => (shape, *pose),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::collision::dbvt::tests::TestRng;
+    use crate::math::{Vec3, vec3};
+    use crate::shape::compound::{random_children, random_rotation};
+    use crate::shape::{Compound, CompoundChild};
+    use std::sync::Arc;
+
+    /// The compound of `children` with its child BVH and without.
+    fn both_ways(children: Vec<CompoundChild>) -> [Shape; 2] {
+        let compound = Compound::new(children).unwrap();
+        [true, false].map(|bvh| Shape::Compound(Arc::new(compound.clone().with_child_bvh(bvh))))
+    }
+
+    /// The child BVH only narrows the candidates: against every kind of shape and another
+    /// compound (with and without its own tree), in both argument orders, at random poses
+    /// near the origin and 1 km out, the child pairs and their manifolds are the flat loop's
+    /// bit for bit.
+    #[test]
+    fn child_bvh_finds_the_flat_loops_child_pairs_exactly() {
+        let mut rng = TestRng::new(5);
+        let [tree, flat] = both_ways(random_children(&mut rng, 64));
+        let [other_tree, other_flat] = both_ways(random_children(&mut rng, 27));
+        assert!(matches!(&tree, Shape::Compound(c) if c.child_bvh().is_some()));
+        assert!(matches!(&flat, Shape::Compound(c) if c.child_bvh().is_none()));
+        let others = [
+            Shape::sphere(0.4),
+            Shape::cuboid(vec3(0.6, 0.2, 0.3)),
+            Shape::capsule(0.2, 0.5),
+            Shape::convex_hull(&crate::scene::barrel_points()).unwrap(),
+            Shape::plane(Vec3::Y, 0.0),
+        ];
+        let (mut pairs, mut touching) = (0, 0);
+        for trial in 0..400 {
+            let origin = if trial % 2 == 0 {
+                Vec3::ZERO
+            } else {
+                vec3(1000.0, -20.0, 500.0)
+            };
+            let pose = Transform::new(origin + rng.vec3(-0.3, 0.3), random_rotation(&mut rng));
+            let other_pose =
+                Transform::new(origin + rng.vec3(-1.8, 1.8), random_rotation(&mut rng));
+            let margin = [0.0, 0.02, 0.3][trial % 3];
+            let mut check =
+                |a: &Shape, pose_a, b: &Shape, pose_b, flat_a: &Shape, flat_b: &Shape| {
+                    let (mut with_tree, mut without) = (Vec::new(), Vec::new());
+                    collide_compound(a, pose_a, b, pose_b, margin, &mut with_tree);
+                    collide_compound(flat_a, pose_a, flat_b, pose_b, margin, &mut without);
+                    assert_eq!(
+                        with_tree,
+                        without,
+                        "trial {trial}: {:?} {:?}",
+                        a.kind(),
+                        b.kind()
+                    );
+                    pairs += 1;
+                    touching += usize::from(!without.is_empty());
+                };
+            for other in &others {
+                check(&tree, &pose, other, &other_pose, &flat, other);
+                check(other, &other_pose, &tree, &pose, other, &flat);
+            }
+            check(&tree, &pose, &other_tree, &other_pose, &flat, &other_flat);
+            check(&other_tree, &other_pose, &tree, &pose, &other_flat, &flat);
+            check(&tree, &pose, &other_flat, &other_pose, &flat, &other_flat);
+        }
+        // Most pairs touch through some children, and some do not at all: both sides tested.
+        assert!(
+            touching > pairs / 2 && touching < pairs,
+            "{touching} of {pairs}"
+        );
     }
 }

@@ -200,9 +200,13 @@ pub fn cast_shape(sweep: &ShapeSweep, target: &Shape, pose: &Transform) -> Optio
         Shape::ConvexHull(hull) => sweep_convex(sweep, &**hull, pose),
         Shape::Plane(plane) => sweep_plane(sweep, plane, pose),
         Shape::TriMesh(mesh) => sweep_mesh(sweep, mesh, pose),
-        Shape::Compound(compound) => nearest_child_hit(compound, pose, |child, child_pose| {
-            cast_shape(sweep, child, child_pose)
-        }),
+        Shape::Compound(compound) => nearest_child_hit(
+            compound,
+            pose,
+            &sweep.path,
+            sweep.bounding_radius,
+            |child, child_pose| cast_shape(sweep, child, child_pose),
+        ),
     }
 }
 

@@ -58,7 +58,7 @@ pub fn cast_sphere(radius: f32, shape: &Shape, pose: &Transform, ray: &Ray) -> O
             return cast_shape(&ShapeSweep::ball(&ball, ray), shape, pose);
         }
         Shape::Compound(compound) => {
-            return nearest_child_hit(compound, pose, |child, child_pose| {
+            return nearest_child_hit(compound, pose, ray, radius, |child, child_pose| {
                 cast_sphere(radius, child, child_pose, ray)
             });
         }

@@ -328,7 +328,8 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
 /// The triangle manifolds of `shape` (at `pose`) on `mesh` (at `mesh_pose`), coplanar ones
 /// merged, normals from the mesh to the shape, sorted by child index. A compound's children
 /// each get their own: child index `child * triangles + triangle` (`World::add_body` keeps it
-/// in a u32), ids mixed with the child's so that children never trade impulses by id.
+/// in a u32), ids mixed with the child's so that children never trade impulses by id. With a
+/// child BVH only the children near the mesh's bounds are tried, which changes no manifold.
 fn mesh_children(
     shape: &Shape,
     pose: &Transform,
@@ -342,8 +343,20 @@ fn mesh_children(
         return merge_coplanar(found, mesh, mesh_pose.rotation);
     };
     let triangles = mesh.triangles().len() as u32;
+    let mut near = Vec::new();
+    match (compound.child_bvh(), mesh.bvh().root_aabb()) {
+        // Only children near the mesh's bounds can meet a triangle: `collide_mesh` finds
+        // none for a child whose box (mesh frame, grown by the margin) misses them.
+        (Some(_), Some(mesh_bounds)) => {
+            let in_mesh_frame = mesh_pose.inverse().mul_transform(pose);
+            compound.children_near(&in_mesh_frame, &mesh_bounds.expanded(margin), &mut near);
+        }
+        (Some(_), None) => {}
+        (None, _) => near.extend(0..compound.children().len() as u32),
+    }
     let mut all = Vec::new();
-    for (index, child) in compound.children().iter().enumerate() {
+    for index in near {
+        let child = &compound.children()[index as usize];
         let child_pose = pose.mul_transform(&child.pose);
         collide_mesh(
             &child.shape,
@@ -353,12 +366,12 @@ fn mesh_children(
             margin,
             &mut found,
         );
-        let first = index as u32 * triangles;
+        let first = index * triangles;
         all.extend(
             merge_coplanar(std::mem::take(&mut found), mesh, mesh_pose.rotation)
                 .into_iter()
                 .map(|(triangle, mut manifold)| {
-                    mix_child_ids(&mut manifold, index as u32);
+                    mix_child_ids(&mut manifold, index);
                     (first + triangle, manifold)
                 }),
         );
