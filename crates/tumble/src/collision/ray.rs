@@ -23,7 +23,7 @@
 mod shape_cast;
 mod sphere_cast;
 
-pub use shape_cast::{CastError, ShapeSweep, cast_shape};
+pub use shape_cast::{CastError, ShapeSweep, SweptParts, cast_shape};
 pub use sphere_cast::cast_sphere;
 
 use crate::math::{Transform, Vec3};

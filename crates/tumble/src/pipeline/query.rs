@@ -26,9 +26,7 @@
 //! Determinism: ties are broken by body index. Closest hit: the smallest distance, then the
 //! lowest index; all hits: sorted by (distance, index); box query: by index.
 
-use crate::collision::ray::{
-    CastError, Ray, ShapeHit, ShapeSweep, cast_ray, cast_shape, cast_sphere,
-};
+use crate::collision::ray::{CastError, Ray, ShapeHit, SweptParts, cast_ray, cast_sphere};
 use crate::dynamics::body::BodyHandle;
 use crate::math::{Aabb, Transform, Vec3};
 use crate::pipeline::world::World;
@@ -160,12 +158,14 @@ impl World {
         }))
     }
 
-    /// Sweeps convex `shape` (sphere, capsule, box or convex hull) from `pose` along
-    /// `direction` (any non-zero length) for at most `max_distance` (m), without turning;
+    /// Sweeps `shape` (sphere, capsule, box, convex hull, or a compound of them) from `pose`
+    /// along `direction` (any non-zero length) for at most `max_distance` (m), without turning;
     /// returns the first body it touches (`distance`: how far the shape travelled; `point`: the
     /// contact; `normal`: the body's outward normal there), ties to the lower body index. A
     /// shape that already touches a body at the start hits it at 0, at `pose.position`, with
-    /// the normal `-direction`. See [`cast_shape`] for the method.
+    /// the normal `-direction`. See [`cast_shape`](crate::collision::ray::cast_shape) for the
+    /// method; a compound is the first hit
+    /// of its children, each swept from its own pose ([`SweptParts`]).
     ///
     /// ```
     /// use tumble::{BodyDesc, QueryFilter, Shape, StepConfig, World};
@@ -189,7 +189,7 @@ impl World {
         max_distance: f32,
         filter: &QueryFilter,
     ) -> Result<Option<RayHit>, QueryError> {
-        let sweep = ShapeSweep::new(shape, pose, direction, max_distance)?;
+        let sweep = SweptParts::new(shape, pose, direction, max_distance)?;
         // The broadphase walk is a ray walk over boxes grown by the shape's bounding radius:
         // the swept shape stays within that distance of its path.
         Ok(
@@ -198,8 +198,11 @@ impl World {
                     return None;
                 }
                 let i = index as usize;
-                let sweep = sweep.with_max_distance(path.max_distance());
-                let hit = cast_shape(&sweep, &self.colliders[i].shape, &self.poses[i].transform())?;
+                let hit = sweep.cast(
+                    &self.colliders[i].shape,
+                    &self.poses[i].transform(),
+                    path.max_distance(),
+                )?;
                 Some(RayHit {
                     body: self.handle_of(index),
                     distance: hit.distance,

@@ -49,8 +49,8 @@ const MAX_ITERATIONS: usize = 64;
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum CastError {
     #[error(
-        "only convex shapes can be swept (sphere, capsule, box, convex hull), not a {0:?}; \
-         cast each convex part instead"
+        "only convex shapes (sphere, capsule, box, convex hull) and compounds of them can be \
+         swept, not a {0:?}"
     )]
     NotConvex(ShapeKind),
     #[error(
@@ -186,6 +186,99 @@ impl<'a> ShapeSweep<'a> {
             point: self.path.origin(),
             normal: -self.path.direction(),
         }
+    }
+}
+
+/// A convex shape or a compound swept without turning: one [`ShapeSweep`] per convex part (a
+/// convex shape is its own one part; a compound's children each start from their own pose),
+/// all travelling the same direction and distance together. What
+/// [`World::cast_shape`](crate::World::cast_shape) sweeps.
+#[derive(Clone, Debug)]
+pub struct SweptParts<'a> {
+    parts: Vec<ShapeSweep<'a>>,
+    /// From the shape's pose along the unit direction.
+    path: Ray,
+    bounding_radius: f32,
+}
+
+impl<'a> SweptParts<'a> {
+    /// `shape` at `pose` moving along `direction` (any non-zero length) for at most
+    /// `max_distance` (m); errors as [`ShapeSweep::new`], which checks each part, and
+    /// [`CastError::NotConvex`] for a plane or a mesh.
+    pub fn new(
+        shape: &'a Shape,
+        pose: &Transform,
+        direction: Vec3,
+        max_distance: f32,
+    ) -> Result<Self, CastError> {
+        let Shape::Compound(compound) = shape else {
+            let sweep = ShapeSweep::new(shape, pose, direction, max_distance)?;
+            return Ok(Self {
+                parts: vec![sweep],
+                path: sweep.path,
+                bounding_radius: sweep.bounding_radius,
+            });
+        };
+        if !pose.rotation.is_finite() {
+            return Err(CastError::RotationNotFinite(pose.rotation));
+        }
+        let length_squared = pose.rotation.length_squared();
+        if length_squared == 0.0 || !length_squared.is_normal() {
+            return Err(CastError::ZeroRotation);
+        }
+        // Normalized before it places the children: a scaled rotation would move them.
+        let pose = Transform::new(pose.position, pose.rotation / length_squared.sqrt());
+        let path = Ray::new(pose.position, direction, max_distance)?;
+        let parts = compound
+            .children()
+            .iter()
+            .map(|child| {
+                ShapeSweep::new(
+                    &child.shape,
+                    &pose.mul_transform(&child.pose),
+                    direction,
+                    max_distance,
+                )
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Self {
+            parts,
+            path,
+            bounding_radius: compound.bounding_radius(),
+        })
+    }
+
+    /// The path of the shape's origin: from the pose's position, unit direction.
+    pub fn path(&self) -> &Ray {
+        &self.path
+    }
+
+    /// Distance from the path to the farthest point of the shape (m).
+    pub fn bounding_radius(&self) -> f32 {
+        self.bounding_radius
+    }
+
+    /// The first contact of any part with `target` at `pose` within `max_distance` (m, at
+    /// most the sweep's own): the smallest distance, ties to the lowest part. A part that
+    /// touches the target at the start makes the whole shape's start hit: distance 0, at the
+    /// path's origin, normal `-direction`.
+    pub fn cast(&self, target: &Shape, pose: &Transform, max_distance: f32) -> Option<ShapeHit> {
+        let mut first: Option<ShapeHit> = None;
+        for part in &self.parts {
+            if let Some(hit) = cast_shape(&part.with_max_distance(max_distance), target, pose)
+                && first.is_none_or(|best| hit.distance < best.distance)
+            {
+                first = Some(hit);
+            }
+        }
+        first.map(|hit| match hit.distance {
+            0.0 => ShapeHit {
+                distance: 0.0,
+                point: self.path.origin(),
+                normal: -self.path.direction(),
+            },
+            _ => hit,
+        })
     }
 }
 

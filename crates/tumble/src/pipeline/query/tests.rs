@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::collision::dbvt::tests::TestRng;
-use crate::collision::ray::{RayError, cast_sphere};
+use crate::collision::ray::{RayError, ShapeSweep, cast_shape, cast_sphere};
 use crate::dynamics::body::BodyDesc;
 use crate::math::{Quat, Transform, vec3};
 use crate::pipeline::config::StepConfig;
@@ -245,4 +245,106 @@ fn bad_boxes_are_errors() {
         world.intersect_aabb(&inverted, &filter, &mut found),
         Err(QueryError::AabbInverted { .. })
     ));
+}
+
+/// A compound swept through a random world hits what its first child to hit hits: the oracle
+/// sweeps each child alone from its own pose through `World::cast_shape` and takes the
+/// smallest (distance, body), ties to the lower child. Compounds of 3 and of 64 children (the
+/// targets' compounds too go through their child BVHs), turned at random, with and without a
+/// filter.
+#[test]
+fn a_swept_compound_hits_first_where_its_first_child_does() {
+    use crate::shape::compound::{random_children, random_rotation};
+    let mut rng = TestRng::new(31);
+    let mut world = random_world(&mut rng, 60, 10);
+    // Compounds among the targets as well.
+    for _ in 0..6 {
+        let target = Shape::compound(random_children(&mut rng, 20)).unwrap();
+        world
+            .add_body(
+                BodyDesc::fixed(target)
+                    .position(vec3(0.0, 4.0, 0.0) + rng.vec3(-8.0, 8.0))
+                    .rotation(random_rotation(&mut rng)),
+            )
+            .unwrap();
+    }
+    let small = Shape::compound(random_children(&mut rng, 3)).unwrap();
+    let large = Shape::compound(random_children(&mut rng, 64)).unwrap();
+    let odd = |body: BodyHandle| body.index() % 2 == 1;
+    let filters = [
+        QueryFilter::default(),
+        QueryFilter::default().predicate(&odd),
+    ];
+    let (mut hits, mut starts) = (0, 0);
+    for case in 0..200 {
+        let shape = [&small, &large][case % 2];
+        let Shape::Compound(compound) = shape else {
+            unreachable!("built as compounds")
+        };
+        let filter = &filters[case / 2 % filters.len()];
+        let ray = random_ray(&mut rng);
+        let pose = Transform::new(ray.origin(), random_rotation(&mut rng));
+        let (direction, max) = (ray.direction(), ray.max_distance());
+        let cast = world
+            .cast_shape(shape, &pose, direction, max, filter)
+            .unwrap();
+        let mut expected: Option<RayHit> = None;
+        // The children are placed by the pose with its rotation normalized, as the cast does.
+        let unit = Transform::new(
+            pose.position,
+            pose.rotation / pose.rotation.length_squared().sqrt(),
+        );
+        for child in compound.children() {
+            let child_pose = unit.mul_transform(&child.pose);
+            let hit = world
+                .cast_shape(&child.shape, &child_pose, direction, max, filter)
+                .unwrap();
+            if let Some(hit) = hit
+                && expected.is_none_or(|best| {
+                    (hit.distance, hit.body.index()) < (best.distance, best.body.index())
+                })
+            {
+                expected = Some(hit);
+            }
+        }
+        // A child touching at the start makes the compound's start hit, at its own origin.
+        if let Some(hit) = &mut expected
+            && hit.distance == 0.0
+        {
+            hit.point = pose.position;
+            starts += 1;
+        }
+        assert_eq!(cast, expected, "case {case}");
+        hits += usize::from(cast.is_some());
+    }
+    assert!(hits > 50 && hits < 200, "{hits} hits");
+    assert!(starts > 0, "no start hit tested");
+    // Bad poses are typed errors, as for convex shapes; planes and meshes still cannot sweep.
+    let bad = Transform::new(Vec3::ZERO, Quat::from_xyzw(0.0, 0.0, 0.0, 0.0));
+    assert_eq!(
+        world.cast_shape(&large, &bad, Vec3::X, 1.0, &QueryFilter::default()),
+        Err(QueryError::Cast(CastError::ZeroRotation))
+    );
+    assert_eq!(
+        world.cast_shape(
+            &large,
+            &Transform::IDENTITY,
+            Vec3::ZERO,
+            1.0,
+            &QueryFilter::default()
+        ),
+        Err(QueryError::Cast(CastError::Path(RayError::ZeroDirection)))
+    );
+    assert_eq!(
+        world.cast_shape(
+            &Shape::plane(Vec3::Y, 0.0),
+            &Transform::IDENTITY,
+            Vec3::X,
+            1.0,
+            &QueryFilter::default()
+        ),
+        Err(QueryError::Cast(CastError::NotConvex(
+            crate::shape::ShapeKind::Plane
+        )))
+    );
 }
