@@ -164,8 +164,8 @@ impl World {
     /// contact; `normal`: the body's outward normal there), ties to the lower body index. A
     /// shape that already touches a body at the start hits it at 0, at `pose.position`, with
     /// the normal `-direction`. See [`cast_shape`](crate::collision::ray::cast_shape) for the
-    /// method; a compound is the first hit
-    /// of its children, each swept from its own pose ([`SweptParts`]).
+    /// method; a compound hits where its first child to hit does, each child swept from its
+    /// own pose ([`SweptParts`]).
     ///
     /// ```
     /// use tumble::{BodyDesc, QueryFilter, Shape, StepConfig, World};

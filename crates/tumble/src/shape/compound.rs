@@ -191,12 +191,8 @@ impl Compound {
         &self.children
     }
 
-    /// Each child's box in the compound frame (m), by child index.
-    pub fn child_aabbs(&self) -> &[Aabb] {
-        &self.child_aabbs
-    }
-
-    /// The BVH over [`child_aabbs`](Self::child_aabbs), if the compound has one (module docs).
+    /// The BVH over the children's boxes in the compound frame, if the compound has one
+    /// (module docs); its primitives are child indices.
     pub fn child_bvh(&self) -> Option<&Bvh> {
         self.child_bvh.as_ref()
     }
@@ -419,8 +415,7 @@ fn diagonal(m: &DMat3) -> DVec3 {
 }
 
 /// Test scenery: `count` children (spheres, boxes, capsules and barrel hulls, 0.1 to 0.3 m)
-/// at random turns on a jittered grid of 0.5 m cells, so that neighbours sometimes overlap,
-/// and a random pose (turned, up to `reach` m from the origin) to put the compound at.
+/// at random turns on a jittered grid of 0.5 m cells, so that neighbours sometimes overlap.
 #[cfg(test)]
 pub(crate) fn random_children(
     rng: &mut crate::collision::dbvt::tests::TestRng,
