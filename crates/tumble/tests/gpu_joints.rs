@@ -352,3 +352,100 @@ fn a_joint_breaks_on_the_gpu_world_at_the_cpu_step() {
         assert!(sag < 0.01, "{name}: the unbreakable beam sagged {sag} m");
     }
 }
+
+/// Bit patterns of a body's pose and angular velocity, for bitwise comparisons.
+fn body_bits(world: &World, body: BodyHandle) -> [u32; 10] {
+    let pose = world.pose(body).unwrap();
+    let spin = world.angular_velocity(body).unwrap();
+    let mut bits = [0; 10];
+    for (bit, value) in bits.iter_mut().zip(
+        pose.position
+            .to_array()
+            .into_iter()
+            .chain(pose.rotation.to_array())
+            .chain(spin.to_array()),
+    ) {
+        *bit = value.to_bits();
+    }
+    bits
+}
+
+/// Rows, batching and solver all on the GPU keep the contact rows on the device and send the
+/// joint rows (built on the host) down beside them, solved in the same batched dispatches,
+/// with only impulses read back: the same step, bit for bit, as with the batching on the CPU,
+/// where every row goes through the host. Six ragdolls fall into a pile, the top one dragged
+/// by its pelvis, so contacts, joints and the drag share batches and carry their impulses
+/// from step to step.
+#[test]
+fn joints_beside_rows_kept_on_the_gpu_give_the_step_through_the_host_exactly() {
+    let _turn = gpu_common::context();
+    let world = |stages: &[Stage]| {
+        let mut world = ragdolls(false);
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        world
+    };
+    let mut chained = world(&[Stage::Constraints, Stage::Batching, Stage::Solver]);
+    let mut through_host = world(&[Stage::Constraints, Stage::Solver]);
+    let bodies: Vec<BodyHandle> = chained.bodies().collect();
+    let joints: Vec<JointHandle> = chained.joints().map(|(joint, _)| joint).collect();
+    // The top ragdoll's first capsule, its pelvis, pulled up and aside.
+    let dragged = bodies[bodies.len() - 11];
+    let target = chained.pose(dragged).unwrap().position + Vec3::new(0.5, 0.5, 0.0);
+    let mut most_contacts = 0;
+    for step in 0..90 {
+        for world in [&mut chained, &mut through_host] {
+            world
+                .set_drag_target(dragged, Vec3::ZERO, target, 200.0)
+                .unwrap();
+            world.try_step().unwrap();
+        }
+        let (a, b) = (chained.stats(), through_host.stats());
+        assert_eq!(
+            (a.manifolds, a.contacts, a.joints, &a.batch_histogram),
+            (b.manifolds, b.contacts, b.joints, &b.batch_histogram),
+            "step {step}"
+        );
+        most_contacts = most_contacts.max(a.contacts);
+        for &body in &bodies {
+            assert_eq!(
+                body_bits(&chained, body),
+                body_bits(&through_host, body),
+                "step {step}: {body:?}"
+            );
+        }
+        // The joints' impulses, read back for the warm start and the break test.
+        let impulse_bits = |world: &World, joint: JointHandle| {
+            let joint = world.joint(joint).unwrap();
+            let impulses = joint.point_impulse.to_array().into_iter();
+            let impulses = impulses.chain(joint.angular_impulse);
+            impulses.map(f32::to_bits).collect::<Vec<u32>>()
+        };
+        for &joint in &joints {
+            assert_eq!(
+                impulse_bits(&chained, joint),
+                impulse_bits(&through_host, joint),
+                "step {step}: {joint:?}"
+            );
+        }
+    }
+    assert!(most_contacts > 10, "too few contacts to compare");
+    // The rows stayed on the device: no copy of them to the host in the chained world.
+    let copies_rows_back = |world: &World| {
+        let report = world.profiler().report();
+        let constraints = report
+            .root
+            .children
+            .iter()
+            .find(|line| line.name == "constraints")
+            .expect("a constraints line");
+        constraints
+            .children
+            .iter()
+            .any(|line| line.name == "copy to cpu")
+    };
+    assert!(!copies_rows_back(&chained) && copies_rows_back(&through_host));
+}
