@@ -488,12 +488,16 @@ impl World {
     /// and into the broadphase's fixed tree.
     fn fall_asleep(&mut self) {
         let colliders = &self.colliders;
-        self.islands.update_timers(
+        let any_rested = self.islands.update_timers(
             &self.velocities,
             &self.masses,
             |i| colliders[i].shape.bounding_radius(),
             self.config.dt,
         );
+        // No body has rested long enough to sleep: no island can (see update_timers).
+        if !any_rested {
+            return;
+        }
         let contacts = self.pairs.keys().iter().zip(self.pairs.values());
         let contact_edges = contacts
             .filter(|(_, contact)| contact.manifold.count > 0)
