@@ -562,15 +562,25 @@ fn solver_structs_match_rust() {
 /// the constraint structs, whose layouts `solver_structs_match_rust` checks.
 #[test]
 fn batched_impulses_match_rust() {
-    use tumble::stages::solver::batched::{BatchedImpulses, wgsl};
+    use tumble::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, wgsl};
     check_with_gpu_only(
         wgsl(),
-        vec![rust_layout!(BatchedImpulses {
-            normal,
-            tangent1,
-            tangent2
-        })],
-        &["Softness", "Row", "ConstraintPoint", "ContactConstraint"],
+        vec![
+            rust_layout!(BatchedImpulses {
+                normal,
+                tangent1,
+                tangent2
+            }),
+            rust_layout!(BatchedJointImpulses { point, angular }),
+        ],
+        &[
+            "Softness",
+            "Row",
+            "ConstraintPoint",
+            "ContactConstraint",
+            "JointFrame",
+            "JointConstraint",
+        ],
     );
 }
 

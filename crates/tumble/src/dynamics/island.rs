@@ -92,25 +92,32 @@ impl Islands {
 
     /// Adds `dt` to the rest time of each awake dynamic body slower than [`SLEEP_SPEED`] at
     /// every point within `bounding_radius(body)` of its centre, and resets the others.
+    /// Returns whether any awake body has now rested [`TIME_TO_SLEEP`]: an island sleeps only
+    /// when all its bodies have, so until one has, [`Self::fall_asleep`] would find nothing to
+    /// put to sleep, and the caller can skip it (and the union-find over every body and
+    /// contact: a falling scene does).
     pub fn update_timers(
         &mut self,
         velocities: &[BodyVelocity],
         masses: &[BodyMass],
         bounding_radius: impl Fn(usize) -> f32,
         dt: f32,
-    ) {
+    ) -> bool {
+        let mut any_rested = false;
         for (i, state) in self.states.iter_mut().enumerate() {
             if state.is_asleep() || masses[i].inverse_mass == 0.0 {
                 continue;
             }
             let velocity = &velocities[i];
-            let speed = velocity.linear.length() + bounding_radius(i) * velocity.angular.length();
-            state.timer = if speed < SLEEP_SPEED {
-                state.timer + dt
-            } else {
-                0.0
-            };
+            let linear = velocity.linear.length();
+            // The angular term is ≥ 0 and rounding is monotone, so a body whose centre alone
+            // moves at SLEEP_SPEED is not resting: a falling body needs no bounding radius.
+            let resting = linear < SLEEP_SPEED
+                && linear + bounding_radius(i) * velocity.angular.length() < SLEEP_SPEED;
+            state.timer = if resting { state.timer + dt } else { 0.0 };
+            any_rested |= state.timer >= TIME_TO_SLEEP;
         }
+        any_rested
     }
 
     /// Finds the islands of the awake dynamic bodies joined by `edges` (body pairs of contacts
@@ -303,6 +310,32 @@ mod tests {
         assert!(masses[..3].iter().all(|m| *m == dynamic()));
         assert!(islands.state(3).is_asleep());
         assert_eq!(islands.sleeping_count(), 1);
+    }
+
+    #[test]
+    fn update_timers_says_when_an_island_may_fall_asleep() {
+        // Body 0 rests; body 1 spins in place, its centre still, so it never rests.
+        let mut masses = vec![dynamic(), dynamic()];
+        let mut velocities = vec![BodyVelocity::default(); 2];
+        velocities[1].angular = Vec3::Y;
+        let mut islands = Islands::default();
+        islands.resize(2);
+        let mut asleep = Vec::new();
+        // Steps of 1/8 s: body 0's rest time reaches TIME_TO_SLEEP exactly, at the fourth.
+        for step in 1..=4 {
+            let any_rested = islands.update_timers(&velocities, &masses, |_| 1.0, 0.125);
+            assert_eq!(any_rested, step == 4, "step {step}");
+            islands.fall_asleep(
+                std::iter::empty(),
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
+            assert_eq!(asleep.is_empty(), !any_rested, "step {step}");
+        }
+        assert_eq!(asleep, [0]);
+        assert_eq!(islands.state(1).timer, 0.0);
     }
 
     #[test]

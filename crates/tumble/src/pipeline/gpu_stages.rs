@@ -14,7 +14,7 @@ use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
-use crate::stages::solver::batched::{BatchedImpulses, GpuBatched};
+use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
 
@@ -125,7 +125,7 @@ pub(crate) struct GpuStages {
     /// The batches kept on the device when rows, batching and solver all run here.
     batched: GpuBatched,
     /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
-    /// joints) on the device.
+    /// joints) on the device; [`Self::solve_batched`] uses the offsets and the bodies.
     solver_bodies: GpuVec<SolverBody>,
     batched_contacts: GpuVec<ContactConstraint>,
     batch_offsets: GpuVec<u32>,
@@ -137,8 +137,6 @@ pub(crate) struct GpuStages {
     old_contacts: GpuVec<PairContact>,
     contacts: GpuVec<PairContact>,
     skipped: GpuVec<u64>,
-    /// Zero joint offsets for [`Self::solve_batched`], kept to avoid allocating each step.
-    no_joint_offsets: Vec<u32>,
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
     pair_contacts_fresh: bool,
@@ -149,6 +147,7 @@ pub(crate) struct GpuStages {
     downloaded_bodies: Vec<SolverBody>,
     downloaded_constraints: Vec<ContactConstraint>,
     downloaded_joints: Vec<JointConstraint>,
+    downloaded_joint_impulses: Vec<BatchedJointImpulses>,
 }
 
 impl GpuStages {
@@ -187,13 +186,13 @@ impl GpuStages {
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
-            no_joint_offsets: Vec::new(),
             identity: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
             downloaded_bodies: Vec::new(),
             downloaded_constraints: Vec::new(),
             downloaded_joints: Vec::new(),
+            downloaded_joint_impulses: Vec::new(),
             context,
         })
     }
@@ -535,7 +534,9 @@ impl GpuStages {
     /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts that
     /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
     /// is the constraint at batched place i; `offsets` the batch offsets), solved as
-    /// [`Self::solve`] does, and only their impulses come back into `impulses`, in batch order.
+    /// [`Self::solve`] does together with the host's `joints` (in batch order, batch b at
+    /// `joint_offsets[b]..joint_offsets[b + 1]`), and only impulses come back: the contacts'
+    /// into `impulses`, in batch order, the joints' into `joints`.
     #[allow(clippy::too_many_arguments)]
     pub fn solve_batched(
         &mut self,
@@ -543,6 +544,8 @@ impl GpuStages {
         bodies: &mut [SolverBody],
         order: &[u32],
         offsets: &[u32],
+        joints: &mut [JointConstraint],
+        joint_offsets: &[u32],
         has_overflow: bool,
         settings: SolverSettings,
         restitution: bool,
@@ -552,31 +555,22 @@ impl GpuStages {
         let start = Instant::now();
         self.solver_bodies.upload(context, bodies)?;
         self.batch_offsets.upload(context, offsets)?;
-        self.batched.upload(context, order)?;
-        // This path is contacts only: every batch has no joint.
-        self.no_joint_offsets.clear();
-        self.no_joint_offsets.resize(offsets.len(), 0);
-        self.joint_batch_offsets
-            .upload(context, &self.no_joint_offsets)?;
-        self.batched_joints.resize(context, 0)?;
+        self.joint_batch_offsets.upload(context, joint_offsets)?;
+        self.batched.upload(context, order, joints)?;
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
         let (batched, rows) = (&mut self.batched, &self.rows);
-        let (device_offsets, joints, joint_offsets) = (
-            &self.batch_offsets,
-            &self.batched_joints,
-            &self.joint_batch_offsets,
-        );
-        let no_joint_offsets = &self.no_joint_offsets;
+        let (device_offsets, device_joint_offsets) =
+            (&self.batch_offsets, &self.joint_batch_offsets);
         run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
             batched.encode_gather(context, pass, &rows.constraints);
             let device_batched = DeviceBatched {
                 contacts: &batched.constraints,
                 contact_offsets: device_offsets,
-                joints,
-                joint_offsets,
+                joints: &batched.joints,
+                joint_offsets: device_joint_offsets,
                 host_contact_offsets: offsets,
-                host_joint_offsets: no_joint_offsets,
+                host_joint_offsets: joint_offsets,
                 has_overflow,
             };
             solver.encode(pass, device_bodies, &device_batched, settings, restitution);
@@ -588,6 +582,14 @@ impl GpuStages {
             .download_into(context, &mut self.downloaded_bodies)?;
         bodies.copy_from_slice(&self.downloaded_bodies);
         self.batched.impulses.download_into(context, impulses)?;
+        if !joints.is_empty() {
+            self.batched
+                .joint_impulses
+                .download_into(context, &mut self.downloaded_joint_impulses)?;
+            for (joint, solved) in joints.iter_mut().zip(&self.downloaded_joint_impulses) {
+                solved.store(joint);
+            }
+        }
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         Ok(())
     }

@@ -211,14 +211,13 @@ impl World {
                 h,
             ));
         }
-        // Rows, batching and solver all on the GPU, and no joint rows (those are built here):
-        // the contact rows stay on the device from build to solve.
+        // Rows, batching and solver all on the GPU: the contact rows stay on the device from
+        // build to solve (the joint rows, built here, go down beside them).
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         let chained = self.gpu.is_some()
             && on_gpu(Stage::Constraints)
             && on_gpu(Stage::Batching)
-            && on_gpu(Stage::Solver)
-            && scratch.joints.is_empty();
+            && on_gpu(Stage::Solver);
         scratch.contacts.clear();
         scratch.row_summaries.clear();
         match (self.devices.get(Stage::Constraints), &mut self.gpu) {
@@ -377,13 +376,14 @@ impl World {
                     &mut scratch.solver_bodies,
                     &scratch.batch_order,
                     &scratch.contact_offsets,
+                    batched.joints,
+                    batched.joint_offsets,
                     scratch.coloring.has_overflow,
                     settings,
                     restitution,
                     &mut scratch.batched_impulses,
                 )
             }
-            // With joints the rows come through the host (the chained path is contacts only).
             (Executor::Gpu, Some(gpu)) => {
                 gpu.solve(profiler, &mut scratch.solver_bodies, &mut batched, settings)
             }
@@ -488,12 +488,16 @@ impl World {
     /// and into the broadphase's fixed tree.
     fn fall_asleep(&mut self) {
         let colliders = &self.colliders;
-        self.islands.update_timers(
+        let any_rested = self.islands.update_timers(
             &self.velocities,
             &self.masses,
             |i| colliders[i].shape.bounding_radius(),
             self.config.dt,
         );
+        // No body has rested long enough to sleep: no island can (see update_timers).
+        if !any_rested {
+            return;
+        }
         let contacts = self.pairs.keys().iter().zip(self.pairs.values());
         let contact_edges = contacts
             .filter(|(_, contact)| contact.manifold.count > 0)

@@ -6,22 +6,35 @@
 //! The host still sends the order (a counting sort of the colors it read back, the same
 //! [`group_by_batch`](crate::stages::batching::group_by_batch) the CPU step uses), so both
 //! paths solve the same array bit for bit.
+//!
+//! Joint rows are built on the host, which lays them out in batch order itself (the same
+//! `group_by_batch` call as on every path) and uploads them: a gather on the device would
+//! move the same bytes. After the solve only their impulses come back
+//! ([`BatchedJointImpulses`], 32 bytes a joint instead of 320), for the next step's warm
+//! start, the host's break test and the drag.
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
-use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, ContactConstraint};
+use crate::math::Vec3;
+use crate::stages::constraints::{
+    CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
+};
 
 const WGSL: &str = include_str!("batched.wgsl");
-const BINDINGS: [Binding; 5] = [
+/// Counts, order, rows, batched constraints, their impulses, batched joints, their impulses.
+const BINDINGS: [Binding; 7] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
+    Binding::StorageRead,
     Binding::StorageReadWrite,
 ];
 
@@ -35,25 +48,49 @@ pub struct BatchedImpulses {
     pub tangent2: [f32; 4],
 }
 
+/// Mirrors `BatchedJointImpulses` in `batched.wgsl`: one batched joint's accumulated impulses.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BatchedJointImpulses {
+    /// [`JointConstraint::point_impulse`] (N s).
+    pub point: Vec3,
+    /// [`JointConstraint::angular_impulse`] (N m s).
+    pub angular: [f32; MAX_ANGULAR_ROWS],
+}
+const _: () = assert!(size_of::<BatchedJointImpulses>() == 32);
+
+impl BatchedJointImpulses {
+    /// Writes the impulses into the joint they were read from.
+    pub fn store(&self, joint: &mut JointConstraint) {
+        joint.point_impulse = self.point;
+        joint.angular_impulse = self.angular;
+    }
+}
+
 pub fn wgsl() -> Source {
     Source::new()
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
+        .snippet("joint_constraint.wgsl", JOINT_CONSTRAINT_WGSL)
         .snippet("batched.wgsl", WGSL)
 }
 
-/// The buffers the cached dispatches bind, and the capacity they cover.
-type Key = ([wgpu::Buffer; 5], usize);
+/// The buffers the cached dispatches bind, and the capacities they cover (constraints, joints).
+type Key = ([wgpu::Buffer; 7], usize, usize);
 
 pub struct GpuBatched {
-    /// One word: the constraint count.
+    /// Two words: the constraint count and the joint count.
     count: GpuVec<u32>,
     order: GpuVec<u32>,
     /// The constraints in batch order: what the solver sweeps.
     pub constraints: GpuVec<ContactConstraint>,
     pub impulses: GpuVec<BatchedImpulses>,
+    /// The joints in batch order (uploaded by the host), as the solver sweeps them.
+    pub joints: GpuVec<JointConstraint>,
+    pub joint_impulses: GpuVec<BatchedJointImpulses>,
     gather: Kernel,
     read_impulses: Kernel,
-    cached: Option<(Key, [Dispatch; 2])>,
+    read_joint_impulses: Kernel,
+    cached: Option<(Key, [Dispatch; 3])>,
 }
 
 impl GpuBatched {
@@ -61,24 +98,35 @@ impl GpuBatched {
         let source = wgsl();
         let kernel = |entry| Kernel::new(context, entry, &source, entry, &BINDINGS);
         Ok(Self {
-            count: GpuVec::from_slice(context, "batched count", &[0])?,
+            count: GpuVec::from_slice(context, "batched counts", &[0, 0])?,
             order: GpuVec::with_capacity(context, "batch order", 0)?,
             constraints: GpuVec::with_capacity(context, "batched constraints", 0)?,
             impulses: GpuVec::with_capacity(context, "batched impulses", 0)?,
+            joints: GpuVec::with_capacity(context, "batched joints", 0)?,
+            joint_impulses: GpuVec::with_capacity(context, "batched joint impulses", 0)?,
             gather: kernel("gather"),
             read_impulses: kernel("read_impulses"),
+            read_joint_impulses: kernel("read_joint_impulses"),
             cached: None,
         })
     }
 
-    /// Sends the batch order (`order[i]` = the constraint at batched place i) and sizes the
-    /// outputs for it.
-    pub fn upload(&mut self, context: &GpuContext, order: &[u32]) -> Result<(), GpuError> {
+    /// Sends the batch order (`order[i]` = the constraint at batched place i) and the joints
+    /// in batch order, and sizes the outputs for them.
+    pub fn upload(
+        &mut self,
+        context: &GpuContext,
+        order: &[u32],
+        joints: &[JointConstraint],
+    ) -> Result<(), GpuError> {
         let count = u32::try_from(order.len()).expect("constraint count fits in u32");
-        self.count.upload(context, &[count])?;
+        let joint_count = u32::try_from(joints.len()).expect("joint count fits in u32");
+        self.count.upload(context, &[count, joint_count])?;
         self.order.upload(context, order)?;
         self.constraints.resize(context, order.len())?;
         self.impulses.resize(context, order.len())?;
+        self.joints.upload(context, joints)?;
+        self.joint_impulses.resize(context, joints.len())?;
         Ok(())
     }
 
@@ -96,8 +144,11 @@ impl GpuBatched {
                 rows.buffer().clone(),
                 self.constraints.buffer().clone(),
                 self.impulses.buffer().clone(),
+                self.joints.buffer().clone(),
+                self.joint_impulses.buffer().clone(),
             ],
             self.order.capacity(),
+            self.joints.capacity(),
         );
         if self
             .cached
@@ -112,25 +163,30 @@ impl GpuBatched {
                     rows.whole(),
                     self.constraints.whole(),
                     self.impulses.whole(),
+                    self.joints.whole(),
+                    self.joint_impulses.whole(),
                 ],
             );
             let groups = workgroups_for(key.1, WORKGROUP_SIZE);
+            let joint_groups = workgroups_for(key.2, WORKGROUP_SIZE);
             let dispatches = [
                 self.gather.dispatch(group.clone(), groups),
-                self.read_impulses.dispatch(group, groups),
+                self.read_impulses.dispatch(group.clone(), groups),
+                self.read_joint_impulses.dispatch(group, joint_groups),
             ];
             self.cached = Some((key, dispatches));
         }
-        if let Some((_, [gather, _])) = &self.cached {
+        if let Some((_, [gather, ..])) = &self.cached {
             encode_all(pass, std::slice::from_ref(gather));
         }
     }
 
-    /// Encodes the copy of the solved impulses into [`Self::impulses`] (after
-    /// [`Self::encode_gather`] and the solve, in the same pass).
+    /// Encodes the copy of the solved impulses into [`Self::impulses`] and
+    /// [`Self::joint_impulses`] (after [`Self::encode_gather`] and the solve, in the same
+    /// pass).
     pub fn encode_read_impulses(&self, pass: &mut wgpu::ComputePass<'_>) {
-        if let Some((_, [_, read])) = &self.cached {
-            encode_all(pass, std::slice::from_ref(read));
+        if let Some((_, [_, read @ ..])) = &self.cached {
+            encode_all(pass, read);
         }
     }
 }

@@ -1,8 +1,9 @@
 // The batches on the device, for a step whose rows, batching and solver all run on the GPU
 // (stages/solver/batched.rs): `gather` lays the rows' constraints out in batch order (the host
 // sends the order: a counting sort of the colors, group_by_batch's twin), and after the solve
-// `impulses` copies each batched constraint's accumulated impulses into a small record, so the
-// host reads 48 bytes a constraint for its warm start instead of the whole constraint.
+// `read_impulses` copies each batched constraint's accumulated impulses into a small record,
+// and `read_joint_impulses` each joint's, so the host reads 48 bytes a contact constraint and
+// 32 a joint for its warm start and break test instead of the whole constraints.
 
 // Per batched constraint: the accumulated impulse of each point (x, y, z, w = points 0..3)
 // along the normal and the two tangents. Unused points are 0.
@@ -12,13 +13,24 @@ struct BatchedImpulses {
     tangent2: vec4<f32>,
 }
 
-// Word 0: the number of constraints (in a buffer, so the dispatches serve every step).
+// Per batched joint: the accumulated impulses of its point part and of its angular rows
+// (JointConstraint::point_impulse and angular_impulse).
+struct BatchedJointImpulses {
+    point: vec3<f32>,
+    angular: array<f32, 5>,
+}
+
+// Word 0: the number of contact constraints, word 1: the number of joints (in a buffer, so
+// the dispatches serve every step).
 @group(0) @binding(0) var<storage, read> count: array<u32>;
 // order[i]: the constraint (in the rows' order) that goes to batched place i.
 @group(0) @binding(1) var<storage, read> order: array<u32>;
 @group(0) @binding(2) var<storage, read> constraints: array<ContactConstraint>;
 @group(0) @binding(3) var<storage, read_write> batched: array<ContactConstraint>;
 @group(0) @binding(4) var<storage, read_write> impulses: array<BatchedImpulses>;
+// The joints in batch order, as the solver left them.
+@group(0) @binding(5) var<storage, read> joints: array<JointConstraint>;
+@group(0) @binding(6) var<storage, read_write> joint_impulses: array<BatchedJointImpulses>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn gather(
@@ -51,4 +63,20 @@ fn read_impulses(
         out.tangent2[i] = (*c).points[i].tangent[1].impulse;
     }
     impulses[index] = out;
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn read_joint_impulses(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    if index >= count[1] {
+        return;
+    }
+    // Field by field through a pointer (no copy of the whole joint).
+    let j = &joints[index];
+    joint_impulses[index].point = (*j).point_impulse;
+    joint_impulses[index].angular = (*j).angular_impulse;
 }
