@@ -107,7 +107,8 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         ..DrawSettings::default()
     };
     let mut picture = |world: &tumble::World, path: PathBuf| {
-        let camera = *camera.get_or_insert_with(|| Camera::framing(world));
+        let camera =
+            *camera.get_or_insert_with(|| Camera::framing(world, width as f32 / height as f32));
         offscreen
             .render(&context, world, &camera, settings)?
             .save_png(&path)

@@ -50,7 +50,10 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     for _ in 0..options.steps {
         world.step();
     }
-    let camera = options.camera.unwrap_or_else(|| Camera::framing(&world));
+    let aspect = options.size.width as f32 / options.size.height as f32;
+    let camera = options
+        .camera
+        .unwrap_or_else(|| Camera::framing(&world, aspect));
     println!("{HELP}");
     let mut app = App {
         name: name.to_owned(),
