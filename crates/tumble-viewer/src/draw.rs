@@ -11,7 +11,7 @@ use tumble::World;
 use tumble::math::tangent_basis;
 use tumble::shape::{ConvexHull, Shape, TriMesh};
 
-use crate::camera::finite_bounds;
+use crate::camera::{dynamic_bounds, finite_bounds};
 
 /// Clear colour where nothing is drawn (linear RGB).
 pub const BACKGROUND: [f32; 3] = [0.30, 0.40, 0.55];
@@ -110,6 +110,12 @@ pub struct DrawList {
     pub hulls: BTreeMap<u64, Arc<ConvexHull>>,
     /// The triangle meshes that `MeshKey::TriMesh` keys name.
     pub trimeshes: BTreeMap<u64, Arc<TriMesh>>,
+    /// The sphere (centre, radius in m) the shadow map covers: the dynamic bodies' bounds, as
+    /// the default camera frames them (else every finite body's), so the map's texels go to
+    /// what moves and not to a landscape a hundred times larger. `None`: nothing casts.
+    pub shadow_bounds: Option<(Vec3, f32)>,
+    /// Overlay text, drawn over the top-left corner (overlay.rs); the caller fills it.
+    pub overlay: Vec<String>,
 }
 
 /// FNV-1a over 32-bit words: a key that is the same for equal geometry in every run.
@@ -171,6 +177,9 @@ impl DrawList {
         let (scene_center, scene_radius) = bounds.map_or((Vec3::ZERO, 5.0), |aabb| {
             (aabb.center(), aabb.half_extents().length())
         });
+        list.shadow_bounds = dynamic_bounds(world)
+            .or(bounds)
+            .map(|aabb| (aabb.center(), aabb.half_extents().length()));
         // Contact markers scale with the smallest body so they never hide one.
         let mut smallest = f32::MAX;
         for handle in world.bodies() {

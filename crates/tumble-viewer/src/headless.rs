@@ -111,21 +111,24 @@ impl Offscreen {
         })
     }
 
-    /// Draws `world` as `camera` sees it and reads the picture back.
+    /// Draws `world` as `camera` sees it, with the `overlay` lines (none: no overlay) over the
+    /// top-left corner, and reads the picture back.
     pub fn render(
         &mut self,
         context: &GpuContext,
         world: &World,
         camera: &Camera,
         settings: DrawSettings,
+        overlay: &[String],
     ) -> Result<Image, ViewError> {
         let device = &context.device;
         // Validation errors (an adapter that cannot do what we ask) become an error value
         // instead of wgpu's default panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let list = DrawList::build(world, settings);
+        let mut list = DrawList::build(world, settings);
+        list.overlay = overlay.to_vec();
         self.renderer
-            .prepare(&list, camera, self.width as f32 / self.height as f32);
+            .prepare(&list, camera, (self.width, self.height));
         let mut encoder = device.create_command_encoder(&Default::default());
         self.renderer
             .encode(&mut encoder, &self.color_view, &self.depth);

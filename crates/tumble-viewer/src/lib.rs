@@ -4,7 +4,8 @@
 //! The pieces, from the world to the pixels:
 //! - [`draw::DrawList`] reads poses, shapes and contacts from the world into instance lists
 //!   (model matrix + colour per body, grouped by mesh) and ground quads for planes;
-//! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame;
+//! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame
+//!   (a shadow map pass, then the scene and the [`overlay`] text drawn with the [`font`]);
 //! - [`headless::Offscreen`] renders into a texture and reads it back; the window path
 //!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes.
 //!
@@ -15,14 +16,17 @@ pub mod camera;
 pub mod context;
 pub mod draw;
 mod error;
+pub mod font;
 pub mod headless;
 pub mod input;
 pub mod mesh;
+pub mod overlay;
 mod renderer;
 mod window;
 
 use crate::draw::DrawSettings;
 use crate::input::BatchView;
+use crate::overlay::OverlayKind;
 use std::path::PathBuf;
 
 use tumble::scene::Scene;
@@ -30,7 +34,7 @@ use tumble::scene::Scene;
 pub use camera::Camera;
 pub use context::GpuContext;
 pub use error::ViewError;
-pub use renderer::Renderer;
+pub use renderer::{LIGHT_DIRECTION, Renderer};
 
 /// A picture size `WIDTHxHEIGHT` in pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,6 +82,10 @@ pub struct ViewOptions {
     /// Headless: colour the bodies by constraint batch (the talk's "colored batches").
     #[arg(long)]
     pub batches: bool,
+    /// Draw an overlay over the top-left corner: the profile (stage times of the steps so far,
+    /// counts, batch histogram) or the key list; in a window, as if `p` or `h` were pressed.
+    #[arg(long, value_enum, default_value = "off")]
+    pub overlay: OverlayKind,
 }
 
 /// Shows `scene` (named `name` in messages): headless when `--png` or `--frames` is given,
@@ -109,8 +117,17 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
     let mut picture = |world: &tumble::World, path: PathBuf| {
         let camera =
             *camera.get_or_insert_with(|| Camera::framing(world, width as f32 / height as f32));
+        let overlay = match options.overlay {
+            OverlayKind::Off => Vec::new(),
+            OverlayKind::Help => overlay::help_lines(),
+            OverlayKind::Profile => overlay::profile_lines(
+                &world.profiler().report(),
+                world.body_count(),
+                world.stats(),
+            ),
+        };
         offscreen
-            .render(&context, world, &camera, settings)?
+            .render(&context, world, &camera, settings, &overlay)?
             .save_png(&path)
     };
     if let Some(dir) = &options.frames {

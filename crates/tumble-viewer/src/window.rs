@@ -1,7 +1,7 @@
 //! The window: a winit event loop that steps the world, draws it into the window's surface and
-//! feeds keys and the mouse to [`InputState`]. The profile "overlay" is printed to stdout (about
-//! once a second while `p` is on) and a status line is kept in the window title: drawing text
-//! in the window needs a font renderer, left for later.
+//! feeds keys and the mouse to [`InputState`]. The profile overlay (`p`) is refreshed about
+//! once a second, the help overlay (`h`) lists the keys, and a status line is kept in the window
+//! title.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -20,10 +20,11 @@ use crate::context::GpuContext;
 use crate::draw::DrawList;
 use crate::error::ViewError;
 use crate::input::{Action, Executor, HELP, InputState, Key};
+use crate::overlay::{self, OverlayKind};
 use crate::renderer::{Renderer, depth_view};
 use crate::{ImageSize, ViewOptions};
 
-/// How often the title's status line and the printed profile are refreshed.
+/// How often the title's status line and the profile overlay are refreshed.
 const STATUS_PERIOD: Duration = Duration::from_millis(500);
 const PROFILE_PERIOD: Duration = Duration::from_secs(1);
 /// Camera distance factor per mouse wheel line.
@@ -55,11 +56,15 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         .camera
         .unwrap_or_else(|| Camera::framing(&world, aspect));
     println!("{HELP}");
+    let mut input = InputState::new(camera);
+    // --overlay opens the window with that overlay on, as if its key had been pressed.
+    input.help = options.overlay == OverlayKind::Help;
+    input.profile = options.overlay == OverlayKind::Profile;
     let mut app = App {
         name: name.to_owned(),
         scene,
         world,
-        input: InputState::new(camera),
+        input,
         size: options.size,
         instance,
         backends,
@@ -69,6 +74,7 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         frames: 0,
         last_status: Instant::now(),
         last_profile: Instant::now(),
+        profile_lines: Vec::new(),
     };
     event_loop
         .run_app(&mut app)
@@ -117,6 +123,8 @@ struct App<'a> {
     frames: u32,
     last_status: Instant,
     last_profile: Instant,
+    /// The profile overlay's text, as of the last refresh.
+    profile_lines: Vec<String>,
 }
 
 impl App<'_> {
@@ -186,8 +194,7 @@ impl App<'_> {
             },
             Action::Solver(executor) => self.put_solver_on(executor),
             Action::Step => self.world.step(),
-            Action::Help => println!("{HELP}"),
-            Action::Profile => self.print_profile(),
+            Action::Profile => self.refresh_profile(),
             Action::Batcher(batcher) => self.use_batcher(batcher),
             Action::Quit => event_loop.exit(),
         }
@@ -220,21 +227,14 @@ impl App<'_> {
         }
     }
 
-    /// The talk's profile screen, as text: stage times, counts and the batch histogram. The
-    /// timings restart after each report, so each covers the frames since the last.
-    fn print_profile(&mut self) {
-        let stats = self.world.stats();
-        print!("{}", self.world.profiler().report());
-        println!(
-            "# bodies = {}  # pairs = {}  # manifolds = {}  # contacts = {}",
+    /// The talk's profile screen: stage times, counts and the batch histogram. The timings
+    /// restart after each refresh, so each covers the frames since the last.
+    fn refresh_profile(&mut self) {
+        self.profile_lines = overlay::profile_lines(
+            &self.world.profiler().report(),
             self.world.body_count(),
-            stats.pairs,
-            stats.manifolds,
-            stats.contacts
+            self.world.stats(),
         );
-        for (batch, count) in stats.batch_histogram.iter().enumerate() {
-            println!("{batch:4} : {count}");
-        }
         self.world.profiler_mut().reset();
         self.last_profile = Instant::now();
     }
@@ -264,9 +264,15 @@ impl App<'_> {
                 return;
             }
         };
-        let list = DrawList::build(&self.world, self.input.draw_settings());
-        let aspect = view.config.width as f32 / view.config.height as f32;
-        view.renderer.prepare(&list, &self.input.camera, aspect);
+        let mut list = DrawList::build(&self.world, self.input.draw_settings());
+        if self.input.help {
+            list.overlay = overlay::help_lines();
+        } else if self.input.profile {
+            list.overlay.clone_from(&self.profile_lines);
+        }
+        let (width, height) = (view.config.width, view.config.height);
+        view.renderer
+            .prepare(&list, &self.input.camera, (width, height));
         let target = frame.texture.create_view(&Default::default());
         let mut encoder = view
             .context
@@ -294,7 +300,7 @@ impl App<'_> {
             self.last_status = Instant::now();
         }
         if self.input.profile && self.last_profile.elapsed() >= PROFILE_PERIOD {
-            self.print_profile();
+            self.refresh_profile();
         }
     }
 }
