@@ -87,6 +87,22 @@ pub(crate) enum RowSlots<'a> {
     Narrowphase,
 }
 
+/// A GPU step's poses where they are, on the device, for a renderer on the same device to draw
+/// from without a readback. The integrator runs on the host, so no device buffer holds the
+/// poses after the step; two buffers that the step leaves there give them: body slot `i`
+/// ends the step at `start[i]` ([`BodyPose`], the pose the stages uploaded at the start of
+/// the step) moved by `motion[i]` ([`SolverBody`]): position + delta_position, rotation
+/// normalize(delta_rotation * rotation), unless inverse_mass is 0 (static or asleep: it stays),
+/// as [`finalize_bodies`](crate::stages::integrate::finalize_bodies) computes on the host.
+/// Valid until the world is stepped or changed.
+#[derive(Clone, Copy, Debug)]
+pub struct DevicePoses<'a> {
+    pub start: &'a wgpu::Buffer,
+    pub motion: &'a wgpu::Buffer,
+    /// Body slots in both buffers.
+    pub count: usize,
+}
+
 /// The step's body arrays, as the GPU stages read them.
 pub(crate) struct BodyInputs<'a> {
     pub poses: &'a [BodyPose],
@@ -142,6 +158,8 @@ pub(crate) struct GpuStages {
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
     pair_contacts_fresh: bool,
+    /// The solver ran on the GPU this step: `solver_bodies` holds the step's motion.
+    solved_this_step: bool,
     /// Host scratch, reused: the identity map, the packed colliders, downloaded contacts.
     identity: Vec<u32>,
     collider_data: Vec<ColliderData>,
@@ -187,6 +205,7 @@ impl GpuStages {
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
+            solved_this_step: false,
             no_joint_offsets: Vec::new(),
             identity: Vec::new(),
             collider_data: Vec::new(),
@@ -212,6 +231,17 @@ impl GpuStages {
     pub fn begin_step(&mut self) {
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
+        self.solved_this_step = false;
+    }
+
+    /// This step's poses on the device, when a stage uploaded the poses this step and the
+    /// solver ran here ([`DevicePoses`]).
+    pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        (self.bodies.uploaded_this_step && self.solved_this_step).then(|| DevicePoses {
+            start: self.bodies.poses.buffer(),
+            motion: self.solver_bodies.buffer(),
+            count: self.bodies.poses.len(),
+        })
     }
 
     /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
@@ -527,6 +557,7 @@ impl GpuStages {
             .download_into(context, &mut self.downloaded_joints)?;
         batched.joints.copy_from_slice(&self.downloaded_joints);
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        self.solved_this_step = true;
         Ok(())
     }
 }
@@ -589,6 +620,7 @@ impl GpuStages {
         bodies.copy_from_slice(&self.downloaded_bodies);
         self.batched.impulses.download_into(context, impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        self.solved_this_step = true;
         Ok(())
     }
 }

@@ -31,6 +31,7 @@ use crate::gpu::context::GpuError;
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::devices::StageDevices;
+pub use crate::pipeline::gpu_stages::DevicePoses;
 use crate::pipeline::gpu_stages::GpuStages;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
@@ -681,6 +682,13 @@ impl World {
         }
         self.devices = devices;
         Ok(())
+    }
+
+    /// The last step's poses on the GPU, when it ran there (a stage that reads the bodies and
+    /// the solver on the GPU): see [`DevicePoses`]. The buffers are on the device of
+    /// [`GpuContext::shared`](crate::gpu::context::GpuContext::shared).
+    pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        self.gpu.as_ref()?.device_poses()
     }
 
     /// The adapter the GPU stages run on, when any does.
