@@ -6,6 +6,7 @@ use std::io::BufWriter;
 use std::path::Path;
 
 use tumble::World;
+use tumble::pipeline::world::DevicePoses;
 
 use crate::camera::Camera;
 use crate::context::GpuContext;
@@ -112,7 +113,9 @@ impl Offscreen {
     }
 
     /// Draws `world` as `camera` sees it, with the `overlay` lines (none: no overlay) over the
-    /// top-left corner, and reads the picture back.
+    /// top-left corner, and reads the picture back. When the world's last step ran on the GPU
+    /// and `context` is the physics' device, the bodies are drawn from the step's device
+    /// buffers ([`World::device_poses`]).
     pub fn render(
         &mut self,
         context: &GpuContext,
@@ -121,14 +124,31 @@ impl Offscreen {
         settings: DrawSettings,
         overlay: &[String],
     ) -> Result<Image, ViewError> {
+        let mut list = DrawList::build(world, settings);
+        list.overlay = overlay.to_vec();
+        let poses = if context.shares_physics {
+            world.device_poses()
+        } else {
+            None
+        };
+        self.render_list(context, &list, camera, poses)
+    }
+
+    /// Draws `list` as `camera` sees it, the bodies at `device_poses` when given (buffers on
+    /// `context`'s device), and reads the picture back.
+    pub fn render_list(
+        &mut self,
+        context: &GpuContext,
+        list: &DrawList,
+        camera: &Camera,
+        device_poses: Option<DevicePoses>,
+    ) -> Result<Image, ViewError> {
         let device = &context.device;
         // Validation errors (an adapter that cannot do what we ask) become an error value
         // instead of wgpu's default panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut list = DrawList::build(world, settings);
-        list.overlay = overlay.to_vec();
         self.renderer
-            .prepare(&list, camera, (self.width, self.height));
+            .prepare(list, camera, (self.width, self.height), device_poses);
         let mut encoder = device.create_command_encoder(&Default::default());
         self.renderer
             .encode(&mut encoder, &self.color_view, &self.depth);

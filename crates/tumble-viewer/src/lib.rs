@@ -9,8 +9,10 @@
 //! - [`headless::Offscreen`] renders into a texture and reads it back; the window path
 //!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes.
 //!
-//! The viewer makes its own device ([`context::GpuContext`]); once the step runs on the GPU it
-//! will take the physics device instead and draw the poses from the physics buffers.
+//! Headless, the viewer draws on the physics' device ([`context::GpuContext`]): after a step
+//! on the GPU (`--device gpu`) a compute pass builds the bodies' instance models from the
+//! step's device buffers ([`tumble::pipeline::world::DevicePoses`]), with no readback. A
+//! window has a device of its own (context.rs says why) and draws the host's poses.
 
 pub mod camera;
 pub mod context;
@@ -29,6 +31,7 @@ use crate::input::BatchView;
 use crate::overlay::OverlayKind;
 use std::path::PathBuf;
 
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::Scene;
 
 pub use camera::Camera;
@@ -86,6 +89,27 @@ pub struct ViewOptions {
     /// counts, batch histogram) or the key list; in a window, as if `p` or `h` were pressed.
     #[arg(long, value_enum, default_value = "off")]
     pub overlay: OverlayKind,
+    /// Where the step runs: every stage on the CPU, or every stage on the GPU (headless, the
+    /// pictures are drawn on that same device).
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: StepDevice,
+}
+
+/// `--device` of `tumble view`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum StepDevice {
+    #[default]
+    Cpu,
+    Gpu,
+}
+
+/// The scene's world with its stages on `device`.
+fn build_world(scene: &Scene, device: StepDevice) -> Result<tumble::World, ViewError> {
+    let mut world = scene.build()?;
+    if device == StepDevice::Gpu {
+        world.set_stage_devices(StageDevices::all(Executor::Gpu))?;
+    }
+    Ok(world)
 }
 
 /// Shows `scene` (named `name` in messages): headless when `--png` or `--frames` is given,
@@ -99,7 +123,7 @@ pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), View
 
 /// Steps the scene and writes the pictures `--png` and `--frames` ask for.
 fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
-    let mut world = scene.build()?;
+    let mut world = build_world(scene, options.device)?;
     let context = GpuContext::headless()?;
     let ImageSize { width, height } = options.size;
     let mut offscreen = headless::Offscreen::new(&context, width, height)?;

@@ -1,12 +1,14 @@
 //! The renderer: pipelines, meshes and per-frame buffers on a device it is given, so the same
-//! code draws into a window's surface and into an offscreen texture, and can later share the
-//! physics device.
+//! code draws into a window's surface and into an offscreen texture, and on the physics'
+//! device from its buffers.
 //!
 //! A frame is two render passes. The shadow pass draws every solid mesh's depth as the light
 //! sees it (an orthographic view along the light over the bodies' bounds) into the shadow map.
 //! The frame pass clears, draws the ground grids, then every mesh instanced once (solid
 //! triangles, or its edges as lines in wireframe mode), contact segments as lines, and last the
-//! overlay text on top. Lit surfaces look their point up in the shadow map.
+//! overlay text on top. Lit surfaces look their point up in the shadow map. When the step ran
+//! on this device, a compute pass first writes the bodies' instance models from the physics'
+//! pose buffers (pose.wgsl).
 //! Triangle meshes are drawn from both sides, as the physics collides with both.
 
 use std::collections::BTreeMap;
@@ -14,10 +16,11 @@ use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
+use tumble::pipeline::world::DevicePoses;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
-use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey};
+use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey, NO_BODY, PoseLink};
 use crate::font::{CELL_HEIGHT, CELL_WIDTH, GLYPH_COUNT, GLYPH_HEIGHT, GLYPH_WIDTH};
 use crate::mesh::{MeshData, Vertex};
 use crate::overlay::{PANEL, TextQuad};
@@ -42,6 +45,8 @@ const SHADOW_DEPTH_BIAS: wgpu::DepthBiasState = wgpu::DepthBiasState {
     clamp: 0.0,
 };
 const SHADOW_NORMAL_OFFSET_TEXELS: f32 = 1.5;
+/// Invocations per workgroup of the pose pass (pose.wgsl).
+const POSE_WORKGROUP_SIZE: u32 = 64;
 /// Grid lines on ground planes every GRID_SPACING metres.
 const GRID_SPACING: f32 = 1.0;
 const GROUND_COLOUR: [f32; 3] = [0.42, 0.42, 0.40];
@@ -79,25 +84,32 @@ struct GpuMesh {
     lines: Option<(wgpu::Buffer, u32)>,
 }
 
-/// A vertex buffer that grows (to the next power of two) and never shrinks.
+/// A buffer written from the host that grows (to the next power of two) and never shrinks.
 struct GrowingBuffer {
     label: &'static str,
+    usage: wgpu::BufferUsages,
     buffer: wgpu::Buffer,
 }
 
 impl GrowingBuffer {
-    fn new(device: &wgpu::Device, label: &'static str) -> Self {
+    fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
         Self {
             label,
-            buffer: Self::create(device, label, 4096),
+            usage,
+            buffer: Self::create(device, label, usage, 4096),
         }
     }
 
-    fn create(device: &wgpu::Device, label: &'static str, size: u64) -> wgpu::Buffer {
+    fn create(
+        device: &wgpu::Device,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        size: u64,
+    ) -> wgpu::Buffer {
         device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
     }
@@ -105,7 +117,7 @@ impl GrowingBuffer {
     fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
         let needed = bytes.len() as u64;
         if needed > self.buffer.size() {
-            self.buffer = Self::create(device, self.label, needed.next_power_of_two());
+            self.buffer = Self::create(device, self.label, self.usage, needed.next_power_of_two());
         }
         if !bytes.is_empty() {
             queue.write_buffer(&self.buffer, 0, bytes);
@@ -129,8 +141,13 @@ pub struct Renderer {
     line_pipeline: wgpu::RenderPipeline,
     grid_pipeline: wgpu::RenderPipeline,
     text_pipeline: wgpu::RenderPipeline,
+    /// Writes instance models from the physics' device buffers; made on first use, so that a
+    /// device that is never given them needs no compute support.
+    pose_pipeline: Option<wgpu::ComputePipeline>,
     meshes: BTreeMap<MeshKey, GpuMesh>,
     instances: GrowingBuffer,
+    /// Each instance's body, for `pose_pipeline`.
+    links: GrowingBuffer,
     ground: GrowingBuffer,
     text: GrowingBuffer,
     /// This frame's instance range of each mesh.
@@ -451,10 +468,17 @@ impl Renderer {
             line_pipeline,
             grid_pipeline,
             text_pipeline,
+            pose_pipeline: None,
             meshes: BTreeMap::new(),
-            instances: GrowingBuffer::new(device, "instances"),
-            ground: GrowingBuffer::new(device, "ground"),
-            text: GrowingBuffer::new(device, "text"),
+            // Storage too: the pose pass writes the models in place.
+            instances: GrowingBuffer::new(
+                device,
+                "instances",
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            ),
+            links: GrowingBuffer::new(device, "pose links", wgpu::BufferUsages::STORAGE),
+            ground: GrowingBuffer::new(device, "ground", wgpu::BufferUsages::VERTEX),
+            text: GrowingBuffer::new(device, "text", wgpu::BufferUsages::VERTEX),
             draws: Vec::new(),
             ground_vertices: 0,
             text_quads: 0,
@@ -464,7 +488,15 @@ impl Renderer {
     }
 
     /// Uploads what `list` draws, seen by `camera` on a viewport of `width` × `height` pixels.
-    pub fn prepare(&mut self, list: &DrawList, camera: &Camera, (width, height): (u32, u32)) {
+    /// With `device_poses` (a GPU step's buffers on this renderer's device), the bodies are
+    /// drawn at the poses in those buffers, not at the models in `list`.
+    pub fn prepare(
+        &mut self,
+        list: &DrawList,
+        camera: &Camera,
+        (width, height): (u32, u32),
+        device_poses: Option<DevicePoses>,
+    ) {
         let light = LIGHT_DIRECTION.normalize();
         // Solid meshes cast shadows; wireframes are lines, which would cast none.
         let shadow_view = list
@@ -498,6 +530,7 @@ impl Renderer {
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
 
         let mut instances: Vec<Instance> = Vec::new();
+        let mut links: Vec<PoseLink> = Vec::new();
         self.draws.clear();
         for (&key, group) in &list.instances {
             if !self.meshes.contains_key(&key) {
@@ -507,9 +540,15 @@ impl Renderer {
             let start = instances.len() as u32;
             instances.extend_from_slice(group);
             self.draws.push((key, start..instances.len() as u32));
+            let group_links = list.links.get(&key).map_or(&[][..], Vec::as_slice);
+            debug_assert_eq!(group_links.len(), group.len(), "{key:?}");
+            links.extend_from_slice(group_links);
         }
         self.instances
             .write(&self.device, &self.queue, bytemuck::cast_slice(&instances));
+        if let Some(poses) = device_poses {
+            self.pose_instances(&links, poses);
+        }
 
         let ground: Vec<GridVertex> = list.grounds.iter().flat_map(ground_vertices).collect();
         self.ground
@@ -588,6 +627,76 @@ impl Renderer {
             pass.set_vertex_buffer(0, self.text.buffer.slice(..));
             pass.draw(0..6, 0..self.text_quads);
         }
+    }
+
+    /// Overwrites the models of the instances that `links` tie to a body with the body's pose
+    /// in `poses` times the link's local matrix: one compute dispatch, submitted now, so it runs
+    /// after the instance upload and before the frame that draws them.
+    fn pose_instances(&mut self, links: &[PoseLink], poses: DevicePoses) {
+        if links.is_empty() {
+            return;
+        }
+        let device = &self.device;
+        let pipeline = self.pose_pipeline.get_or_insert_with(|| {
+            let source = format!(
+                "const NO_BODY: u32 = {NO_BODY}u;\nconst WORKGROUP_SIZE: u32 = \
+                 {POSE_WORKGROUP_SIZE}u;\n{}",
+                include_str!("pose.wgsl")
+            );
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("pose.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("poses"),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        });
+        self.links
+            .write(device, &self.queue, bytemuck::cast_slice(links));
+        let bytes = |count: usize, size: usize| wgpu::BufferSize::new((count * size) as u64);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("poses"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: poses.start.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: poses.motion.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.links.buffer,
+                        offset: 0,
+                        size: bytes(links.len(), size_of::<PoseLink>()),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.instances.buffer,
+                        offset: 0,
+                        size: bytes(links.len(), size_of::<Instance>()),
+                    }),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups((links.len() as u32).div_ceil(POSE_WORKGROUP_SIZE), 1, 1);
+        }
+        self.queue.submit([encoder.finish()]);
     }
 
     /// The shadow pass: every solid mesh's depth as the light sees it.

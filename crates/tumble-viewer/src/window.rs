@@ -22,7 +22,7 @@ use crate::error::ViewError;
 use crate::input::{Action, Executor, HELP, InputState, Key};
 use crate::overlay::{self, OverlayKind};
 use crate::renderer::{Renderer, depth_view};
-use crate::{ImageSize, ViewOptions};
+use crate::{ImageSize, StepDevice, ViewOptions};
 
 /// How often the title's status line and the profile overlay are refreshed.
 const STATUS_PERIOD: Duration = Duration::from_millis(500);
@@ -47,7 +47,7 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     ));
     let backends = descriptor.backends;
     let instance = wgpu::Instance::new(descriptor);
-    let mut world = scene.build()?;
+    let mut world = crate::build_world(scene, options.device)?;
     for _ in 0..options.steps {
         world.step();
     }
@@ -57,12 +57,16 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         .unwrap_or_else(|| Camera::framing(&world, aspect));
     println!("{HELP}");
     let mut input = InputState::new(camera);
+    if options.device == StepDevice::Gpu {
+        input.solver = Executor::Gpu;
+    }
     // --overlay opens the window with that overlay on, as if its key had been pressed.
     input.help = options.overlay == OverlayKind::Help;
     input.profile = options.overlay == OverlayKind::Profile;
     let mut app = App {
         name: name.to_owned(),
         scene,
+        device: options.device,
         world,
         input,
         size: options.size,
@@ -110,6 +114,8 @@ struct WindowView {
 struct App<'a> {
     name: String,
     scene: &'a Scene,
+    /// Where the step runs after a reset, before the `u` key moves the solver.
+    device: StepDevice,
     world: World,
     input: InputState,
     size: ImageSize,
@@ -141,15 +147,15 @@ impl App<'_> {
             .instance
             .create_surface(window.clone())
             .map_err(|e| ViewError::Surface(e.to_string()))?;
-        let context = pollster::block_on(GpuContext::with_instance(
+        let (context, adapter) = pollster::block_on(GpuContext::for_surface(
             &self.instance,
             self.backends,
-            Some(&surface),
+            &surface,
         ))?;
         let size = window.inner_size();
         let (width, height) = (size.width.max(1), size.height.max(1));
         let mut config = surface
-            .get_default_config(&context.adapter, width, height)
+            .get_default_config(&adapter, width, height)
             .ok_or_else(|| {
                 ViewError::Surface(format!(
                     "the adapter {} cannot present to this window",
@@ -157,7 +163,7 @@ impl App<'_> {
                 ))
             })?;
         // The shaders write linear colour: an sRGB target encodes it for the screen.
-        let capabilities = surface.get_capabilities(&context.adapter);
+        let capabilities = surface.get_capabilities(&adapter);
         if let Some(&srgb) = capabilities.formats.iter().find(|f| f.is_srgb()) {
             config.format = srgb;
         }
@@ -184,13 +190,13 @@ impl App<'_> {
     fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
         match action {
             Action::None => {}
-            Action::Reset => match self.scene.build() {
+            Action::Reset => match crate::build_world(self.scene, self.device) {
                 Ok(world) => {
                     self.world = world;
                     self.put_solver_on(self.input.solver);
                     self.use_batcher(self.input.batcher);
                 }
-                Err(error) => self.fail(event_loop, error.into()),
+                Err(error) => self.fail(event_loop, error),
             },
             Action::Solver(executor) => self.put_solver_on(executor),
             Action::Step => self.world.step(),
@@ -271,8 +277,9 @@ impl App<'_> {
             list.overlay.clone_from(&self.profile_lines);
         }
         let (width, height) = (view.config.width, view.config.height);
+        // The window's device is not the physics' (context.rs), so the poses come from the host.
         view.renderer
-            .prepare(&list, &self.input.camera, (width, height));
+            .prepare(&list, &self.input.camera, (width, height), None);
         let target = frame.texture.create_view(&Default::default());
         let mut encoder = view
             .context

@@ -2,13 +2,15 @@
 //! a plane (the picture is not blank, shows the background where nothing is, and shows the box
 //! where its centre projects with the same camera matrix the renderer uses), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
-//! a box above a plane (its shadow darkens the floor), and the overlays (text pixels in the
-//! overlay's panel with it, none without).
+//! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
+//! overlay's panel with it, none without), and a world stepped on the GPU drawn from the step's
+//! device buffers.
 
 use tumble::math::Vec3;
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::shape::TriMesh;
 use tumble::{BodyDesc, Shape, StepConfig, World};
-use tumble_viewer::draw::{BACKGROUND, DrawSettings, TRIMESH_COLOUR, body_colour};
+use tumble_viewer::draw::{BACKGROUND, DrawList, DrawSettings, TRIMESH_COLOUR, body_colour};
 use tumble_viewer::headless::{Image, Offscreen};
 use tumble_viewer::overlay::{TEXT_COLOUR, help_lines, panel_rect, profile_lines};
 use tumble_viewer::{Camera, GpuContext, LIGHT_DIRECTION};
@@ -276,4 +278,63 @@ fn overlays_draw_text_in_their_panel() {
             assert_eq!(with.pixel(x, y), without.pixel(x, y), "at {x}, {y}");
         }
     }
+}
+
+#[test]
+fn a_gpu_step_is_drawn_from_its_device_buffers() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    // Sliding at 60 m/s: a step moves it a metre, twice its size.
+    let start = Vec3::new(-1.5, 0.5, 0.0);
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                .position(start)
+                .linear_velocity(Vec3::new(60.0, 0.0, 0.0)),
+        )
+        .unwrap();
+    world
+        .set_stage_devices(StageDevices::all(Executor::Gpu))
+        .unwrap();
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    assert!(
+        context.shares_physics,
+        "headless pictures use the physics' device"
+    );
+    assert!(
+        world.device_poses().is_none(),
+        "no step, no poses on the device"
+    );
+    world.step();
+    let end = world.pose(cube).unwrap().position;
+    assert!((end - start).x > 0.8, "{start} -> {end}");
+    let poses = world
+        .device_poses()
+        .expect("every stage ran on the GPU: the poses are on the device");
+
+    // The host's models are sent far away: a box in the picture comes from the device.
+    let mut list = DrawList::build(&world, DrawSettings::default());
+    for instance in list.instances.values_mut().flatten() {
+        instance.model[3] = [1000.0, 0.0, 0.0, 1.0];
+    }
+    let camera = Camera::look_at(Vec3::new(0.0, 4.0, 8.0), Vec3::new(-1.0, 0.5, 0.0));
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render_list(&context, &list, &camera, Some(poses))
+        .unwrap();
+
+    // Where the step left it (the start pose moved by the solver's motion)...
+    let colour = body_colour(cube.index() as usize);
+    let at = project(&camera, end);
+    assert_hue(image.pixel(at.0, at.1), at, colour);
+    // ... and not where the step began.
+    let at = project(&camera, start);
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(image.pixel(at.0, at.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the box is still drawn at its start pose {start}: {:?}",
+        image.pixel(at.0, at.1)
+    );
 }
