@@ -170,9 +170,8 @@ pub(crate) struct GpuStages {
 }
 
 impl GpuStages {
-    /// The GPU side on the process's shared adapter (`GpuContext::shared`).
-    pub fn new() -> Result<Self, GpuError> {
-        let context = GpuContext::shared()?;
+    /// The GPU side on `context`'s device.
+    pub fn new(context: GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             profiler: GpuProfiler::new(&context, 8),
             bodies: DeviceBodies {
@@ -694,8 +693,11 @@ mod tests {
     /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
     #[test]
     fn rows_from_the_narrowphase_output_equal_rows_from_the_host() {
-        let mut gpu =
-            GpuStages::new().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut gpu = GpuStages::new(
+            GpuContext::shared()
+                .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
+        )
+        .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig {
             sleeping: false,
             ..StepConfig::default()
