@@ -6,9 +6,10 @@
 //! borrows a `wgpu::Device` and `wgpu::Queue` (see [`crate::Renderer::new`]).
 //!
 //! A window needs an adapter that can present to its surface, and the surface must come from
-//! the same `wgpu::Instance` as the device; the physics context makes its own instance and keeps
-//! no adapter, so the window makes its own device ([`GpuContext::for_surface`]) and a GPU step
-//! runs on a second one.
+//! the same `wgpu::Instance` as the device; the physics' shared context makes its own instance
+//! and keeps no adapter. So the window makes the device ([`GpuContext::for_surface`], with the
+//! limits and features the physics asks for) and hands it to the world
+//! ([`tumble::World::set_gpu_context`]): there too, a GPU step is drawn from its buffers.
 //!
 //! Picking an adapter, as the engine's tests do (DESIGN.md, Testing): `WGPU_BACKEND` restricts
 //! the backends, `TUMBLE_ADAPTER` keeps adapters whose name contains the text
@@ -23,9 +24,6 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
-    /// The device is the physics' ([`tumble::gpu::GpuContext::shared`]), so a GPU step's
-    /// buffers can be drawn from.
-    pub shares_physics: bool,
 }
 
 impl GpuContext {
@@ -36,7 +34,6 @@ impl GpuContext {
             device: physics.device,
             queue: physics.queue,
             info: (*physics.info).clone(),
-            shares_physics: true,
         })
     }
 
@@ -56,13 +53,9 @@ impl GpuContext {
         let wanted = std::env::var("TUMBLE_ADAPTER").ok();
         let adapter = pick_adapter(adapters, wanted.as_deref(), backends)?;
         let info = adapter.get_info();
+        // The physics' limits and features: the world's GPU stages will run on this device.
         let (device, queue) = adapter
-            .request_device(&wgpu::DeviceDescriptor {
-                label: Some("tumble-viewer"),
-                required_limits: wgpu::Limits::downlevel_defaults()
-                    .using_resolution(adapter.limits()),
-                ..Default::default()
-            })
+            .request_device(&tumble::gpu::GpuContext::device_descriptor(&adapter))
             .await
             .map_err(|error| ViewError::RequestDevice {
                 adapter: info.name.clone(),
@@ -73,10 +66,18 @@ impl GpuContext {
                 device,
                 queue,
                 info,
-                shares_physics: false,
             },
             adapter,
         ))
+    }
+
+    /// This device as a physics context, for [`tumble::World::set_gpu_context`].
+    pub fn physics(&self) -> tumble::gpu::GpuContext {
+        tumble::gpu::GpuContext::from_device(
+            self.device.clone(),
+            self.queue.clone(),
+            self.info.clone(),
+        )
     }
 
     /// "name (backend, device type)", for messages.

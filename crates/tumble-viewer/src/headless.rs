@@ -113,9 +113,10 @@ impl Offscreen {
     }
 
     /// Draws `world` as `camera` sees it, with the `overlay` lines (none: no overlay) over the
-    /// top-left corner, and reads the picture back. When the world's last step ran on the GPU
-    /// and `context` is the physics' device, the bodies are drawn from the step's device
-    /// buffers ([`World::device_poses`]).
+    /// top-left corner, and reads the picture back. When the world's last step ran on the GPU,
+    /// the bodies are drawn from the step's device buffers ([`World::device_poses`]), which
+    /// must be on `context`'s device (the world's GPU stages run on
+    /// [`GpuContext::headless`]'s unless it was given another).
     pub fn render(
         &mut self,
         context: &GpuContext,
@@ -126,12 +127,7 @@ impl Offscreen {
     ) -> Result<Image, ViewError> {
         let mut list = DrawList::build(world, settings);
         list.overlay = overlay.to_vec();
-        let poses = if context.shares_physics {
-            world.device_poses()
-        } else {
-            None
-        };
-        self.render_list(context, &list, camera, poses)
+        self.render_list(context, &list, camera, world.device_poses())
     }
 
     /// Draws `list` as `camera` sees it, the bodies at `device_poses` when given (buffers on

@@ -12,7 +12,7 @@
 //! Headless, the viewer draws on the physics' device ([`context::GpuContext`]): after a step
 //! on the GPU (`--device gpu`) a compute pass builds the bodies' instance models from the
 //! step's device buffers ([`tumble::pipeline::world::DevicePoses`]), with no readback. A
-//! window has a device of its own (context.rs says why) and draws the host's poses.
+//! window makes the device and hands it to the world (context.rs says why), to the same end.
 
 pub mod camera;
 pub mod context;
@@ -103,9 +103,17 @@ pub enum StepDevice {
     Gpu,
 }
 
-/// The scene's world with its stages on `device`.
-fn build_world(scene: &Scene, device: StepDevice) -> Result<tumble::World, ViewError> {
+/// The scene's world with its stages on `device`, the GPU ones on `context` when given (else
+/// on the physics' shared device).
+fn build_world(
+    scene: &Scene,
+    device: StepDevice,
+    context: Option<tumble::gpu::GpuContext>,
+) -> Result<tumble::World, ViewError> {
     let mut world = scene.build()?;
+    if let Some(context) = context {
+        world.set_gpu_context(context)?;
+    }
     if device == StepDevice::Gpu {
         world.set_stage_devices(StageDevices::all(Executor::Gpu))?;
     }
@@ -123,7 +131,7 @@ pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), View
 
 /// Steps the scene and writes the pictures `--png` and `--frames` ask for.
 fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
-    let mut world = build_world(scene, options.device)?;
+    let mut world = build_world(scene, options.device, None)?;
     let context = GpuContext::headless()?;
     let ImageSize { width, height } = options.size;
     let mut offscreen = headless::Offscreen::new(&context, width, height)?;

@@ -47,7 +47,8 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     ));
     let backends = descriptor.backends;
     let instance = wgpu::Instance::new(descriptor);
-    let mut world = crate::build_world(scene, options.device)?;
+    // Until the window's device exists, GPU stages run on the physics' shared one.
+    let mut world = crate::build_world(scene, options.device, None)?;
     for _ in 0..options.steps {
         world.step();
     }
@@ -190,7 +191,11 @@ impl App<'_> {
     fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
         match action {
             Action::None => {}
-            Action::Reset => match crate::build_world(self.scene, self.device) {
+            Action::Reset => match crate::build_world(
+                self.scene,
+                self.device,
+                self.view.as_ref().map(|view| view.context.physics()),
+            ) {
                 Ok(world) => {
                     self.world = world;
                     self.put_solver_on(self.input.solver);
@@ -277,9 +282,14 @@ impl App<'_> {
             list.overlay.clone_from(&self.profile_lines);
         }
         let (width, height) = (view.config.width, view.config.height);
-        // The window's device is not the physics' (context.rs), so the poses come from the host.
-        view.renderer
-            .prepare(&list, &self.input.camera, (width, height), None);
+        // The world's GPU stages run on this device (resumed), so a GPU step is drawn from its
+        // buffers.
+        view.renderer.prepare(
+            &list,
+            &self.input.camera,
+            (width, height),
+            self.world.device_poses(),
+        );
         let target = frame.texture.create_view(&Default::default());
         let mut encoder = view
             .context
@@ -315,7 +325,13 @@ impl App<'_> {
 impl ApplicationHandler for App<'_> {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.view.is_none() {
-            match self.open(event_loop) {
+            // The world's GPU stages move to the window's device, where the renderer reads
+            // the poses they leave.
+            let opened = self.open(event_loop).and_then(|view| {
+                self.world.set_gpu_context(view.context.physics())?;
+                Ok(view)
+            });
+            match opened {
                 Ok(view) => self.view = Some(view),
                 Err(error) => self.fail(event_loop, error),
             }

@@ -300,10 +300,6 @@ fn a_gpu_step_is_drawn_from_its_device_buffers() {
         .unwrap();
     let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
     assert!(
-        context.shares_physics,
-        "headless pictures use the physics' device"
-    );
-    assert!(
         world.device_poses().is_none(),
         "no step, no poses on the device"
     );
@@ -337,4 +333,48 @@ fn a_gpu_step_is_drawn_from_its_device_buffers() {
         "the box is still drawn at its start pose {start}: {:?}",
         image.pixel(at.0, at.1)
     );
+}
+
+#[test]
+fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
+    // A device of its own, as a window makes (not the process's shared one).
+    let own = tumble::gpu::GpuContext::new().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let start = Vec3::new(0.0, 2.0, 0.0);
+    let ball = world
+        .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(start))
+        .unwrap();
+    world.set_gpu_context(own.clone()).unwrap();
+    world
+        .set_stage_devices(StageDevices::all(Executor::Gpu))
+        .unwrap();
+    world.step();
+    let poses = world.device_poses().expect("the step ran on the GPU");
+
+    // The start poses' buffer belongs to `own`'s device: copying it there is valid...
+    let bytes = (poses.count * 32) as u64;
+    let readback = own.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let scope = own.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let mut encoder = own.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(poses.start, 0, &readback, 0, bytes);
+    own.queue.submit([encoder.finish()]);
+    let error = pollster::block_on(scope.pop());
+    assert!(error.is_none(), "{error:?}");
+    // ... and holds the ball where the step began (a pose is 8 floats: position, pad, rotation).
+    readback
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |result| result.unwrap());
+    own.wait().unwrap();
+    let mapped = readback.slice(..).get_mapped_range().unwrap();
+    let floats: &[f32] = bytemuck::cast_slice(&mapped);
+    let slot = 8 * ball.index() as usize;
+    assert_eq!(floats[slot..slot + 3], start.to_array());
 }
