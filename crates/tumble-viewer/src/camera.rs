@@ -12,6 +12,11 @@ const MAX_PITCH: f32 = 89.0 * std::f32::consts::PI / 180.0;
 /// The default view looks from 35° right of +Z, 25° above the horizon.
 const DEFAULT_YAW: f32 = 35.0 * std::f32::consts::PI / 180.0;
 const DEFAULT_PITCH: f32 = 25.0 * std::f32::consts::PI / 180.0;
+/// The framed bodies fill the view up to this factor (1.08: 8% of room around them).
+const FRAMING_MARGIN: f32 = 1.08;
+/// The default camera stays at least this far from what it frames (m), so a single small body
+/// is not seen from inside the near plane's reach.
+const MIN_FRAMING_DISTANCE: f32 = 1.5;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
@@ -45,23 +50,98 @@ impl Camera {
         }
     }
 
-    /// A camera that sees the bounding box of `world`'s dynamic bodies whole, from above and to
-    /// the side: the bodies are what moves, and a landscape under them can be a hundred times
-    /// their extent. With no dynamic body it frames the finite static bodies (infinite planes
-    /// are left out); a world with nothing else looks at the origin from 10 m.
-    pub fn framing(world: &World) -> Self {
-        let (center, radius) = match dynamic_bounds(world).or_else(|| finite_bounds(world)) {
-            Some(aabb) => (aabb.center(), aabb.half_extents().length().max(0.5)),
-            None => (Vec3::ZERO, 4.0),
-        };
-        // The bounding sphere fits the narrower (vertical) field of view, with a 10% margin.
-        let distance = 1.1 * radius / (FOV_Y * 0.5).sin();
-        Self {
-            target: center,
-            distance,
+    /// A camera that sees `world`'s dynamic bodies whole on a viewport of `aspect` = width /
+    /// height, from above and to the side: the bodies are what moves, and a landscape under
+    /// them can be a hundred times their extent. With no dynamic body it frames the finite
+    /// static bodies (infinite planes are left out); a world with nothing else looks at the
+    /// origin from 10 m.
+    ///
+    /// Tight framing: the target moves until the bodies sit in the middle of the picture, and
+    /// the eye backs off just far enough that every corner of every framed body's bounding box
+    /// fits inside both fields of view with a [`FRAMING_MARGIN`]. A flat pile seen from 25°
+    /// above fills the picture's width, not the height of its bounding sphere.
+    pub fn framing(world: &World, aspect: f32) -> Self {
+        let mut camera = Self {
+            target: Vec3::ZERO,
+            distance: 10.0,
             yaw: DEFAULT_YAW,
             pitch: DEFAULT_PITCH,
+        };
+        let mut boxes = framed_boxes(world, true);
+        if boxes.is_empty() {
+            boxes = framed_boxes(world, false);
         }
+        let Some(bounds) = boxes.iter().copied().reduce(|a, b| a.union(&b)) else {
+            return camera;
+        };
+        let corners: Vec<Vec3> = boxes.iter().flat_map(corners).collect();
+        camera.target = bounds.center();
+        // Centring changes the distance needed and the other way round; two rounds settle it
+        // within a few pixels.
+        for _ in 0..2 {
+            camera.distance = camera.fitting_distance(&corners, aspect);
+            camera.centre_on(&corners, aspect);
+        }
+        camera.distance = camera
+            .fitting_distance(&corners, aspect)
+            .max(MIN_FRAMING_DISTANCE);
+        camera
+    }
+
+    /// The camera's frame: from the target towards the eye, then right and up across the view.
+    fn axes(&self) -> (Vec3, Vec3, Vec3) {
+        let back = Self {
+            target: Vec3::ZERO,
+            distance: 1.0,
+            ..*self
+        }
+        .eye();
+        let right = Vec3::Y.cross(back).normalize();
+        (back, right, back.cross(right))
+    }
+
+    /// Tangents of the half fields of view (horizontal, vertical), shrunk by the margin.
+    fn framing_tangents(aspect: f32) -> (f32, f32) {
+        let tan_y = (FOV_Y * 0.5).tan() / FRAMING_MARGIN;
+        (tan_y * aspect, tan_y)
+    }
+
+    /// The smallest distance from the target at which every point lies inside the view
+    /// (shrunk by [`FRAMING_MARGIN`]) of this camera's direction on a viewport of `aspect`.
+    fn fitting_distance(&self, points: &[Vec3], aspect: f32) -> f32 {
+        let (back, right, up) = self.axes();
+        let (tan_x, tan_y) = Self::framing_tangents(aspect);
+        points
+            .iter()
+            .map(|&point| {
+                // The point is at depth (distance - z) in front of the eye, and in view while
+                // |x| <= tan_x * depth and |y| <= tan_y * depth.
+                let offset = point - self.target;
+                let need_x = offset.dot(right).abs() / tan_x;
+                let need_y = offset.dot(up).abs() / tan_y;
+                offset.dot(back) + need_x.max(need_y)
+            })
+            .fold(0.0, f32::max)
+    }
+
+    /// Moves the target across the view so the points' extent in the picture is centred.
+    fn centre_on(&mut self, points: &[Vec3], aspect: f32) {
+        let (back, right, up) = self.axes();
+        let (tan_x, tan_y) = Self::framing_tangents(aspect);
+        let (mut low, mut high) = (glam::Vec2::MAX, glam::Vec2::MIN);
+        for &point in points {
+            let offset = point - self.target;
+            let depth = (self.distance - offset.dot(back)).max(1.0e-3);
+            let seen = glam::Vec2::new(
+                offset.dot(right) / (depth * tan_x),
+                offset.dot(up) / (depth * tan_y),
+            );
+            low = low.min(seen);
+            high = high.max(seen);
+        }
+        // A shift of the picture's middle, turned back into metres at the target's depth.
+        let middle = 0.5 * (low + high);
+        self.target += self.distance * (right * middle.x * tan_x + up * middle.y * tan_y);
     }
 
     pub fn eye(&self) -> Vec3 {
@@ -93,10 +173,11 @@ impl Camera {
     }
 }
 
-/// Union of the world AABBs of every body that is not a plane.
-pub fn finite_bounds(world: &World) -> Option<Aabb> {
+/// World AABBs of the dynamic bodies (`dynamic`) or of every body that is not a plane.
+fn framed_boxes(world: &World, dynamic: bool) -> Vec<Aabb> {
     world
         .bodies()
+        .filter(|&handle| !dynamic || world.is_dynamic(handle).unwrap_or(false))
         .filter_map(|handle| {
             let shape = world.body_desc(handle).ok()?.shape;
             if matches!(shape, Shape::Plane(_)) {
@@ -104,18 +185,30 @@ pub fn finite_bounds(world: &World) -> Option<Aabb> {
             }
             Some(shape.aabb(&world.pose(handle).ok()?))
         })
+        .collect()
+}
+
+fn corners(aabb: &Aabb) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { aabb.min.x } else { aabb.max.x },
+            if i & 2 == 0 { aabb.min.y } else { aabb.max.y },
+            if i & 4 == 0 { aabb.min.z } else { aabb.max.z },
+        )
+    })
+}
+
+/// Union of the world AABBs of every body that is not a plane.
+pub fn finite_bounds(world: &World) -> Option<Aabb> {
+    framed_boxes(world, false)
+        .into_iter()
         .reduce(|a, b| a.union(&b))
 }
 
 /// Union of the world AABBs of the dynamic bodies.
 pub fn dynamic_bounds(world: &World) -> Option<Aabb> {
-    world
-        .bodies()
-        .filter(|&handle| world.is_dynamic(handle).unwrap_or(false))
-        .filter_map(|handle| {
-            let shape = world.body_desc(handle).ok()?.shape;
-            Some(shape.aabb(&world.pose(handle).ok()?))
-        })
+    framed_boxes(world, true)
+        .into_iter()
         .reduce(|a, b| a.union(&b))
 }
 
@@ -169,14 +262,20 @@ mod tests {
         world.add_body(tumble::BodyDesc::fixed(shape)).unwrap();
     }
 
+    /// Where `point` lands in normalized device coordinates (x, y in -1..1 when in view).
+    fn ndc(camera: &Camera, aspect: f32, point: Vec3) -> Vec3 {
+        let clip = camera.view_projection(aspect) * point.extend(1.0);
+        clip.truncate() / clip.w
+    }
+
     #[test]
     fn framing_follows_the_dynamic_bodies() {
         let mut world = World::new(tumble::StepConfig::default()).unwrap();
         fixed(&mut world, Shape::plane(Vec3::Y, 0.0));
         // A floor 200 m wide, far larger than the bodies on it.
         fixed(&mut world, Shape::cuboid(Vec3::new(100.0, 0.5, 100.0)));
-        let floor_only = Camera::framing(&world);
-        assert!(floor_only.distance > 200.0, "{floor_only:?}");
+        let floor_only = Camera::framing(&world, 16.0 / 9.0);
+        assert!(floor_only.distance > 100.0, "{floor_only:?}");
 
         for x in [10.0, 12.0] {
             world
@@ -186,12 +285,59 @@ mod tests {
                 )
                 .unwrap();
         }
-        let camera = Camera::framing(&world);
-        assert!((camera.target - Vec3::new(11.0, 1.0, 0.0)).length() < 1e-5);
-        // The two boxes span 3 x 1 x 1 m: their bounding sphere fills the view.
-        let radius = Vec3::new(1.5, 0.5, 0.5).length();
-        let expected = 1.1 * radius / (FOV_Y * 0.5).sin();
-        assert!((camera.distance - expected).abs() < 1e-4, "{camera:?}");
+        let camera = Camera::framing(&world, 16.0 / 9.0);
+        assert!(
+            (camera.target - Vec3::new(11.0, 1.0, 0.0)).length() < 0.5,
+            "{camera:?}"
+        );
+        assert!(camera.distance < 10.0, "{camera:?}");
+    }
+
+    #[test]
+    fn framing_fits_and_centres_the_bodies_at_any_aspect() {
+        // A flat pile 20 x 1 x 20 m, as the falling scenes leave their bodies: a box at each
+        // of its corners.
+        let mut world = World::new(tumble::StepConfig::default()).unwrap();
+        let mut corners = Vec::new();
+        for (x, z) in [(-9.5, -9.5), (9.5, -9.5), (-9.5, 9.5), (9.5, 9.5)] {
+            let aabb = Aabb {
+                min: Vec3::new(x - 0.5, 0.0, z - 0.5),
+                max: Vec3::new(x + 0.5, 1.0, z + 0.5),
+            };
+            corners.extend(super::corners(&aabb));
+            world
+                .add_body(
+                    tumble::BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(aabb.center()),
+                )
+                .unwrap();
+        }
+        for aspect in [16.0 / 9.0, 1.0, 0.5] {
+            let camera = Camera::framing(&world, aspect);
+            let (mut low, mut high) = (Vec3::MAX, Vec3::MIN);
+            for &corner in &corners {
+                let p = ndc(&camera, aspect, corner);
+                assert!(
+                    p.x.abs() <= 1.0 && p.y.abs() <= 1.0,
+                    "{corner} at {p}, {aspect}"
+                );
+                low = low.min(p);
+                high = high.max(p);
+            }
+            // Tight: the bodies reach the margin on one axis or the other...
+            let reach = high.max(-low);
+            let widest = reach.x.max(reach.y);
+            assert!(
+                (widest - 1.0 / FRAMING_MARGIN).abs() < 0.01,
+                "aspect {aspect}: corners reach {reach}"
+            );
+            // ... and sit in the middle of the picture.
+            let middle = 0.5 * (low + high);
+            assert!(
+                middle.x.abs() < 0.02 && middle.y.abs() < 0.02,
+                "aspect {aspect}: middle {middle}"
+            );
+        }
     }
 
     #[test]

@@ -1,8 +1,15 @@
-//! The viewer's own adapter, device and queue.
+//! The device and queue the viewer draws with.
 //!
-//! The renderer only borrows a `wgpu::Device` and `wgpu::Queue` (see [`crate::Renderer::new`]),
-//! so once the physics step runs on the GPU this context can be swapped for the physics one and
-//! poses drawn straight from its buffers.
+//! Headless, the viewer draws on the physics' own device
+//! ([`tumble::gpu::GpuContext::shared`]): one device per process, so when the step runs on the
+//! GPU (`--device gpu`) the renderer reads the poses from the step's buffers. The renderer only
+//! borrows a `wgpu::Device` and `wgpu::Queue` (see [`crate::Renderer::new`]).
+//!
+//! A window needs an adapter that can present to its surface, and the surface must come from
+//! the same `wgpu::Instance` as the device; the physics' shared context makes its own instance
+//! and keeps no adapter. So the window makes the device ([`GpuContext::for_surface`], with the
+//! limits and features the physics asks for) and hands it to the world
+//! ([`tumble::World::set_gpu_context`]): there too, a GPU step is drawn from its buffers.
 //!
 //! Picking an adapter, as the engine's tests do (DESIGN.md, Testing): `WGPU_BACKEND` restricts
 //! the backends, `TUMBLE_ADAPTER` keeps adapters whose name contains the text
@@ -14,55 +21,63 @@ use crate::error::ViewError;
 
 /// A device and queue for rendering, with the adapter's description for messages.
 pub struct GpuContext {
-    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
 }
 
 impl GpuContext {
-    /// A context for offscreen rendering (no window system needed).
+    /// A context for offscreen rendering (no window system needed): the physics' shared device.
     pub fn headless() -> Result<Self, ViewError> {
-        let descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
-        let backends = descriptor.backends;
-        let instance = wgpu::Instance::new(descriptor);
-        pollster::block_on(Self::with_instance(&instance, backends, None))
+        let physics = tumble::gpu::GpuContext::shared()?;
+        Ok(Self {
+            device: physics.device,
+            queue: physics.queue,
+            info: (*physics.info).clone(),
+        })
     }
 
-    /// A context on `instance`'s adapters of `backends` that can present to `surface`, when one
-    /// is given.
-    pub async fn with_instance(
+    /// A context on `instance`'s adapters of `backends` that can present to `surface`, and the
+    /// adapter it is on (for the surface's configuration).
+    pub async fn for_surface(
         instance: &wgpu::Instance,
         backends: wgpu::Backends,
-        surface: Option<&wgpu::Surface<'_>>,
-    ) -> Result<Self, ViewError> {
+        surface: &wgpu::Surface<'_>,
+    ) -> Result<(Self, wgpu::Adapter), ViewError> {
         let adapters: Vec<wgpu::Adapter> = instance
             .enumerate_adapters(backends)
             .await
             .into_iter()
-            .filter(|adapter| surface.is_none_or(|surface| adapter.is_surface_supported(surface)))
+            .filter(|adapter| adapter.is_surface_supported(surface))
             .collect();
         let wanted = std::env::var("TUMBLE_ADAPTER").ok();
         let adapter = pick_adapter(adapters, wanted.as_deref(), backends)?;
         let info = adapter.get_info();
+        // The physics' limits and features: the world's GPU stages will run on this device.
         let (device, queue) = adapter
-            .request_device(&wgpu::DeviceDescriptor {
-                label: Some("tumble-viewer"),
-                required_limits: wgpu::Limits::downlevel_defaults()
-                    .using_resolution(adapter.limits()),
-                ..Default::default()
-            })
+            .request_device(&tumble::gpu::GpuContext::device_descriptor(&adapter))
             .await
             .map_err(|error| ViewError::RequestDevice {
                 adapter: info.name.clone(),
                 reason: error.to_string(),
             })?;
-        Ok(Self {
+        Ok((
+            Self {
+                device,
+                queue,
+                info,
+            },
             adapter,
-            device,
-            queue,
-            info,
-        })
+        ))
+    }
+
+    /// This device as a physics context, for [`tumble::World::set_gpu_context`].
+    pub fn physics(&self) -> tumble::gpu::GpuContext {
+        tumble::gpu::GpuContext::from_device(
+            self.device.clone(),
+            self.queue.clone(),
+            self.info.clone(),
+        )
     }
 
     /// "name (backend, device type)", for messages.

@@ -8,10 +8,10 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
 use tumble::World;
-use tumble::math::tangent_basis;
+use tumble::math::{Transform, tangent_basis};
 use tumble::shape::{ConvexHull, Shape, TriMesh};
 
-use crate::camera::finite_bounds;
+use crate::camera::{dynamic_bounds, finite_bounds};
 
 /// Clear colour where nothing is drawn (linear RGB).
 pub const BACKGROUND: [f32; 3] = [0.30, 0.40, 0.55];
@@ -36,6 +36,41 @@ pub struct Instance {
 }
 
 const _: () = assert!(size_of::<Instance>() == 80);
+
+/// Where an instance's model comes from when the renderer draws from the physics' device
+/// buffers (renderer.rs, pose.wgsl): its body's pose at the end of the step times `local`.
+// repr(C) + Pod: uploaded as is into the storage buffer pose.wgsl reads.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Pod, Zeroable)]
+pub struct PoseLink {
+    /// Mesh to body frame, column-major: the shape's scale, and a compound child's pose.
+    pub local: [[f32; 4]; 4],
+    /// The body's slot ([`tumble::BodyHandle::index`]), or [`NO_BODY`] for an instance that
+    /// keeps its model (contact markers).
+    pub body: u32,
+    pub _pad: [u32; 3],
+}
+
+const _: () = assert!(size_of::<PoseLink>() == 80);
+
+/// `PoseLink::body` of an instance that belongs to no body.
+pub const NO_BODY: u32 = u32::MAX;
+
+impl PoseLink {
+    const NONE: Self = Self {
+        local: [[0.0; 4]; 4],
+        body: NO_BODY,
+        _pad: [0; 3],
+    };
+
+    fn new(body: u32, local: Mat4) -> Self {
+        Self {
+            local: local.to_cols_array_2d(),
+            body,
+            _pad: [0; 3],
+        }
+    }
+}
 
 impl Instance {
     fn new(model: Mat4, colour: [f32; 3]) -> Self {
@@ -110,6 +145,14 @@ pub struct DrawList {
     pub hulls: BTreeMap<u64, Arc<ConvexHull>>,
     /// The triangle meshes that `MeshKey::TriMesh` keys name.
     pub trimeshes: BTreeMap<u64, Arc<TriMesh>>,
+    /// The sphere (centre, radius in m) the shadow map covers: the dynamic bodies' bounds, as
+    /// the default camera frames them (else every finite body's), so the map's texels go to
+    /// what moves and not to a landscape a hundred times larger. `None`: nothing casts.
+    pub shadow_bounds: Option<(Vec3, f32)>,
+    /// Overlay text, drawn over the top-left corner (overlay.rs); the caller fills it.
+    pub overlay: Vec<String>,
+    /// For each instance in `instances`, in the same order, the body it is drawn at.
+    pub links: BTreeMap<MeshKey, Vec<PoseLink>>,
 }
 
 /// FNV-1a over 32-bit words: a key that is the same for equal geometry in every run.
@@ -162,6 +205,12 @@ impl DrawList {
         })
     }
 
+    /// Adds an instance of `key` and where its model comes from, keeping the two lists in step.
+    fn push(&mut self, key: MeshKey, instance: Instance, link: PoseLink) {
+        self.instances.entry(key).or_default().push(instance);
+        self.links.entry(key).or_default().push(link);
+    }
+
     pub fn build(world: &World, settings: DrawSettings) -> Self {
         let mut list = DrawList {
             wireframe: settings.wireframe,
@@ -171,6 +220,9 @@ impl DrawList {
         let (scene_center, scene_radius) = bounds.map_or((Vec3::ZERO, 5.0), |aabb| {
             (aabb.center(), aabb.half_extents().length())
         });
+        list.shadow_bounds = dynamic_bounds(world)
+            .or(bounds)
+            .map(|aabb| (aabb.center(), aabb.half_extents().length()));
         // Contact markers scale with the smallest body so they never hide one.
         let mut smallest = f32::MAX;
         for handle in world.bodies() {
@@ -188,7 +240,7 @@ impl DrawList {
                 (true, _) => BATCH_BODY_COLOUR,
             };
             // A compound is drawn as its children, each at its pose in the body frame.
-            let parts: Vec<(&Shape, tumble::math::Transform)> = match &desc.shape {
+            let parts: Vec<(&Shape, Transform)> = match &desc.shape {
                 Shape::Plane(plane) => {
                     let normal = pose.rotation * plane.normal;
                     let origin = pose.position + normal * plane.offset;
@@ -209,33 +261,38 @@ impl DrawList {
                     let key = trimesh_key(trimesh);
                     list.trimeshes.entry(key).or_insert_with(|| trimesh.clone());
                     let model = Mat4::from_rotation_translation(pose.rotation, pose.position);
-                    list.instances
-                        .entry(MeshKey::TriMesh(key))
-                        .or_default()
-                        .push(Instance::new(model, TRIMESH_COLOUR));
+                    list.push(
+                        MeshKey::TriMesh(key),
+                        Instance::new(model, TRIMESH_COLOUR),
+                        PoseLink::new(handle.index(), Mat4::IDENTITY),
+                    );
                     continue;
                 }
                 Shape::Compound(compound) => compound
                     .children()
                     .iter()
-                    .map(|child| (&child.shape, pose.mul_transform(&child.pose)))
+                    .map(|child| (&child.shape, child.pose))
                     .collect(),
-                shape => vec![(shape, pose)],
+                shape => vec![(shape, Transform::IDENTITY)],
             };
-            for (shape, part_pose) in parts {
+            for (shape, local) in parts {
                 let Some((key, scale)) = list.convex_mesh(shape) else {
                     continue;
                 };
+                let part_pose = pose.mul_transform(&local);
+                let local =
+                    Mat4::from_scale_rotation_translation(scale, local.rotation, local.position);
                 smallest = smallest.min(shape.aabb(&part_pose).half_extents().min_element());
                 let model = Mat4::from_scale_rotation_translation(
                     scale,
                     part_pose.rotation,
                     part_pose.position,
                 );
-                list.instances
-                    .entry(key)
-                    .or_default()
-                    .push(Instance::new(model, colour));
+                list.push(
+                    key,
+                    Instance::new(model, colour),
+                    PoseLink::new(handle.index(), local),
+                );
             }
         }
         if settings.contacts || settings.batches != BatchView::Off {
@@ -265,10 +322,11 @@ impl DrawList {
                     glam::Quat::IDENTITY,
                     point.position,
                 );
-                self.instances
-                    .entry(MeshKey::Cube)
-                    .or_default()
-                    .push(Instance::new(marker, marker_colour));
+                self.push(
+                    MeshKey::Cube,
+                    Instance::new(marker, marker_colour),
+                    PoseLink::NONE,
+                );
                 // Maps the segment's +Y onto the normal; u and v only keep the matrix regular.
                 let segment = Mat4::from_cols(
                     u.extend(0.0),
@@ -276,10 +334,11 @@ impl DrawList {
                     v.extend(0.0),
                     point.position.extend(1.0),
                 );
-                self.instances
-                    .entry(MeshKey::Segment)
-                    .or_default()
-                    .push(Instance::new(segment, CONTACT_NORMAL_COLOUR));
+                self.push(
+                    MeshKey::Segment,
+                    Instance::new(segment, CONTACT_NORMAL_COLOUR),
+                    PoseLink::NONE,
+                );
             }
         }
     }
@@ -355,6 +414,11 @@ mod tests {
             half_height: 0.5f32.to_bits(),
         };
         assert_eq!(list.instances[&capsule].len(), 1);
+        // Every instance knows its body: the box is body 1, drawn at its pose times its scale.
+        assert_eq!(list.links[&MeshKey::Cube].len(), 1);
+        assert_eq!(list.links[&MeshKey::Cube][0].body, 1);
+        let local = Mat4::from_cols_array_2d(&list.links[&MeshKey::Cube][0].local);
+        assert_eq!(local, Mat4::from_scale(Vec3::new(0.5, 0.25, 1.0)));
         // The box's model matrix scales the unit cube to its half extents.
         let model = Mat4::from_cols_array_2d(&list.instances[&MeshKey::Cube][0].model);
         let corner = model.transform_point3(Vec3::ONE);
@@ -402,8 +466,14 @@ mod tests {
             .sum();
         assert!(points > 0, "the box rests on the ground");
         assert_eq!(with.instances[&MeshKey::Segment].len(), points);
-        // One cube is the box itself, the others mark the points.
+        // One cube is the box itself, the others mark the points, which belong to no body.
         assert_eq!(with.instances[&MeshKey::Cube].len(), 1 + points);
+        let bodies: Vec<u32> = with.links[&MeshKey::Cube].iter().map(|l| l.body).collect();
+        assert_eq!(
+            bodies.iter().filter(|&&body| body == NO_BODY).count(),
+            points
+        );
+        assert_eq!(with.links[&MeshKey::Segment].len(), points);
     }
 
     #[test]

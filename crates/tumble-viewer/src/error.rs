@@ -6,6 +6,9 @@ use std::path::PathBuf;
 pub enum ViewError {
     #[error(transparent)]
     Scene(#[from] tumble::scene::SceneError),
+    /// No adapter or device for the physics' GPU stages, which headless pictures draw with too.
+    #[error(transparent)]
+    Gpu(#[from] tumble::gpu::GpuError),
     #[error(
         "no display to open a window on ({reason}); render headless instead, e.g. \
          `tumble view {scene} --steps 120 --png {scene}.png` (or --frames DIR for a PNG per step)"

@@ -12,6 +12,7 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) plane: vec2<f32>,
+    @location(2) world: vec3<f32>,
 };
 
 @vertex
@@ -20,6 +21,7 @@ fn vs_main(in: VertexIn) -> VertexOut {
     out.clip = globals.view_projection * vec4<f32>(in.position, 1.0);
     out.normal = in.normal;
     out.plane = in.plane;
+    out.world = in.position;
     return out;
 }
 
@@ -34,5 +36,5 @@ fn fs_main(in: VertexOut) -> @location(0) vec4<f32> {
     // Far away a pixel spans many cells and the lines would shimmer: fade them out.
     let fade = 1.0 - smoothstep(0.15, 0.5, max(width.x, width.y));
     let colour = mix(GROUND_COLOUR, LINE_COLOUR, on_line * fade);
-    return vec4<f32>(shade(colour, in.normal), 1.0);
+    return vec4<f32>(shade(colour, in.normal, in.world), 1.0);
 }

@@ -6,6 +6,7 @@ use std::io::BufWriter;
 use std::path::Path;
 
 use tumble::World;
+use tumble::pipeline::world::DevicePoses;
 
 use crate::camera::Camera;
 use crate::context::GpuContext;
@@ -111,21 +112,39 @@ impl Offscreen {
         })
     }
 
-    /// Draws `world` as `camera` sees it and reads the picture back.
+    /// Draws `world` as `camera` sees it, with the `overlay` lines (none: no overlay) over the
+    /// top-left corner, and reads the picture back. When the world's last step ran on the GPU,
+    /// the bodies are drawn from the step's device buffers ([`World::device_poses`]), which
+    /// must be on `context`'s device (the world's GPU stages run on
+    /// [`GpuContext::headless`]'s unless it was given another).
     pub fn render(
         &mut self,
         context: &GpuContext,
         world: &World,
         camera: &Camera,
         settings: DrawSettings,
+        overlay: &[String],
+    ) -> Result<Image, ViewError> {
+        let mut list = DrawList::build(world, settings);
+        list.overlay = overlay.to_vec();
+        self.render_list(context, &list, camera, world.device_poses())
+    }
+
+    /// Draws `list` as `camera` sees it, the bodies at `device_poses` when given (buffers on
+    /// `context`'s device), and reads the picture back.
+    pub fn render_list(
+        &mut self,
+        context: &GpuContext,
+        list: &DrawList,
+        camera: &Camera,
+        device_poses: Option<DevicePoses>,
     ) -> Result<Image, ViewError> {
         let device = &context.device;
         // Validation errors (an adapter that cannot do what we ask) become an error value
         // instead of wgpu's default panic.
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let list = DrawList::build(world, settings);
         self.renderer
-            .prepare(&list, camera, self.width as f32 / self.height as f32);
+            .prepare(list, camera, (self.width, self.height), device_poses);
         let mut encoder = device.create_command_encoder(&Default::default());
         self.renderer
             .encode(&mut encoder, &self.color_view, &self.depth);

@@ -52,9 +52,7 @@ pub enum Action {
     Reset,
     /// Advance one step (the simulation is paused).
     Step,
-    /// Print the key list.
-    Help,
-    /// Print the profile report now (and keep printing while `profile` is on).
+    /// Take the profile overlay's numbers now (and again every second while `profile` is on).
     Profile,
     /// Run the solver stage (and its batching) on this executor from the next step.
     Solver(Executor),
@@ -63,19 +61,19 @@ pub enum Action {
     Quit,
 }
 
-/// The key list `h` prints.
+/// The key list: the help overlay (`h`), also printed when the window opens.
 pub const HELP: &str = "\
 tumble view keys:
   space        reset the scene
   i            start / stop the simulation
   s            single step (stops the simulation)
-  p            profile: print the stage timings, pair and contact counts, batch histogram
+  p            profile: stage timings, pair and contact counts, batch histogram
   c            draw contact points and normals
   b            constraint batches: all in colours / one batch at a time / off
   u            solver (and its batching) on CPU / GPU
   d            batcher: greedy colors / the talk's rounds
   w            wireframe / solid
-  h            this help
+  h            this help (on / off)
   q, escape    quit
   cursor keys  orbit the camera;  z / x  move closer / farther;  mouse drag  orbit";
 
@@ -91,6 +89,8 @@ pub struct InputState {
     pub camera: Camera,
     pub running: bool,
     pub profile: bool,
+    /// The help overlay is shown.
+    pub help: bool,
     pub contacts: bool,
     pub wireframe: bool,
     pub batches: BatchView,
@@ -109,6 +109,7 @@ impl InputState {
             camera,
             running: true,
             profile: false,
+            help: false,
             contacts: false,
             wireframe: false,
             batches: BatchView::Off,
@@ -186,7 +187,10 @@ impl InputState {
                 self.batcher = self.batcher.next();
                 Action::Batcher(self.batcher)
             }
-            Key::Char('h') => Action::Help,
+            Key::Char('h') => {
+                self.help = !self.help;
+                Action::None
+            }
             Key::Char(_) => Action::None,
         }
     }
@@ -229,11 +233,20 @@ mod tests {
     }
 
     #[test]
-    fn space_resets_q_and_escape_quit_h_helps() {
+    fn space_resets_q_and_escape_quit() {
         assert_eq!(press(Key::Space), (Action::Reset, state()));
         assert_eq!(press(Key::Char('q')), (Action::Quit, state()));
         assert_eq!(press(Key::Escape), (Action::Quit, state()));
-        assert_eq!(press(Key::Char('h')), (Action::Help, state()));
+    }
+
+    #[test]
+    fn h_toggles_the_help_overlay() {
+        let mut s = state();
+        assert!(!s.help);
+        assert_eq!(s.key(Key::Char('h')), Action::None);
+        assert!(s.help);
+        assert_eq!(s.key(Key::Char('h')), Action::None);
+        assert!(!s.help);
     }
 
     #[test]

@@ -4,33 +4,40 @@
 //! The pieces, from the world to the pixels:
 //! - [`draw::DrawList`] reads poses, shapes and contacts from the world into instance lists
 //!   (model matrix + colour per body, grouped by mesh) and ground quads for planes;
-//! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame;
+//! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame
+//!   (a shadow map pass, then the scene and the [`overlay`] text drawn with the [`font`]);
 //! - [`headless::Offscreen`] renders into a texture and reads it back; the window path
 //!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes.
 //!
-//! The viewer makes its own device ([`context::GpuContext`]); once the step runs on the GPU it
-//! will take the physics device instead and draw the poses from the physics buffers.
+//! Headless, the viewer draws on the physics' device ([`context::GpuContext`]): after a step
+//! on the GPU (`--device gpu`) a compute pass builds the bodies' instance models from the
+//! step's device buffers ([`tumble::pipeline::world::DevicePoses`]), with no readback. A
+//! window makes the device and hands it to the world (context.rs says why), to the same end.
 
 pub mod camera;
 pub mod context;
 pub mod draw;
 mod error;
+pub mod font;
 pub mod headless;
 pub mod input;
 pub mod mesh;
+pub mod overlay;
 mod renderer;
 mod window;
 
 use crate::draw::DrawSettings;
 use crate::input::BatchView;
+use crate::overlay::OverlayKind;
 use std::path::PathBuf;
 
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::Scene;
 
 pub use camera::Camera;
 pub use context::GpuContext;
 pub use error::ViewError;
-pub use renderer::Renderer;
+pub use renderer::{LIGHT_DIRECTION, Renderer};
 
 /// A picture size `WIDTHxHEIGHT` in pixels.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -78,6 +85,39 @@ pub struct ViewOptions {
     /// Headless: colour the bodies by constraint batch (the talk's "colored batches").
     #[arg(long)]
     pub batches: bool,
+    /// Draw an overlay over the top-left corner: the profile (stage times of the steps so far,
+    /// counts, batch histogram) or the key list; in a window, as if `p` or `h` were pressed.
+    #[arg(long, value_enum, default_value = "off")]
+    pub overlay: OverlayKind,
+    /// Where the step runs: every stage on the CPU, or every stage on the GPU (headless, the
+    /// pictures are drawn on that same device).
+    #[arg(long, value_enum, default_value = "cpu")]
+    pub device: StepDevice,
+}
+
+/// `--device` of `tumble view`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum StepDevice {
+    #[default]
+    Cpu,
+    Gpu,
+}
+
+/// The scene's world with its stages on `device`, the GPU ones on `context` when given (else
+/// on the physics' shared device).
+fn build_world(
+    scene: &Scene,
+    device: StepDevice,
+    context: Option<tumble::gpu::GpuContext>,
+) -> Result<tumble::World, ViewError> {
+    let mut world = scene.build()?;
+    if let Some(context) = context {
+        world.set_gpu_context(context)?;
+    }
+    if device == StepDevice::Gpu {
+        world.set_stage_devices(StageDevices::all(Executor::Gpu))?;
+    }
+    Ok(world)
 }
 
 /// Shows `scene` (named `name` in messages): headless when `--png` or `--frames` is given,
@@ -91,7 +131,7 @@ pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), View
 
 /// Steps the scene and writes the pictures `--png` and `--frames` ask for.
 fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
-    let mut world = scene.build()?;
+    let mut world = build_world(scene, options.device, None)?;
     let context = GpuContext::headless()?;
     let ImageSize { width, height } = options.size;
     let mut offscreen = headless::Offscreen::new(&context, width, height)?;
@@ -107,9 +147,19 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         ..DrawSettings::default()
     };
     let mut picture = |world: &tumble::World, path: PathBuf| {
-        let camera = *camera.get_or_insert_with(|| Camera::framing(world));
+        let camera =
+            *camera.get_or_insert_with(|| Camera::framing(world, width as f32 / height as f32));
+        let overlay = match options.overlay {
+            OverlayKind::Off => Vec::new(),
+            OverlayKind::Help => overlay::help_lines(),
+            OverlayKind::Profile => overlay::profile_lines(
+                &world.profiler().report(),
+                world.body_count(),
+                world.stats(),
+            ),
+        };
         offscreen
-            .render(&context, world, &camera, settings)?
+            .render(&context, world, &camera, settings, &overlay)?
             .save_png(&path)
     };
     if let Some(dir) = &options.frames {

@@ -16,6 +16,7 @@ struct VertexOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) colour: vec3<f32>,
+    @location(2) world: vec3<f32>,
 };
 
 @vertex
@@ -27,23 +28,32 @@ fn vs_main(in: VertexIn) -> VertexOut {
     let c1 = in.model_1.xyz;
     let c2 = in.model_2.xyz;
     var out: VertexOut;
-    out.clip = globals.view_projection * model * vec4<f32>(in.position, 1.0);
+    let world = model * vec4<f32>(in.position, 1.0);
+    out.clip = globals.view_projection * world;
+    out.world = world.xyz;
     out.normal = c0 * (in.normal.x / dot(c0, c0)) + c1 * (in.normal.y / dot(c1, c1))
         + c2 * (in.normal.z / dot(c2, c2));
     out.colour = in.colour.rgb;
     return out;
 }
 
+// The shadow pass: depth only, as the light sees the mesh.
+@vertex
+fn vs_shadow(in: VertexIn) -> @builtin(position) vec4<f32> {
+    let model = mat4x4<f32>(in.model_0, in.model_1, in.model_2, in.model_3);
+    return globals.light_view_projection * model * vec4<f32>(in.position, 1.0);
+}
+
 @fragment
 fn fs_solid(in: VertexOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(shade(in.colour, in.normal), 1.0);
+    return vec4<f32>(shade(in.colour, in.normal, in.world), 1.0);
 }
 
 // Triangle meshes: seen from behind, a triangle is lit as its back face (the normal flipped).
 @fragment
 fn fs_two_sided(in: VertexOut, @builtin(front_facing) front_facing: bool) -> @location(0) vec4<f32> {
     let normal = select(-in.normal, in.normal, front_facing);
-    return vec4<f32>(shade(in.colour, normal), 1.0);
+    return vec4<f32>(shade(in.colour, normal, in.world), 1.0);
 }
 
 // Wireframe edges and contact normals: unlit, so they read the same from every side.

@@ -1,30 +1,52 @@
 //! The renderer: pipelines, meshes and per-frame buffers on a device it is given, so the same
-//! code draws into a window's surface and into an offscreen texture, and can later share the
-//! physics device.
+//! code draws into a window's surface and into an offscreen texture, and on the physics'
+//! device from its buffers.
 //!
-//! A frame is one render pass: clear, ground grids, then every mesh instanced once (solid
-//! triangles, or its edges as lines in wireframe mode), then contact segments as lines.
+//! A frame is two render passes. The shadow pass draws every solid mesh's depth as the light
+//! sees it (an orthographic view along the light over the bodies' bounds) into the shadow map.
+//! The frame pass clears, draws the ground grids, then every mesh instanced once (solid
+//! triangles, or its edges as lines in wireframe mode), contact segments as lines, and last the
+//! overlay text on top. Lit surfaces look their point up in the shadow map. When the step ran
+//! on this device, a compute pass first writes the bodies' instance models from the physics'
+//! pose buffers (pose.wgsl).
 //! Triangle meshes are drawn from both sides, as the physics collides with both.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
 
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
+use glam::{Mat4, Vec3};
+use tumble::pipeline::world::DevicePoses;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
-use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey};
+use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey, NO_BODY, PoseLink};
+use crate::font::{CELL_HEIGHT, CELL_WIDTH, GLYPH_COUNT, GLYPH_HEIGHT, GLYPH_WIDTH};
 use crate::mesh::{MeshData, Vertex};
+use crate::overlay::{PANEL, TextQuad};
 
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// Towards the light (normalized before use): high and to the right of the default camera, so
 /// the three faces of a box it sees get three different shades (top, right, front).
-const LIGHT_DIRECTION: Vec3 = Vec3::new(0.5, 0.8, 0.3);
+pub const LIGHT_DIRECTION: Vec3 = Vec3::new(0.5, 0.8, 0.3);
 /// Light reaching a surface facing away from the light, and the Lambert weight on top.
 const AMBIENT: f32 = 0.3;
 const DIFFUSE: f32 = 0.7;
+/// Side of the square shadow map in texels: 2048 keeps a box's shadow crisp with a few thousand
+/// bodies in view, and clears in well under a millisecond even on lavapipe.
+const SHADOW_MAP_SIZE: u32 = 2048;
+/// Shadow acne: depth bias of the shadow pass (in units of the depth format's precision and
+/// of the triangle's depth slope) and the push of a lit point along its normal, in shadow map
+/// texels.
+const SHADOW_DEPTH_BIAS: wgpu::DepthBiasState = wgpu::DepthBiasState {
+    constant: 2,
+    slope_scale: 2.0,
+    clamp: 0.0,
+};
+const SHADOW_NORMAL_OFFSET_TEXELS: f32 = 1.5;
+/// Invocations per workgroup of the pose pass (pose.wgsl).
+const POSE_WORKGROUP_SIZE: u32 = 64;
 /// Grid lines on ground planes every GRID_SPACING metres.
 const GRID_SPACING: f32 = 1.0;
 const GROUND_COLOUR: [f32; 3] = [0.42, 0.42, 0.40];
@@ -35,11 +57,14 @@ const LINE_COLOUR: [f32; 3] = [0.18, 0.18, 0.18];
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 struct Globals {
     view_projection: [[f32; 4]; 4],
+    light_view_projection: [[f32; 4]; 4],
     light_direction: [f32; 4],
     lighting: [f32; 4],
+    shadow: [f32; 4],
+    viewport: [f32; 4],
 }
 
-const _: () = assert!(size_of::<Globals>() == 96);
+const _: () = assert!(size_of::<Globals>() == 192);
 
 // repr(C) + Pod: the ground vertex buffer's bytes; mirrors `VertexIn` in grid.wgsl.
 #[repr(C)]
@@ -59,25 +84,32 @@ struct GpuMesh {
     lines: Option<(wgpu::Buffer, u32)>,
 }
 
-/// A vertex buffer that grows (to the next power of two) and never shrinks.
+/// A buffer written from the host that grows (to the next power of two) and never shrinks.
 struct GrowingBuffer {
     label: &'static str,
+    usage: wgpu::BufferUsages,
     buffer: wgpu::Buffer,
 }
 
 impl GrowingBuffer {
-    fn new(device: &wgpu::Device, label: &'static str) -> Self {
+    fn new(device: &wgpu::Device, label: &'static str, usage: wgpu::BufferUsages) -> Self {
         Self {
             label,
-            buffer: Self::create(device, label, 4096),
+            usage,
+            buffer: Self::create(device, label, usage, 4096),
         }
     }
 
-    fn create(device: &wgpu::Device, label: &'static str, size: u64) -> wgpu::Buffer {
+    fn create(
+        device: &wgpu::Device,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        size: u64,
+    ) -> wgpu::Buffer {
         device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size,
-            usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+            usage: usage | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         })
     }
@@ -85,7 +117,7 @@ impl GrowingBuffer {
     fn write(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, bytes: &[u8]) {
         let needed = bytes.len() as u64;
         if needed > self.buffer.size() {
-            self.buffer = Self::create(device, self.label, needed.next_power_of_two());
+            self.buffer = Self::create(device, self.label, self.usage, needed.next_power_of_two());
         }
         if !bytes.is_empty() {
             queue.write_buffer(&self.buffer, 0, bytes);
@@ -97,18 +129,34 @@ pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     globals: wgpu::Buffer,
-    bind_group: wgpu::BindGroup,
+    /// Group 0: the globals, for every pipeline.
+    globals_bind_group: wgpu::BindGroup,
+    /// Group 1: the shadow map and the font, for the frame pass (not the shadow pass, which
+    /// writes the map).
+    textures_bind_group: wgpu::BindGroup,
+    shadow_map: wgpu::TextureView,
+    shadow_pipeline: wgpu::RenderPipeline,
     solid_pipeline: wgpu::RenderPipeline,
     two_sided_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
     grid_pipeline: wgpu::RenderPipeline,
+    text_pipeline: wgpu::RenderPipeline,
+    /// Writes instance models from the physics' device buffers; made on first use, so that a
+    /// device that is never given them needs no compute support.
+    pose_pipeline: Option<wgpu::ComputePipeline>,
     meshes: BTreeMap<MeshKey, GpuMesh>,
     instances: GrowingBuffer,
+    /// Each instance's body, for `pose_pipeline`.
+    links: GrowingBuffer,
     ground: GrowingBuffer,
-    /// This frame's instance range of each mesh, and whether to draw edges only.
+    text: GrowingBuffer,
+    /// This frame's instance range of each mesh.
     draws: Vec<(MeshKey, Range<u32>)>,
     ground_vertices: u32,
+    text_quads: u32,
     wireframe: bool,
+    /// Whether this frame has a shadow caster (and so a light view to draw the map from).
+    shadows: bool,
 }
 
 impl Renderer {
@@ -124,14 +172,21 @@ impl Renderer {
              const LINE_COLOUR: vec3<f32> = vec3<f32>({lr:?}, {lg:?}, {lb:?});\n{}",
             include_str!("grid.wgsl")
         );
-        let mesh_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("mesh.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(mesh_source.into()),
-        });
-        let grid_shader = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("grid.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(grid_source.into()),
-        });
+        let text_source = format!(
+            "{common}\nconst CELL_WIDTH: u32 = {CELL_WIDTH}u;\nconst CELL_HEIGHT: u32 = \
+             {CELL_HEIGHT}u;\nconst GLYPH_WIDTH: u32 = {GLYPH_WIDTH}u;\nconst GLYPH_HEIGHT: u32 \
+             = {GLYPH_HEIGHT}u;\nconst PANEL: u32 = {PANEL}u;\n{}",
+            include_str!("text.wgsl")
+        );
+        let shader = |label: &str, source: String| {
+            device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(label),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            })
+        };
+        let mesh_shader = shader("mesh.wgsl", mesh_source);
+        let grid_shader = shader("grid.wgsl", grid_source);
+        let text_shader = shader("text.wgsl", text_source);
 
         let globals = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("globals"),
@@ -139,7 +194,7 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let bind_group_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        let globals_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("globals"),
             entries: &[wgpu::BindGroupLayoutEntry {
                 binding: 0,
@@ -152,17 +207,99 @@ impl Renderer {
                 count: None,
             }],
         });
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let globals_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("globals"),
-            layout: &bind_group_layout,
+            layout: &globals_layout,
             entries: &[wgpu::BindGroupEntry {
                 binding: 0,
                 resource: globals.as_entire_binding(),
             }],
         });
+
+        let shadow_map = device
+            .create_texture(&wgpu::TextureDescriptor {
+                label: Some("shadow map"),
+                size: wgpu::Extent3d {
+                    width: SHADOW_MAP_SIZE,
+                    height: SHADOW_MAP_SIZE,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                    | wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            })
+            .create_view(&Default::default());
+        // Linear filtering of the comparisons: each of the shader's 3 x 3 taps is itself a
+        // bilinear blend of four, so shadow edges come out smooth.
+        let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("shadow"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            compare: Some(wgpu::CompareFunction::LessEqual),
+            ..Default::default()
+        });
+        let font = upload_font(device, queue);
+        let texture_entry = |binding: u32, ty: wgpu::BindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::FRAGMENT,
+            ty,
+            count: None,
+        };
+        let textures_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("textures"),
+            entries: &[
+                texture_entry(
+                    0,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Depth,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
+                texture_entry(
+                    1,
+                    wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Comparison),
+                ),
+                texture_entry(
+                    2,
+                    wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                ),
+            ],
+        });
+        let textures_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("textures"),
+            layout: &textures_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&shadow_map),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&shadow_sampler),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&font),
+                },
+            ],
+        });
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("viewer"),
-            bind_group_layouts: &[Some(&bind_group_layout)],
+            bind_group_layouts: &[Some(&globals_layout), Some(&textures_layout)],
+            immediate_size: 0,
+        });
+        let shadow_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("shadow"),
+            bind_group_layouts: &[Some(&globals_layout)],
             immediate_size: 0,
         });
 
@@ -185,6 +322,20 @@ impl Renderer {
             step_mode: wgpu::VertexStepMode::Vertex,
             attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x2],
         })];
+        let text_buffers = [Some(wgpu::VertexBufferLayout {
+            array_stride: size_of::<TextQuad>() as u64,
+            step_mode: wgpu::VertexStepMode::Instance,
+            attributes: &wgpu::vertex_attr_array![
+                0 => Float32x2, 1 => Float32x2, 2 => Float32x4, 3 => Uint32
+            ],
+        })];
+        let depth_test = wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::LessEqual),
+            stencil: Default::default(),
+            bias: Default::default(),
+        };
         let pipeline = |label: &str,
                         shader: &wgpu::ShaderModule,
                         fragment: &str,
@@ -206,13 +357,7 @@ impl Renderer {
                     cull_mode,
                     ..Default::default()
                 },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::LessEqual),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(depth_test.clone()),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: shader,
@@ -259,36 +404,133 @@ impl Renderer {
             wgpu::PrimitiveTopology::TriangleList,
             None,
         );
+        // Both faces cast: triangle meshes are open, and the bias handles the lit faces.
+        let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("shadow"),
+            layout: Some(&shadow_layout),
+            vertex: wgpu::VertexState {
+                module: &mesh_shader,
+                entry_point: Some("vs_shadow"),
+                compilation_options: Default::default(),
+                buffers: &mesh_buffers,
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                bias: SHADOW_DEPTH_BIAS,
+                ..depth_test.clone()
+            }),
+            multisample: Default::default(),
+            fragment: None,
+            multiview_mask: None,
+            cache: None,
+        });
+        // Text lies on top of everything and blends its panel over the scene.
+        let text_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("text"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &text_shader,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &text_buffers,
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: Some(wgpu::DepthStencilState {
+                depth_write_enabled: Some(false),
+                depth_compare: Some(wgpu::CompareFunction::Always),
+                ..depth_test
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &text_shader,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: Some(wgpu::BlendState::ALPHA_BLENDING),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
 
         Self {
             device: device.clone(),
             queue: queue.clone(),
             globals,
-            bind_group,
+            globals_bind_group,
+            textures_bind_group,
+            shadow_map,
+            shadow_pipeline,
             solid_pipeline,
             two_sided_pipeline,
             line_pipeline,
             grid_pipeline,
+            text_pipeline,
+            pose_pipeline: None,
             meshes: BTreeMap::new(),
-            instances: GrowingBuffer::new(device, "instances"),
-            ground: GrowingBuffer::new(device, "ground"),
+            // Storage too: the pose pass writes the models in place.
+            instances: GrowingBuffer::new(
+                device,
+                "instances",
+                wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::STORAGE,
+            ),
+            links: GrowingBuffer::new(device, "pose links", wgpu::BufferUsages::STORAGE),
+            ground: GrowingBuffer::new(device, "ground", wgpu::BufferUsages::VERTEX),
+            text: GrowingBuffer::new(device, "text", wgpu::BufferUsages::VERTEX),
             draws: Vec::new(),
             ground_vertices: 0,
+            text_quads: 0,
             wireframe: false,
+            shadows: false,
         }
     }
 
-    /// Uploads what `list` draws, seen by `camera` on a viewport of `aspect` = width / height.
-    pub fn prepare(&mut self, list: &DrawList, camera: &Camera, aspect: f32) {
+    /// Uploads what `list` draws, seen by `camera` on a viewport of `width` × `height` pixels.
+    /// With `device_poses` (a GPU step's buffers on this renderer's device), the bodies are
+    /// drawn at the poses in those buffers, not at the models in `list`.
+    pub fn prepare(
+        &mut self,
+        list: &DrawList,
+        camera: &Camera,
+        (width, height): (u32, u32),
+        device_poses: Option<DevicePoses>,
+    ) {
+        let light = LIGHT_DIRECTION.normalize();
+        // Solid meshes cast shadows; wireframes are lines, which would cast none.
+        let shadow_view = list
+            .shadow_bounds
+            .filter(|_| !list.wireframe)
+            .map(|(center, radius)| light_view_projection(light, center, radius));
+        self.shadows = shadow_view.is_some();
+        let (light_view_projection, shadow) = match shadow_view {
+            Some((matrix, texel)) => (
+                matrix,
+                [
+                    SHADOW_MAP_SIZE as f32,
+                    SHADOW_NORMAL_OFFSET_TEXELS * texel,
+                    0.0,
+                    0.0,
+                ],
+            ),
+            None => (Mat4::IDENTITY, [0.0; 4]),
+        };
         let globals = Globals {
-            view_projection: camera.view_projection(aspect).to_cols_array_2d(),
-            light_direction: LIGHT_DIRECTION.normalize().extend(0.0).to_array(),
+            view_projection: camera
+                .view_projection(width as f32 / height as f32)
+                .to_cols_array_2d(),
+            light_view_projection: light_view_projection.to_cols_array_2d(),
+            light_direction: light.extend(0.0).to_array(),
             lighting: [AMBIENT, DIFFUSE, 0.0, 0.0],
+            shadow,
+            viewport: [width as f32, height as f32, 0.0, 0.0],
         };
         self.queue
             .write_buffer(&self.globals, 0, bytemuck::bytes_of(&globals));
 
         let mut instances: Vec<Instance> = Vec::new();
+        let mut links: Vec<PoseLink> = Vec::new();
         self.draws.clear();
         for (&key, group) in &list.instances {
             if !self.meshes.contains_key(&key) {
@@ -298,25 +540,39 @@ impl Renderer {
             let start = instances.len() as u32;
             instances.extend_from_slice(group);
             self.draws.push((key, start..instances.len() as u32));
+            let group_links = list.links.get(&key).map_or(&[][..], Vec::as_slice);
+            debug_assert_eq!(group_links.len(), group.len(), "{key:?}");
+            links.extend_from_slice(group_links);
         }
         self.instances
             .write(&self.device, &self.queue, bytemuck::cast_slice(&instances));
+        if let Some(poses) = device_poses {
+            self.pose_instances(&links, poses);
+        }
 
         let ground: Vec<GridVertex> = list.grounds.iter().flat_map(ground_vertices).collect();
         self.ground
             .write(&self.device, &self.queue, bytemuck::cast_slice(&ground));
         self.ground_vertices = ground.len() as u32;
+
+        let text = crate::overlay::layout(&list.overlay, height);
+        self.text
+            .write(&self.device, &self.queue, bytemuck::cast_slice(&text));
+        self.text_quads = text.len() as u32;
         self.wireframe = list.wireframe;
     }
 
-    /// Records the frame prepared last into `encoder`: clears `color` and `depth` (a
-    /// [`DEPTH_FORMAT`] view of the same size) and draws.
+    /// Records the frame prepared last into `encoder`: the shadow map, then clears `color` and
+    /// `depth` (a [`DEPTH_FORMAT`] view of the same size) and draws.
     pub fn encode(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         color: &wgpu::TextureView,
         depth: &wgpu::TextureView,
     ) {
+        if self.shadows {
+            self.encode_shadows(encoder);
+        }
         let [r, g, b] = BACKGROUND.map(f64::from);
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("frame"),
@@ -341,7 +597,8 @@ impl Renderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
-        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_bind_group(0, &self.globals_bind_group, &[]);
+        pass.set_bind_group(1, &self.textures_bind_group, &[]);
         if self.ground_vertices > 0 {
             pass.set_pipeline(&self.grid_pipeline);
             pass.set_vertex_buffer(0, self.ground.buffer.slice(..));
@@ -365,7 +622,162 @@ impl Renderer {
             pass.set_index_buffer(indices.0.slice(..), wgpu::IndexFormat::Uint32);
             pass.draw_indexed(0..indices.1, 0, range.clone());
         }
+        if self.text_quads > 0 {
+            pass.set_pipeline(&self.text_pipeline);
+            pass.set_vertex_buffer(0, self.text.buffer.slice(..));
+            pass.draw(0..6, 0..self.text_quads);
+        }
     }
+
+    /// Overwrites the models of the instances that `links` tie to a body with the body's pose
+    /// in `poses` times the link's local matrix: one compute dispatch, submitted now, so it runs
+    /// after the instance upload and before the frame that draws them.
+    fn pose_instances(&mut self, links: &[PoseLink], poses: DevicePoses) {
+        if links.is_empty() {
+            return;
+        }
+        let device = &self.device;
+        let pipeline = self.pose_pipeline.get_or_insert_with(|| {
+            let source = format!(
+                "const NO_BODY: u32 = {NO_BODY}u;\nconst WORKGROUP_SIZE: u32 = \
+                 {POSE_WORKGROUP_SIZE}u;\n{}",
+                include_str!("pose.wgsl")
+            );
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("pose.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(source.into()),
+            });
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("poses"),
+                layout: None,
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        });
+        self.links
+            .write(device, &self.queue, bytemuck::cast_slice(links));
+        let bytes = |count: usize, size: usize| wgpu::BufferSize::new((count * size) as u64);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("poses"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: poses.start.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: poses.motion.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.links.buffer,
+                        offset: 0,
+                        size: bytes(links.len(), size_of::<PoseLink>()),
+                    }),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &self.instances.buffer,
+                        offset: 0,
+                        size: bytes(links.len(), size_of::<Instance>()),
+                    }),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups((links.len() as u32).div_ceil(POSE_WORKGROUP_SIZE), 1, 1);
+        }
+        self.queue.submit([encoder.finish()]);
+    }
+
+    /// The shadow pass: every solid mesh's depth as the light sees it.
+    fn encode_shadows(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("shadow"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.shadow_map,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.shadow_pipeline);
+        pass.set_bind_group(0, &self.globals_bind_group, &[]);
+        pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
+        for (key, range) in &self.draws {
+            let mesh = &self.meshes[key];
+            if let Some((indices, count)) = &mesh.triangles {
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, range.clone());
+            }
+        }
+    }
+}
+
+/// The light's view of a sphere (`center`, `radius`) and what lies below it along the light:
+/// world to the shadow map's clip space (orthographic, depth 0 at the light), and the size of a
+/// map texel in metres. The map spans the sphere across; in depth it reaches from in front of
+/// the sphere to far enough behind it for the ground under raised bodies.
+fn light_view_projection(light: Vec3, center: Vec3, radius: f32) -> (Mat4, f32) {
+    let radius = radius.max(1.0e-3);
+    let eye = center + light * (2.0 * radius);
+    // Any up vector not along the light will do; the light is never straight up here.
+    let up = if light.cross(Vec3::Y).length_squared() > 1.0e-6 {
+        Vec3::Y
+    } else {
+        Vec3::Z
+    };
+    let view = glam::camera::rh::view::look_at_mat4(eye, center, up);
+    let far = 2.0 * radius + (8.0 * radius).max(50.0);
+    let projection =
+        glam::camera::rh::proj::directx::orthographic(-radius, radius, -radius, radius, 0.0, far);
+    (projection * view, 2.0 * radius / SHADOW_MAP_SIZE as f32)
+}
+
+/// The font atlas (font.rs) as a one-channel texture.
+fn upload_font(device: &wgpu::Device, queue: &wgpu::Queue) -> wgpu::TextureView {
+    let size = wgpu::Extent3d {
+        width: GLYPH_COUNT * GLYPH_WIDTH,
+        height: GLYPH_HEIGHT,
+        depth_or_array_layers: 1,
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("font"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    queue.write_texture(
+        texture.as_image_copy(),
+        &crate::font::atlas(),
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(size.width),
+            rows_per_image: Some(size.height),
+        },
+        size,
+    );
+    texture.create_view(&Default::default())
 }
 
 /// A depth attachment for a `width` × `height` colour target.

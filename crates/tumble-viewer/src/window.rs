@@ -1,7 +1,7 @@
 //! The window: a winit event loop that steps the world, draws it into the window's surface and
-//! feeds keys and the mouse to [`InputState`]. The profile "overlay" is printed to stdout (about
-//! once a second while `p` is on) and a status line is kept in the window title: drawing text
-//! in the window needs a font renderer, left for later.
+//! feeds keys and the mouse to [`InputState`]. The profile overlay (`p`) is refreshed about
+//! once a second, the help overlay (`h`) lists the keys, and a status line is kept in the window
+//! title.
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -20,10 +20,11 @@ use crate::context::GpuContext;
 use crate::draw::DrawList;
 use crate::error::ViewError;
 use crate::input::{Action, Executor, HELP, InputState, Key};
+use crate::overlay::{self, OverlayKind};
 use crate::renderer::{Renderer, depth_view};
-use crate::{ImageSize, ViewOptions};
+use crate::{ImageSize, StepDevice, ViewOptions};
 
-/// How often the title's status line and the printed profile are refreshed.
+/// How often the title's status line and the profile overlay are refreshed.
 const STATUS_PERIOD: Duration = Duration::from_millis(500);
 const PROFILE_PERIOD: Duration = Duration::from_secs(1);
 /// Camera distance factor per mouse wheel line.
@@ -46,17 +47,29 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     ));
     let backends = descriptor.backends;
     let instance = wgpu::Instance::new(descriptor);
-    let mut world = scene.build()?;
+    // Until the window's device exists, GPU stages run on the physics' shared one.
+    let mut world = crate::build_world(scene, options.device, None)?;
     for _ in 0..options.steps {
         world.step();
     }
-    let camera = options.camera.unwrap_or_else(|| Camera::framing(&world));
+    let aspect = options.size.width as f32 / options.size.height as f32;
+    let camera = options
+        .camera
+        .unwrap_or_else(|| Camera::framing(&world, aspect));
     println!("{HELP}");
+    let mut input = InputState::new(camera);
+    if options.device == StepDevice::Gpu {
+        input.solver = Executor::Gpu;
+    }
+    // --overlay opens the window with that overlay on, as if its key had been pressed.
+    input.help = options.overlay == OverlayKind::Help;
+    input.profile = options.overlay == OverlayKind::Profile;
     let mut app = App {
         name: name.to_owned(),
         scene,
+        device: options.device,
         world,
-        input: InputState::new(camera),
+        input,
         size: options.size,
         instance,
         backends,
@@ -66,6 +79,7 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         frames: 0,
         last_status: Instant::now(),
         last_profile: Instant::now(),
+        profile_lines: Vec::new(),
     };
     event_loop
         .run_app(&mut app)
@@ -101,6 +115,8 @@ struct WindowView {
 struct App<'a> {
     name: String,
     scene: &'a Scene,
+    /// Where the step runs after a reset, before the `u` key moves the solver.
+    device: StepDevice,
     world: World,
     input: InputState,
     size: ImageSize,
@@ -114,6 +130,8 @@ struct App<'a> {
     frames: u32,
     last_status: Instant,
     last_profile: Instant,
+    /// The profile overlay's text, as of the last refresh.
+    profile_lines: Vec<String>,
 }
 
 impl App<'_> {
@@ -130,15 +148,15 @@ impl App<'_> {
             .instance
             .create_surface(window.clone())
             .map_err(|e| ViewError::Surface(e.to_string()))?;
-        let context = pollster::block_on(GpuContext::with_instance(
+        let (context, adapter) = pollster::block_on(GpuContext::for_surface(
             &self.instance,
             self.backends,
-            Some(&surface),
+            &surface,
         ))?;
         let size = window.inner_size();
         let (width, height) = (size.width.max(1), size.height.max(1));
         let mut config = surface
-            .get_default_config(&context.adapter, width, height)
+            .get_default_config(&adapter, width, height)
             .ok_or_else(|| {
                 ViewError::Surface(format!(
                     "the adapter {} cannot present to this window",
@@ -146,7 +164,7 @@ impl App<'_> {
                 ))
             })?;
         // The shaders write linear colour: an sRGB target encodes it for the screen.
-        let capabilities = surface.get_capabilities(&context.adapter);
+        let capabilities = surface.get_capabilities(&adapter);
         if let Some(&srgb) = capabilities.formats.iter().find(|f| f.is_srgb()) {
             config.format = srgb;
         }
@@ -173,18 +191,21 @@ impl App<'_> {
     fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
         match action {
             Action::None => {}
-            Action::Reset => match self.scene.build() {
+            Action::Reset => match crate::build_world(
+                self.scene,
+                self.device,
+                self.view.as_ref().map(|view| view.context.physics()),
+            ) {
                 Ok(world) => {
                     self.world = world;
                     self.put_solver_on(self.input.solver);
                     self.use_batcher(self.input.batcher);
                 }
-                Err(error) => self.fail(event_loop, error.into()),
+                Err(error) => self.fail(event_loop, error),
             },
             Action::Solver(executor) => self.put_solver_on(executor),
             Action::Step => self.world.step(),
-            Action::Help => println!("{HELP}"),
-            Action::Profile => self.print_profile(),
+            Action::Profile => self.refresh_profile(),
             Action::Batcher(batcher) => self.use_batcher(batcher),
             Action::Quit => event_loop.exit(),
         }
@@ -217,21 +238,14 @@ impl App<'_> {
         }
     }
 
-    /// The talk's profile screen, as text: stage times, counts and the batch histogram. The
-    /// timings restart after each report, so each covers the frames since the last.
-    fn print_profile(&mut self) {
-        let stats = self.world.stats();
-        print!("{}", self.world.profiler().report());
-        println!(
-            "# bodies = {}  # pairs = {}  # manifolds = {}  # contacts = {}",
+    /// The talk's profile screen: stage times, counts and the batch histogram. The timings
+    /// restart after each refresh, so each covers the frames since the last.
+    fn refresh_profile(&mut self) {
+        self.profile_lines = overlay::profile_lines(
+            &self.world.profiler().report(),
             self.world.body_count(),
-            stats.pairs,
-            stats.manifolds,
-            stats.contacts
+            self.world.stats(),
         );
-        for (batch, count) in stats.batch_histogram.iter().enumerate() {
-            println!("{batch:4} : {count}");
-        }
         self.world.profiler_mut().reset();
         self.last_profile = Instant::now();
     }
@@ -261,9 +275,21 @@ impl App<'_> {
                 return;
             }
         };
-        let list = DrawList::build(&self.world, self.input.draw_settings());
-        let aspect = view.config.width as f32 / view.config.height as f32;
-        view.renderer.prepare(&list, &self.input.camera, aspect);
+        let mut list = DrawList::build(&self.world, self.input.draw_settings());
+        if self.input.help {
+            list.overlay = overlay::help_lines();
+        } else if self.input.profile {
+            list.overlay.clone_from(&self.profile_lines);
+        }
+        let (width, height) = (view.config.width, view.config.height);
+        // The world's GPU stages run on this device (resumed), so a GPU step is drawn from its
+        // buffers.
+        view.renderer.prepare(
+            &list,
+            &self.input.camera,
+            (width, height),
+            self.world.device_poses(),
+        );
         let target = frame.texture.create_view(&Default::default());
         let mut encoder = view
             .context
@@ -291,7 +317,7 @@ impl App<'_> {
             self.last_status = Instant::now();
         }
         if self.input.profile && self.last_profile.elapsed() >= PROFILE_PERIOD {
-            self.print_profile();
+            self.refresh_profile();
         }
     }
 }
@@ -299,7 +325,13 @@ impl App<'_> {
 impl ApplicationHandler for App<'_> {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.view.is_none() {
-            match self.open(event_loop) {
+            // The world's GPU stages move to the window's device, where the renderer reads
+            // the poses they leave.
+            let opened = self.open(event_loop).and_then(|view| {
+                self.world.set_gpu_context(view.context.physics())?;
+                Ok(view)
+            });
+            match opened {
                 Ok(view) => self.view = Some(view),
                 Err(error) => self.fail(event_loop, error),
             }

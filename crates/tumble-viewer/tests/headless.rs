@@ -1,14 +1,19 @@
 //! Headless renders on whatever adapter wgpu finds (lavapipe where there is no GPU): one box on
 //! a plane (the picture is not blank, shows the background where nothing is, and shows the box
-//! where its centre projects with the same camera matrix the renderer uses), and one box on a
-//! floor made of two triangles (the floor shows where it projects, the background around it).
+//! where its centre projects with the same camera matrix the renderer uses), one box on a
+//! floor made of two triangles (the floor shows where it projects, the background around it),
+//! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
+//! overlay's panel with it, none without), and a world stepped on the GPU drawn from the step's
+//! device buffers.
 
 use tumble::math::Vec3;
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::shape::TriMesh;
 use tumble::{BodyDesc, Shape, StepConfig, World};
-use tumble_viewer::draw::{BACKGROUND, DrawSettings, TRIMESH_COLOUR, body_colour};
-use tumble_viewer::headless::Offscreen;
-use tumble_viewer::{Camera, GpuContext};
+use tumble_viewer::draw::{BACKGROUND, DrawList, DrawSettings, TRIMESH_COLOUR, body_colour};
+use tumble_viewer::headless::{Image, Offscreen};
+use tumble_viewer::overlay::{TEXT_COLOUR, help_lines, panel_rect, profile_lines};
+use tumble_viewer::{Camera, GpuContext, LIGHT_DIRECTION};
 
 // Small: lavapipe rasterizes on the CPU.
 const WIDTH: u32 = 128;
@@ -90,7 +95,7 @@ fn box_on_a_plane() {
     let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
     let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
     let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default())
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
         .unwrap();
     assert_eq!(image.rgba.len(), (4 * WIDTH * HEIGHT) as usize);
 
@@ -140,7 +145,7 @@ fn box_on_a_triangle_mesh_floor() {
     let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
     let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
     let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default())
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
         .unwrap();
 
     // The floor where its points project, in front of the box and behind it.
@@ -165,4 +170,211 @@ fn box_on_a_triangle_mesh_floor() {
         assert_background(image.pixel(at.0, at.1), at);
     }
     assert_background(image.pixel(0, 0), (0, 0));
+}
+
+/// Linear luminance-like brightness of a pixel (the sum of its linear channels).
+fn brightness(pixel: [u8; 4]) -> f32 {
+    (0..3).map(|c| decode_srgb(pixel[c])).sum()
+}
+
+#[test]
+fn a_box_shadows_the_floor_under_it() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    // Floating 1 m above the floor (it is not stepped, so it stays there).
+    let center = Vec3::new(0.0, 1.5, 0.0);
+    world
+        .add_body(BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(center))
+        .unwrap();
+    // From high above, so the floor in the box's shadow is in view beside the box.
+    let camera = Camera::look_at(Vec3::new(0.0, 8.0, 0.5), Vec3::ZERO);
+
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
+        .unwrap();
+
+    // The light's ray through the box's centre meets the floor here; a grid cell's middle
+    // near it (grid lines sit on whole metres) is in the shadow of the whole box.
+    let light = LIGHT_DIRECTION.normalize();
+    let under = center - light * (center.y / light.y);
+    assert!(
+        (under - Vec3::new(-0.94, 0.0, -0.56)).length() < 0.01,
+        "{under}"
+    );
+    let shadowed = project(&camera, Vec3::new(-0.9, 0.0, -0.6));
+    // Far from the box on the other side, the floor is lit.
+    let lit = project(&camera, Vec3::new(1.5, 0.0, 1.5));
+    let (dark, bright) = (
+        brightness(image.pixel(shadowed.0, shadowed.1)),
+        brightness(image.pixel(lit.0, lit.1)),
+    );
+    // Shadowed, only the ambient light (0.3) is left of ambient + Lambert (about 0.87).
+    assert!(
+        dark < 0.6 * bright,
+        "floor in the shadow at {shadowed:?}: {dark}, lit at {lit:?}: {bright}"
+    );
+}
+
+/// Pixels inside (left, top, right, bottom) that have the overlay text's colour.
+fn text_pixels(image: &Image, (left, top, right, bottom): (u32, u32, u32, u32)) -> usize {
+    let text = TEXT_COLOUR.map(|c| (encode_srgb(c) * 255.0).round() as i32);
+    let mut count = 0;
+    for y in top..bottom {
+        for x in left..right {
+            let pixel = image.pixel(x, y);
+            if (0..3).all(|c| (i32::from(pixel[c]) - text[c]).abs() <= 2) {
+                count += 1;
+            }
+        }
+    }
+    count
+}
+
+#[test]
+fn overlays_draw_text_in_their_panel() {
+    // Wide enough for the help's longest line, so the picture has room beside the panel.
+    let (width, height) = (640, 480);
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    world.step();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, width, height).unwrap();
+    let mut render = |overlay: &[String]| {
+        offscreen
+            .render(&context, &world, &camera, DrawSettings::default(), overlay)
+            .unwrap()
+    };
+
+    let help = help_lines();
+    let profile = profile_lines(
+        &world.profiler().report(),
+        world.body_count(),
+        world.stats(),
+    );
+    let without = render(&[]);
+    for lines in [&help, &profile] {
+        let panel = panel_rect(lines, height);
+        let (right, bottom) = (panel.2, panel.3);
+        assert!(right < width && bottom < height, "{panel:?}");
+        assert_eq!(text_pixels(&without, panel), 0, "no overlay, no text");
+        let with = render(lines);
+        let drawn = text_pixels(&with, panel);
+        // Each line puts ink in dozens of pixels.
+        assert!(drawn > 20 * lines.len(), "{drawn} text pixels in {panel:?}");
+        // Beside and below the panel, the picture is the scene's, untouched.
+        for (x, y) in [(right, 0), (width - 1, height - 1), (0, bottom)] {
+            assert_eq!(with.pixel(x, y), without.pixel(x, y), "at {x}, {y}");
+        }
+    }
+}
+
+#[test]
+fn a_gpu_step_is_drawn_from_its_device_buffers() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    // Sliding at 60 m/s: a step moves it a metre, twice its size.
+    let start = Vec3::new(-1.5, 0.5, 0.0);
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                .position(start)
+                .linear_velocity(Vec3::new(60.0, 0.0, 0.0)),
+        )
+        .unwrap();
+    world
+        .set_stage_devices(StageDevices::all(Executor::Gpu))
+        .unwrap();
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    assert!(
+        world.device_poses().is_none(),
+        "no step, no poses on the device"
+    );
+    world.step();
+    let end = world.pose(cube).unwrap().position;
+    assert!((end - start).x > 0.8, "{start} -> {end}");
+    let poses = world
+        .device_poses()
+        .expect("every stage ran on the GPU: the poses are on the device");
+
+    // The host's models are sent far away: a box in the picture comes from the device.
+    let mut list = DrawList::build(&world, DrawSettings::default());
+    for instance in list.instances.values_mut().flatten() {
+        instance.model[3] = [1000.0, 0.0, 0.0, 1.0];
+    }
+    let camera = Camera::look_at(Vec3::new(0.0, 4.0, 8.0), Vec3::new(-1.0, 0.5, 0.0));
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render_list(&context, &list, &camera, Some(poses))
+        .unwrap();
+
+    // Where the step left it (the start pose moved by the solver's motion)...
+    let colour = body_colour(cube.index() as usize);
+    let at = project(&camera, end);
+    assert_hue(image.pixel(at.0, at.1), at, colour);
+    // ... and not where the step began.
+    let at = project(&camera, start);
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(image.pixel(at.0, at.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the box is still drawn at its start pose {start}: {:?}",
+        image.pixel(at.0, at.1)
+    );
+}
+
+#[test]
+fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
+    // A device of its own, as a window makes (not the process's shared one).
+    let own = tumble::gpu::GpuContext::new().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let start = Vec3::new(0.0, 2.0, 0.0);
+    let ball = world
+        .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(start))
+        .unwrap();
+    world.set_gpu_context(own.clone()).unwrap();
+    world
+        .set_stage_devices(StageDevices::all(Executor::Gpu))
+        .unwrap();
+    world.step();
+    let poses = world.device_poses().expect("the step ran on the GPU");
+
+    // The start poses' buffer belongs to `own`'s device: copying it there is valid...
+    let bytes = (poses.count * 32) as u64;
+    let readback = own.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: bytes,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let scope = own.device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let mut encoder = own.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(poses.start, 0, &readback, 0, bytes);
+    own.queue.submit([encoder.finish()]);
+    let error = pollster::block_on(scope.pop());
+    assert!(error.is_none(), "{error:?}");
+    // ... and holds the ball where the step began (a pose is 8 floats: position, pad, rotation).
+    readback
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |result| result.unwrap());
+    own.wait().unwrap();
+    let mapped = readback.slice(..).get_mapped_range().unwrap();
+    let floats: &[f32] = bytemuck::cast_slice(&mapped);
+    let slot = 8 * ball.index() as usize;
+    assert_eq!(floats[slot..slot + 3], start.to_array());
 }

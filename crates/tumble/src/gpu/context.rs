@@ -72,29 +72,46 @@ impl GpuContext {
         let wanted = std::env::var("TUMBLE_ADAPTER").ok();
         let adapter = pick_adapter(adapters, wanted.as_deref(), backends)?;
         let info = adapter.get_info();
-        let optional = wgpu::Features::TIMESTAMP_QUERY
-            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
-            | wgpu::Features::SUBGROUP;
-        let descriptor = wgpu::DeviceDescriptor {
-            label: Some("tumble"),
-            required_features: adapter.features() & optional,
-            required_limits: adapter.limits(),
-            ..Default::default()
-        };
-        let (device, queue) =
-            adapter
-                .request_device(&descriptor)
-                .await
-                .map_err(|error| GpuError::RequestDevice {
-                    adapter: info.name.clone(),
-                    reason: error.to_string(),
-                })?;
+        let (device, queue) = adapter
+            .request_device(&Self::device_descriptor(&adapter))
+            .await
+            .map_err(|error| GpuError::RequestDevice {
+                adapter: info.name.clone(),
+                reason: error.to_string(),
+            })?;
         Ok(Self {
             device,
             queue,
             info: Arc::new(info),
             pipelines: Arc::default(),
         })
+    }
+
+    /// What the kernels want of a device on `adapter` (the module docs say why), for a caller
+    /// that makes the device itself and hands it over with [`Self::from_device`].
+    pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
+        let optional = wgpu::Features::TIMESTAMP_QUERY
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
+            | wgpu::Features::SUBGROUP;
+        wgpu::DeviceDescriptor {
+            label: Some("tumble"),
+            required_features: adapter.features() & optional,
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }
+    }
+
+    /// A context on a device the caller made from [`Self::device_descriptor`], e.g. a viewer's
+    /// that presents to a window: the GPU stages of a world given it
+    /// ([`World::set_gpu_context`](crate::World::set_gpu_context)) keep their buffers where the
+    /// viewer can draw from them.
+    pub fn from_device(device: wgpu::Device, queue: wgpu::Queue, info: wgpu::AdapterInfo) -> Self {
+        Self {
+            device,
+            queue,
+            info: Arc::new(info),
+            pipelines: Arc::default(),
+        }
     }
 
     /// One context per process, created on first use. Creating a device is slow on the CPU

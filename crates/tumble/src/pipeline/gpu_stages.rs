@@ -87,6 +87,22 @@ pub(crate) enum RowSlots<'a> {
     Narrowphase,
 }
 
+/// A GPU step's poses where they are, on the device, for a renderer on the same device to draw
+/// from without a readback. The integrator runs on the host, so no device buffer holds the
+/// poses after the step; two buffers that the step leaves there give them: body slot `i`
+/// ends the step at `start[i]` ([`BodyPose`], the pose the stages uploaded at the start of
+/// the step) moved by `motion[i]` ([`SolverBody`]): position + delta_position, rotation
+/// normalize(delta_rotation * rotation), unless inverse_mass is 0 (static or asleep: it stays),
+/// as [`finalize_bodies`](crate::stages::integrate::finalize_bodies) computes on the host.
+/// Valid until the world is stepped or changed.
+#[derive(Clone, Copy, Debug)]
+pub struct DevicePoses<'a> {
+    pub start: &'a wgpu::Buffer,
+    pub motion: &'a wgpu::Buffer,
+    /// Body slots in both buffers.
+    pub count: usize,
+}
+
 /// The step's body arrays, as the GPU stages read them.
 pub(crate) struct BodyInputs<'a> {
     pub poses: &'a [BodyPose],
@@ -140,6 +156,8 @@ pub(crate) struct GpuStages {
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
     pair_contacts_fresh: bool,
+    /// The solver ran on the GPU this step: `solver_bodies` holds the step's motion.
+    solved_this_step: bool,
     /// Host scratch, reused: the identity map, the packed colliders, downloaded contacts.
     identity: Vec<u32>,
     collider_data: Vec<ColliderData>,
@@ -151,9 +169,8 @@ pub(crate) struct GpuStages {
 }
 
 impl GpuStages {
-    /// The GPU side on the process's shared adapter (`GpuContext::shared`).
-    pub fn new() -> Result<Self, GpuError> {
-        let context = GpuContext::shared()?;
+    /// The GPU side on `context`'s device.
+    pub fn new(context: GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             profiler: GpuProfiler::new(&context, 8),
             bodies: DeviceBodies {
@@ -186,6 +203,7 @@ impl GpuStages {
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
+            solved_this_step: false,
             identity: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
@@ -211,6 +229,17 @@ impl GpuStages {
     pub fn begin_step(&mut self) {
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
+        self.solved_this_step = false;
+    }
+
+    /// This step's poses on the device, when a stage uploaded the poses this step and the
+    /// solver ran here ([`DevicePoses`]).
+    pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        (self.bodies.uploaded_this_step && self.solved_this_step).then(|| DevicePoses {
+            start: self.bodies.poses.buffer(),
+            motion: self.solver_bodies.buffer(),
+            count: self.bodies.poses.len(),
+        })
     }
 
     /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
@@ -526,6 +555,7 @@ impl GpuStages {
             .download_into(context, &mut self.downloaded_joints)?;
         batched.joints.copy_from_slice(&self.downloaded_joints);
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        self.solved_this_step = true;
         Ok(())
     }
 }
@@ -591,6 +621,7 @@ impl GpuStages {
             }
         }
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
+        self.solved_this_step = true;
         Ok(())
     }
 }
@@ -664,8 +695,11 @@ mod tests {
     /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
     #[test]
     fn rows_from_the_narrowphase_output_equal_rows_from_the_host() {
-        let mut gpu =
-            GpuStages::new().unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut gpu = GpuStages::new(
+            GpuContext::shared()
+                .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
+        )
+        .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig {
             sleeping: false,
             ..StepConfig::default()

@@ -27,10 +27,11 @@ use crate::dynamics::body::{
 };
 use crate::dynamics::island::Islands;
 use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
-use crate::gpu::context::GpuError;
+use crate::gpu::context::{GpuContext, GpuError};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::devices::StageDevices;
+pub use crate::pipeline::gpu_stages::DevicePoses;
 use crate::pipeline::gpu_stages::GpuStages;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
@@ -132,6 +133,9 @@ pub struct World {
     /// The executor of each stage, and the GPU side when a stage runs there.
     pub(crate) devices: StageDevices,
     pub(crate) gpu: Option<GpuStages>,
+    /// The device the GPU stages run on when the caller gave one
+    /// ([`World::set_gpu_context`]); else the process's shared one.
+    pub(crate) gpu_context: Option<GpuContext>,
     /// Sleep state of every body and the sleeping islands.
     pub(crate) islands: Islands,
     /// Sorted keys of the pairs between sleeping bodies, or a sleeping and a static one: the
@@ -176,6 +180,7 @@ impl World {
             steps: 0,
             devices: StageDevices::default(),
             gpu: None,
+            gpu_context: None,
             islands: Islands::default(),
             resting_pairs: Vec::new(),
             refresh_resting: false,
@@ -677,10 +682,33 @@ impl World {
     /// executors within the parity tests' tolerances, not bitwise.
     pub fn set_stage_devices(&mut self, devices: StageDevices) -> Result<(), GpuError> {
         if devices.any_gpu() && self.gpu.is_none() {
-            self.gpu = Some(GpuStages::new()?);
+            let context = match &self.gpu_context {
+                Some(context) => context.clone(),
+                None => GpuContext::shared()?,
+            };
+            self.gpu = Some(GpuStages::new(context)?);
         }
         self.devices = devices;
         Ok(())
+    }
+
+    /// Runs the GPU stages on `context`'s device from the next step on, instead of the
+    /// process's shared one: a viewer that presents to a window on a device of its own hands
+    /// it over, so the step's buffers ([`Self::device_poses`]) are on the device it draws with.
+    /// The GPU side starts afresh there (its buffers are uploaded again at the next step).
+    pub fn set_gpu_context(&mut self, context: GpuContext) -> Result<(), GpuError> {
+        if self.gpu.is_some() {
+            self.gpu = Some(GpuStages::new(context.clone())?);
+        }
+        self.gpu_context = Some(context);
+        Ok(())
+    }
+
+    /// The last step's poses on the GPU, when it ran there (a stage that reads the bodies and
+    /// the solver on the GPU): see [`DevicePoses`]. The buffers are on the device the GPU stages
+    /// run on: [`Self::set_gpu_context`]'s, else [`GpuContext::shared`].
+    pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        self.gpu.as_ref()?.device_poses()
     }
 
     /// The adapter the GPU stages run on, when any does.
