@@ -13,7 +13,7 @@
 use std::time::Instant;
 use tumble::gpu::prims::fill::copy_dispatch;
 use tumble::gpu::prims::radix_sort::RadixSort;
-use tumble::gpu::prims::scan::{Scan, ScanKind};
+use tumble::gpu::prims::scan::{Scan, ScanKind, ScanPath};
 use tumble::gpu::{GpuContext, GpuVec};
 use tumble::particles::{ParticleConfig, ParticleDevice, ParticleSystem};
 use tumble::profile::median;
@@ -46,13 +46,19 @@ pub fn run(scale: f64) -> Result<(), String> {
     }
     let count = sized(1 << 26);
     let bytes = 2.0 * 4.0 * count as f64; // read and write every u32 once
-    let scan = scan_ms(&context, count)?;
+    let scan = scan_ms(&context, count, ScanPath::best(&context))?;
+    let baseline = scan_ms(&context, count, ScanPath::Baseline)?;
     let copy = copy_ms(&context, count)?;
     let kernel_copy = kernel_copy_ms(&context, count)?;
     lines.push(Line {
         what: format!("exclusive scan u32, {count}"),
         ms: scan,
         rate: format!("{:.0} GB/s", bytes / scan / 1e6),
+    });
+    lines.push(Line {
+        what: format!("exclusive scan u32, {count}, baseline path"),
+        ms: baseline,
+        rate: format!("{:.0} GB/s", bytes / baseline / 1e6),
     });
     lines.push(Line {
         what: format!("compute copy kernel u32, {count}"),
@@ -143,12 +149,12 @@ fn radix_sort_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
     })
 }
 
-fn scan_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
+fn scan_ms(context: &GpuContext, count: usize, path: ScanPath) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
     let input = GpuVec::from_slice(context, "bench scan in", &vec![1u32; count]).map_err(error)?;
     let mut output =
         GpuVec::<u32>::with_capacity(context, "bench scan out", count).map_err(error)?;
-    let mut scan = Scan::new();
+    let mut scan = Scan::on(path);
     time_repeated(context, || {
         context.submit_pass("bench scan", |pass| {
             for _ in 0..REPEATS {

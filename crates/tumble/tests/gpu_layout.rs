@@ -77,15 +77,19 @@ fn check_with_gpu_only(source: Source, rust: Vec<Layout>, gpu_only: &[&str]) {
 
 #[test]
 fn primitive_parameter_blocks_match_rust() {
-    check(
-        scan::wgsl(),
-        vec![rust_layout!(scan::ScanParams {
-            count,
-            inclusive,
-            has_parent,
-            padding
-        })],
-    );
+    // Both halves of the scan define `ThreadIds`, the kernel's builtin inputs.
+    for path in [scan::ScanPath::Baseline, scan::ScanPath::Subgroups] {
+        check_with_gpu_only(
+            scan::wgsl(path),
+            vec![rust_layout!(scan::ScanParams {
+                count,
+                inclusive,
+                tile_count,
+                padding
+            })],
+            &["ThreadIds"],
+        );
+    }
     for key_words in [1, 2] {
         check(
             radix_sort::wgsl(key_words),

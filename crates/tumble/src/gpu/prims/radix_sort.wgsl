@@ -71,6 +71,25 @@ fn digit_of(key_word: u32, pass_index: u32) -> u32 {
     return (key_word >> (8u * (pass_index % 4u))) & (RADIX - 1u);
 }
 
+// Adds word `word` of a key to the digit counts of the passes that read that word.
+fn count_word(word: u32, key_word: u32, valid: bool) {
+    if !valid {
+        return;
+    }
+    for (var pass_index = 4u * word; pass_index < min(params.passes, 4u * word + 4u); pass_index++) {
+        atomicAdd(&pass_counts[pass_index * RADIX + digit_of(key_word, pass_index)], 1u);
+    }
+}
+
+// Word `word` of the key of element `index` (clamped to the input: callers skip the rest).
+fn key_word_at(index: u32, word: u32) -> u32 {
+    return keys_in[min(index, params.count - 1u) * KEY_WORDS + word];
+}
+
+// The digit counts of HISTOGRAM_ITEMS × WORKGROUP_SIZE elements, every pass at once. The items'
+// loads are written out rather than looped: drivers do not unroll naga's loops, and a loop
+// whose load feeds an atomic keeps one load in flight per thread.
+const_assert HISTOGRAM_ITEMS == 16u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn histogram(
     @builtin(local_invocation_index) local: u32,
@@ -85,14 +104,39 @@ fn histogram(
         atomicStore(&pass_counts[pass_index * RADIX + local], 0u);
     }
     workgroupBarrier();
-    for (var item = 0u; item < HISTOGRAM_ITEMS; item++) {
-        let index = start + item * WORKGROUP_SIZE + local;
-        if index < params.count {
-            for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
-                let key_word = keys_in[index * KEY_WORDS + pass_index / 4u];
-                atomicAdd(&pass_counts[pass_index * RADIX + digit_of(key_word, pass_index)], 1u);
-            }
-        }
+    for (var word = 0u; word < (params.passes + 3u) / 4u; word++) {
+        let key0 = key_word_at(start + 0u * WORKGROUP_SIZE + local, word);
+        let key1 = key_word_at(start + 1u * WORKGROUP_SIZE + local, word);
+        let key2 = key_word_at(start + 2u * WORKGROUP_SIZE + local, word);
+        let key3 = key_word_at(start + 3u * WORKGROUP_SIZE + local, word);
+        let key4 = key_word_at(start + 4u * WORKGROUP_SIZE + local, word);
+        let key5 = key_word_at(start + 5u * WORKGROUP_SIZE + local, word);
+        let key6 = key_word_at(start + 6u * WORKGROUP_SIZE + local, word);
+        let key7 = key_word_at(start + 7u * WORKGROUP_SIZE + local, word);
+        let key8 = key_word_at(start + 8u * WORKGROUP_SIZE + local, word);
+        let key9 = key_word_at(start + 9u * WORKGROUP_SIZE + local, word);
+        let key10 = key_word_at(start + 10u * WORKGROUP_SIZE + local, word);
+        let key11 = key_word_at(start + 11u * WORKGROUP_SIZE + local, word);
+        let key12 = key_word_at(start + 12u * WORKGROUP_SIZE + local, word);
+        let key13 = key_word_at(start + 13u * WORKGROUP_SIZE + local, word);
+        let key14 = key_word_at(start + 14u * WORKGROUP_SIZE + local, word);
+        let key15 = key_word_at(start + 15u * WORKGROUP_SIZE + local, word);
+        count_word(word, key0, start + 0u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key1, start + 1u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key2, start + 2u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key3, start + 3u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key4, start + 4u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key5, start + 5u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key6, start + 6u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key7, start + 7u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key8, start + 8u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key9, start + 9u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key10, start + 10u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key11, start + 11u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key12, start + 12u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key13, start + 13u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key14, start + 14u * WORKGROUP_SIZE + local < params.count);
+        count_word(word, key15, start + 15u * WORKGROUP_SIZE + local < params.count);
     }
     workgroupBarrier();
     for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
@@ -186,6 +230,80 @@ fn look_back(tile: u32, local: u32) -> u32 {
     return earlier;
 }
 
+// Whether round `round`'s element of this thread is in the input.
+fn in_input(start: u32, round: u32, local: u32) -> bool {
+    return start + round * WORKGROUP_SIZE + local < params.count;
+}
+
+// The digit this pass sorts round `round`'s element by (meaningless past the end of the input,
+// where it is never used).
+fn load_digit(start: u32, round: u32, local: u32) -> u32 {
+    return digit_of(key_word_at(start + round * WORKGROUP_SIZE + local, params.pass_index / 4u), params.pass_index);
+}
+
+// Word `word` of round `round`'s element: a key word, or the value after the last key word.
+fn load_word(start: u32, round: u32, local: u32, word: u32) -> u32 {
+    let index = min(start + round * WORKGROUP_SIZE + local, params.count - 1u);
+    if word < KEY_WORDS {
+        return keys_in[index * KEY_WORDS + word];
+    }
+    return values_in[index];
+}
+
+// The rank of round `round`'s element (digit `digit`): its position among the tile's elements
+// with that digit, from the bit masks of the round (thread t holds bit t of its digit's mask)
+// and the digit's count in earlier rounds, which this adds the round's counts to. Call from
+// uniform control flow.
+fn rank_round(start: u32, round: u32, digit: u32, local: u32) -> u32 {
+    let own_mask = local / 32u;
+    let own_bit = 1u << (local % 32u);
+    // Thread t clears (and below, counts) the masks of digit t.
+    for (var mask = 0u; mask < MASK_WORDS; mask++) {
+        atomicStore(&exchange[local * MASK_WORDS + mask], 0u);
+    }
+    workgroupBarrier();
+    if in_input(start, round, local) {
+        atomicOr(&exchange[digit * MASK_WORDS + own_mask], own_bit);
+    }
+    workgroupBarrier();
+    // (Meaningless past the end of the input; never used there.)
+    var rank = digit_count[digit] + countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + own_mask]) & (own_bit - 1u));
+    for (var mask = 0u; mask < own_mask; mask++) {
+        rank += countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + mask]));
+    }
+    workgroupBarrier();
+    var round_count = 0u;
+    for (var mask = 0u; mask < MASK_WORDS; mask++) {
+        round_count += countOneBits(atomicLoad(&exchange[local * MASK_WORDS + mask]));
+    }
+    digit_count[local] += round_count;
+    return rank;
+}
+
+// Puts `word` in slot `slot` of the sorted tile, for elements in the input.
+fn place(start: u32, round: u32, local: u32, slot: u32, word: u32) {
+    if in_input(start, round, local) {
+        atomicStore(&exchange[slot], word);
+    }
+}
+
+// Writes slot `round` × WORKGROUP_SIZE + local of the sorted tile (word `word` of its element)
+// to its place in the output, `destination`.
+fn write_out(round: u32, local: u32, filled: u32, destination: u32, word: u32) {
+    let slot = round * WORKGROUP_SIZE + local;
+    if slot < filled {
+        let moved = atomicLoad(&exchange[slot]);
+        if word < KEY_WORDS {
+            keys_out[destination * KEY_WORDS + word] = moved;
+        } else {
+            values_out[destination] = moved;
+        }
+    }
+}
+
+// The ROUNDS rounds are written out rather than looped, for the same reason as the
+// histogram's items: each round's loads are issued together.
+const_assert ROUNDS == 8u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scatter(@builtin(local_invocation_index) local: u32) {
     if local == 0u {
@@ -197,43 +315,26 @@ fn scatter(@builtin(local_invocation_index) local: u32) {
         return;
     }
     let start = tile * TILE;
-    let key_word = params.pass_index / 4u;
 
     // 2. Rank, a round of WORKGROUP_SIZE consecutive elements at a time.
-    var digits: array<u32, ROUNDS>;
-    var ranks: array<u32, ROUNDS>;
+    let digit0 = load_digit(start, 0u, local);
+    let digit1 = load_digit(start, 1u, local);
+    let digit2 = load_digit(start, 2u, local);
+    let digit3 = load_digit(start, 3u, local);
+    let digit4 = load_digit(start, 4u, local);
+    let digit5 = load_digit(start, 5u, local);
+    let digit6 = load_digit(start, 6u, local);
+    let digit7 = load_digit(start, 7u, local);
     digit_count[local] = 0u;
-    let own_mask = local / 32u;
-    let own_bit = 1u << (local % 32u);
-    for (var round = 0u; round < ROUNDS; round++) {
-        // Thread t clears (and below, counts) the masks of digit t.
-        for (var mask = 0u; mask < MASK_WORDS; mask++) {
-            atomicStore(&exchange[local * MASK_WORDS + mask], 0u);
-        }
-        workgroupBarrier();
-        let index = start + round * WORKGROUP_SIZE + local;
-        var digit = 0u;
-        if index < params.count {
-            digit = digit_of(keys_in[index * KEY_WORDS + key_word], params.pass_index);
-            atomicOr(&exchange[digit * MASK_WORDS + own_mask], own_bit);
-        }
-        workgroupBarrier();
-        // (Meaningless past the end of the input; never used there.)
-        var rank = digit_count[digit] + countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + own_mask]) & (own_bit - 1u));
-        for (var mask = 0u; mask < own_mask; mask++) {
-            rank += countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + mask]));
-        }
-        digits[round] = digit;
-        ranks[round] = rank;
-        workgroupBarrier();
-        var round_count = 0u;
-        for (var mask = 0u; mask < MASK_WORDS; mask++) {
-            round_count += countOneBits(atomicLoad(&exchange[local * MASK_WORDS + mask]));
-        }
-        digit_count[local] += round_count;
-    }
+    let rank0 = rank_round(start, 0u, digit0, local);
+    let rank1 = rank_round(start, 1u, digit1, local);
+    let rank2 = rank_round(start, 2u, digit2, local);
+    let rank3 = rank_round(start, 3u, digit3, local);
+    let rank4 = rank_round(start, 4u, digit4, local);
+    let rank5 = rank_round(start, 5u, digit5, local);
+    let rank6 = rank_round(start, 6u, digit6, local);
+    let rank7 = rank_round(start, 7u, digit7, local);
     workgroupBarrier();
-
     // 3. Thread d handles digit d: publish the tile's count...
     let tile_digits = digit_count[local];
     let own_status = status_index(tile, local);
@@ -270,44 +371,57 @@ fn scatter(@builtin(local_invocation_index) local: u32) {
     // 4. Through workgroup memory in sorted order: first each slot's output index, then each
     // key word and the value. Slots below `filled` hold the tile's elements.
     let filled = min(TILE, params.count - start);
-    var slots: array<u32, ROUNDS>;
-    for (var round = 0u; round < ROUNDS; round++) {
-        let digit = digits[round];
-        slots[round] = digit_start[digit] + ranks[round];
-        if start + round * WORKGROUP_SIZE + local < params.count {
-            atomicStore(&exchange[slots[round]], digit_offset[digit] + slots[round]);
-        }
-    }
+    let slot0 = digit_start[digit0] + rank0;
+    let slot1 = digit_start[digit1] + rank1;
+    let slot2 = digit_start[digit2] + rank2;
+    let slot3 = digit_start[digit3] + rank3;
+    let slot4 = digit_start[digit4] + rank4;
+    let slot5 = digit_start[digit5] + rank5;
+    let slot6 = digit_start[digit6] + rank6;
+    let slot7 = digit_start[digit7] + rank7;
+    place(start, 0u, local, slot0, digit_offset[digit0] + slot0);
+    place(start, 1u, local, slot1, digit_offset[digit1] + slot1);
+    place(start, 2u, local, slot2, digit_offset[digit2] + slot2);
+    place(start, 3u, local, slot3, digit_offset[digit3] + slot3);
+    place(start, 4u, local, slot4, digit_offset[digit4] + slot4);
+    place(start, 5u, local, slot5, digit_offset[digit5] + slot5);
+    place(start, 6u, local, slot6, digit_offset[digit6] + slot6);
+    place(start, 7u, local, slot7, digit_offset[digit7] + slot7);
     workgroupBarrier();
-    var destinations: array<u32, ROUNDS>;
-    for (var round = 0u; round < ROUNDS; round++) {
-        destinations[round] = atomicLoad(&exchange[round * WORKGROUP_SIZE + local]);
-    }
+    let destination0 = atomicLoad(&exchange[0u * WORKGROUP_SIZE + local]);
+    let destination1 = atomicLoad(&exchange[1u * WORKGROUP_SIZE + local]);
+    let destination2 = atomicLoad(&exchange[2u * WORKGROUP_SIZE + local]);
+    let destination3 = atomicLoad(&exchange[3u * WORKGROUP_SIZE + local]);
+    let destination4 = atomicLoad(&exchange[4u * WORKGROUP_SIZE + local]);
+    let destination5 = atomicLoad(&exchange[5u * WORKGROUP_SIZE + local]);
+    let destination6 = atomicLoad(&exchange[6u * WORKGROUP_SIZE + local]);
+    let destination7 = atomicLoad(&exchange[7u * WORKGROUP_SIZE + local]);
     for (var word = 0u; word <= KEY_WORDS; word++) {
+        let word0 = load_word(start, 0u, local, word);
+        let word1 = load_word(start, 1u, local, word);
+        let word2 = load_word(start, 2u, local, word);
+        let word3 = load_word(start, 3u, local, word);
+        let word4 = load_word(start, 4u, local, word);
+        let word5 = load_word(start, 5u, local, word);
+        let word6 = load_word(start, 6u, local, word);
+        let word7 = load_word(start, 7u, local, word);
         workgroupBarrier();
-        for (var round = 0u; round < ROUNDS; round++) {
-            let index = start + round * WORKGROUP_SIZE + local;
-            if index < params.count {
-                var moved: u32;
-                if word < KEY_WORDS {
-                    moved = keys_in[index * KEY_WORDS + word];
-                } else {
-                    moved = values_in[index];
-                }
-                atomicStore(&exchange[slots[round]], moved);
-            }
-        }
+        place(start, 0u, local, slot0, word0);
+        place(start, 1u, local, slot1, word1);
+        place(start, 2u, local, slot2, word2);
+        place(start, 3u, local, slot3, word3);
+        place(start, 4u, local, slot4, word4);
+        place(start, 5u, local, slot5, word5);
+        place(start, 6u, local, slot6, word6);
+        place(start, 7u, local, slot7, word7);
         workgroupBarrier();
-        for (var round = 0u; round < ROUNDS; round++) {
-            let slot = round * WORKGROUP_SIZE + local;
-            if slot < filled {
-                let moved = atomicLoad(&exchange[slot]);
-                if word < KEY_WORDS {
-                    keys_out[destinations[round] * KEY_WORDS + word] = moved;
-                } else {
-                    values_out[destinations[round]] = moved;
-                }
-            }
-        }
+        write_out(0u, local, filled, destination0, word);
+        write_out(1u, local, filled, destination1, word);
+        write_out(2u, local, filled, destination2, word);
+        write_out(3u, local, filled, destination3, word);
+        write_out(4u, local, filled, destination4, word);
+        write_out(5u, local, filled, destination5, word);
+        write_out(6u, local, filled, destination6, word);
+        write_out(7u, local, filled, destination7, word);
     }
 }
