@@ -161,7 +161,7 @@ pub(crate) fn hull_triangle(
             .vertices
             .map(|v| hull_pose.inverse_transform_point(v)),
         normal: hull_pose.inverse_transform_vector(triangle.normal),
-        active_edges: triangle.active_edges,
+        ..*triangle
     };
     let flat = FlatTriangle::new(&local);
     let (hull_view, triangle_view) = (Polyhedron::of_hull(hull), flat.view());
@@ -437,6 +437,7 @@ mod tests {
             ],
             normal: Vec3::Y,
             active_edges,
+            concave_edges: 0,
         }
     }
 
@@ -560,6 +561,7 @@ mod tests {
             ],
             normal: Vec3::Z,
             active_edges,
+            concave_edges: 0,
         };
         // Edge 2 runs from (2, 0, 0) to (-2, 0, 0): the top.
         let cube = cube_hull(Vec3::splat(0.5));
