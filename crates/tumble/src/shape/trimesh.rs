@@ -22,9 +22,10 @@
 //! # Concave edges (speculative contacts across a valley)
 //!
 //! A contact computed at the start of a step holds a point only against the triangle it is
-//! over; a body sweeping over a valley edge within the step enters the far triangle, whose
-//! plane rises above the near one's. So the narrowphase lets a triangle's contacts reach past
-//! its *concave* edges (folding towards the front by more than [`CONCAVE_EDGE_ANGLE`]) by the
+//! over; a capsule pivoting over a valley edge within the step puts its far end into the
+//! other triangle, whose plane rises above the near one's. So the narrowphase lets a
+//! triangle's capsule points (the part of the segment over the triangle) reach past its
+//! *concave* edges (folding towards the front by more than [`CONCAVE_EDGE_ANGLE`]) by the
 //! speculative margin: beyond such an edge the triangle's plane runs below the neighbour's
 //! surface, so a point there is never closer to it than to the neighbour and the extra points
 //! cannot push a body that does not touch. Past convex edges the plane runs above the

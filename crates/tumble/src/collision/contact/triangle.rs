@@ -547,14 +547,12 @@ fn box_triangle_points(
                 });
             }
             // Side planes of the triangle, inward: front normal × edge direction (either side
-            // of the triangle sees the same inside), moved out past concave edges.
-            let reach = triangle.edge_reach(margin, normal.dot(triangle.normal) > 0.0);
+            // of the triangle sees the same inside).
             for edge in 0..3 {
                 let start = triangle.vertices[edge];
                 let direction = triangle.vertices[(edge + 1) % 3] - start;
                 let inward = triangle.normal.cross(direction);
-                let offset = inward.dot(start) - reach[edge] * inward.length();
-                polygon = polygon.clipped(inward, offset, 4, edge as u8);
+                polygon = polygon.clipped(inward, inward.dot(start), 4, edge as u8);
             }
             let id_base = incident.index() << 7;
             let origin = triangle.vertices[0];
