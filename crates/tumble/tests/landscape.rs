@@ -60,8 +60,12 @@ fn clearance(landscape: &Landscape, world: &World, body: BodyHandle, shape: &Sha
 /// A 6 × 6 grid of bodies over the middle of the landscape, `shapes` in turn, tilted a
 /// little, 1.5 m above the ground; then 10 s of simulation, checking every step that no body
 /// dips into the ground. Returns the world and bodies at the end.
-fn drop_grid(landscape: &Landscape, shapes: &[Shape]) -> (World, Vec<(BodyHandle, Shape)>) {
-    let mut world = World::new(StepConfig::default()).unwrap();
+fn drop_grid(
+    landscape: &Landscape,
+    shapes: &[Shape],
+    config: StepConfig,
+) -> (World, Vec<(BodyHandle, Shape)>) {
+    let mut world = World::new(config).unwrap();
     world
         .add_body(BodyDesc::fixed(Shape::trimesh(landscape.mesh().unwrap())).friction(0.8))
         .unwrap();
@@ -107,15 +111,15 @@ fn spheres_capsules_and_boxes_dropped_together_never_sink() {
         Shape::capsule(0.2, 0.4),
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
     ];
-    drop_grid(&Landscape::new(0.05), &shapes);
+    drop_grid(&Landscape::new(0.05), &shapes, StepConfig::default());
 }
 
-fn drop_boxes(landscape: &Landscape) -> (World, Vec<(BodyHandle, Shape)>) {
+fn drop_boxes(landscape: &Landscape, config: StepConfig) -> (World, Vec<(BodyHandle, Shape)>) {
     let shapes = [
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
         Shape::cuboid(Vec3::new(0.25, 0.25, 0.6)),
     ];
-    drop_grid(landscape, &shapes)
+    drop_grid(landscape, &shapes, config)
 }
 
 /// Boxes alone (nothing rolls into them): after landing each one lies on the surface where it
@@ -123,7 +127,7 @@ fn drop_boxes(landscape: &Landscape) -> (World, Vec<(BodyHandle, Shape)>) {
 #[test]
 fn boxes_dropped_on_the_landscape_lie_on_it() {
     let landscape = Landscape::new(0.05);
-    let (world, bodies) = drop_boxes(&landscape);
+    let (world, bodies) = drop_boxes(&landscape, StepConfig::default());
     for (body, shape) in &bodies {
         let clearance = clearance(&landscape, &world, *body, shape);
         // Slopes are at most about 20° and friction 0.8: every box stays on the landscape.
@@ -137,13 +141,14 @@ fn boxes_dropped_on_the_landscape_lie_on_it() {
     }
 }
 
-/// Known defect: 35 of the 36 boxes come to rest, but one (body 12, on a slope at
-/// (-2.27, 0.95, -11.25)) creeps downhill at about 1.6 mm/s, still after 20 s.
+/// After landing (10 s), every box is at rest (asleep or nearly still). Ignored once for one
+/// box (body 12, on a slope at (-2.27, 0.95, -11.25)) creeping downhill at about 1.6 mm/s;
+/// sleeping (`dynamics::island`: under 5 cm/s for 0.5 s) now stops it, and the creep itself is
+/// the ignored test below.
 #[test]
-#[ignore = "known defect: one box creeps downhill at ~1.6 mm/s"]
 fn boxes_dropped_on_the_landscape_come_to_rest() {
     let landscape = Landscape::new(0.05);
-    let (world, bodies) = drop_boxes(&landscape);
+    let (world, bodies) = drop_boxes(&landscape, StepConfig::default());
     for (body, _) in &bodies {
         let speed = world.linear_velocity(*body).unwrap().length();
         let spin = world.angular_velocity(*body).unwrap().length();
@@ -151,6 +156,32 @@ fn boxes_dropped_on_the_landscape_come_to_rest() {
             speed < 0.005 && spin < 0.01,
             "box still moving: {speed} m/s, {spin} rad/s"
         );
+    }
+}
+
+/// Known defect: with sleeping off, the same boxes do not all stay where they landed: body 12
+/// moves 14 mm downhill between 10 s and 20 s (about 1.4 mm/s). Preferring the triangle's face
+/// over the box's as the reference everywhere makes more boxes move; the friction anchors
+/// across the box's several unmerged triangle manifolds are the next suspect.
+#[test]
+#[ignore = "known defect: with sleeping off, a box creeps downhill at ~1.3 mm/s"]
+fn boxes_dropped_on_the_landscape_stay_put_with_sleeping_off() {
+    let landscape = Landscape::new(0.05);
+    let config = StepConfig {
+        sleeping: false,
+        ..StepConfig::default()
+    };
+    let (mut world, bodies) = drop_boxes(&landscape, config);
+    let landed: Vec<Vec3> = bodies
+        .iter()
+        .map(|(body, _)| world.pose(*body).unwrap().position)
+        .collect();
+    for _ in 0..600 {
+        world.step();
+    }
+    for ((body, _), landed) in bodies.iter().zip(&landed) {
+        let moved = world.pose(*body).unwrap().position.distance(*landed);
+        assert!(moved < 0.001, "a resting box moved {moved} m in 10 s");
     }
 }
 
@@ -163,7 +194,7 @@ fn barrels_dropped_with_the_other_shapes_never_sink() {
         Shape::sphere(0.3),
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
     ];
-    drop_grid(&Landscape::new(0.05), &shapes);
+    drop_grid(&Landscape::new(0.05), &shapes, StepConfig::default());
 }
 
 /// The `convex-trimesh` scene at a small scale: its barrels fall onto the landscape, none
