@@ -6,8 +6,8 @@ use tumble::scene::landscape::Landscape;
 use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
 
 /// How far a body may dip into the surface (m) while landing and tumbling at up to 5 m/s and
-/// 5 rad/s. Measured: 7.4 mm at most (a ball rolling over the hills), 2.2 mm for boxes alone,
-/// 6.1 mm with barrels. Before contacts reached past concave edges and a box apart across an
+/// 5 rad/s. Measured: 7.2 mm at most (a ball rolling over the hills), 1.5 mm for boxes alone,
+/// 5.0 mm with barrels. Before contacts reached past concave edges and a box apart across an
 /// edge pair got its face's points (`collision::contact::triangle`), a capsule pivoting on
 /// one end put the other 11.6 mm into a valley triangle it had no point on, and a tumbling
 /// box a corner 15 mm into a triangle whose only contact was an edge point.
