@@ -5,13 +5,13 @@ use tumble::math::{Quat, Vec3};
 use tumble::scene::landscape::Landscape;
 use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
 
-/// How far a body may dip into the surface (m) while landing and tumbling: a guard against
-/// falling through, not a claim of accuracy. Measured: bodies rolling at 5 m/s over the hills
-/// dip up to 7 mm, a capsule landing at 5.4 m/s while pivoting on one end 11.6 mm (the same
-/// drop on a plane: 0.5 mm), a box tumbling at 2.6 rad/s 19 mm. The spinning body's far end or
-/// corner reaches a triangle on which it had no contact point at the start of the step; this
-/// is a known defect, left open in the issue.
-const SINK_TOLERANCE: f32 = 0.025;
+/// How far a body may dip into the surface (m) while landing and tumbling at up to 5 m/s and
+/// 5 rad/s. Measured: 7.2 mm at most (a ball rolling over the hills), 1.5 mm for boxes alone,
+/// 5.0 mm with barrels. Before contacts reached past concave edges and a box apart across an
+/// edge pair got its face's points (`collision::contact::triangle`), a capsule pivoting on
+/// one end put the other 11.6 mm into a valley triangle it had no point on, and a tumbling
+/// box a corner 15 mm into a triangle whose only contact was an edge point.
+const SINK_TOLERANCE: f32 = 0.010;
 
 /// How far a body may sink once resting (m): the solver's penetration slop (5 mm) plus
 /// rounding, as on a plane (`tests/rest.rs`).
@@ -60,8 +60,12 @@ fn clearance(landscape: &Landscape, world: &World, body: BodyHandle, shape: &Sha
 /// A 6 × 6 grid of bodies over the middle of the landscape, `shapes` in turn, tilted a
 /// little, 1.5 m above the ground; then 10 s of simulation, checking every step that no body
 /// dips into the ground. Returns the world and bodies at the end.
-fn drop_grid(landscape: &Landscape, shapes: &[Shape]) -> (World, Vec<(BodyHandle, Shape)>) {
-    let mut world = World::new(StepConfig::default()).unwrap();
+fn drop_grid(
+    landscape: &Landscape,
+    shapes: &[Shape],
+    config: StepConfig,
+) -> (World, Vec<(BodyHandle, Shape)>) {
+    let mut world = World::new(config).unwrap();
     world
         .add_body(BodyDesc::fixed(Shape::trimesh(landscape.mesh().unwrap())).friction(0.8))
         .unwrap();
@@ -107,15 +111,15 @@ fn spheres_capsules_and_boxes_dropped_together_never_sink() {
         Shape::capsule(0.2, 0.4),
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
     ];
-    drop_grid(&Landscape::new(0.05), &shapes);
+    drop_grid(&Landscape::new(0.05), &shapes, StepConfig::default());
 }
 
-fn drop_boxes(landscape: &Landscape) -> (World, Vec<(BodyHandle, Shape)>) {
+fn drop_boxes(landscape: &Landscape, config: StepConfig) -> (World, Vec<(BodyHandle, Shape)>) {
     let shapes = [
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
         Shape::cuboid(Vec3::new(0.25, 0.25, 0.6)),
     ];
-    drop_grid(landscape, &shapes)
+    drop_grid(landscape, &shapes, config)
 }
 
 /// Boxes alone (nothing rolls into them): after landing each one lies on the surface where it
@@ -123,7 +127,7 @@ fn drop_boxes(landscape: &Landscape) -> (World, Vec<(BodyHandle, Shape)>) {
 #[test]
 fn boxes_dropped_on_the_landscape_lie_on_it() {
     let landscape = Landscape::new(0.05);
-    let (world, bodies) = drop_boxes(&landscape);
+    let (world, bodies) = drop_boxes(&landscape, StepConfig::default());
     for (body, shape) in &bodies {
         let clearance = clearance(&landscape, &world, *body, shape);
         // Slopes are at most about 20° and friction 0.8: every box stays on the landscape.
@@ -137,13 +141,14 @@ fn boxes_dropped_on_the_landscape_lie_on_it() {
     }
 }
 
-/// Known defect: 35 of the 36 boxes come to rest, but one (body 12, on a slope at
-/// (-2.27, 0.95, -11.25)) creeps downhill at about 1.6 mm/s, still after 20 s.
+/// After landing (10 s), every box is at rest (asleep or nearly still). Ignored once for one
+/// box (body 12, on a slope at (-2.27, 0.95, -11.25)) creeping downhill at about 1.6 mm/s;
+/// sleeping (`dynamics::island`: under 5 cm/s for 0.5 s) now stops it, and the creep itself is
+/// the ignored test below.
 #[test]
-#[ignore = "known defect: one box creeps downhill at ~1.6 mm/s"]
 fn boxes_dropped_on_the_landscape_come_to_rest() {
     let landscape = Landscape::new(0.05);
-    let (world, bodies) = drop_boxes(&landscape);
+    let (world, bodies) = drop_boxes(&landscape, StepConfig::default());
     for (body, _) in &bodies {
         let speed = world.linear_velocity(*body).unwrap().length();
         let spin = world.angular_velocity(*body).unwrap().length();
@@ -151,6 +156,32 @@ fn boxes_dropped_on_the_landscape_come_to_rest() {
             speed < 0.005 && spin < 0.01,
             "box still moving: {speed} m/s, {spin} rad/s"
         );
+    }
+}
+
+/// Known defect: with sleeping off, the same boxes do not all stay where they landed: body 12
+/// moves 14 mm downhill between 10 s and 20 s (about 1.4 mm/s). Preferring the triangle's face
+/// over the box's as the reference everywhere makes more boxes move; the friction anchors
+/// across the box's several unmerged triangle manifolds are the next suspect.
+#[test]
+#[ignore = "known defect: with sleeping off, a box creeps downhill at ~1.3 mm/s"]
+fn boxes_dropped_on_the_landscape_stay_put_with_sleeping_off() {
+    let landscape = Landscape::new(0.05);
+    let config = StepConfig {
+        sleeping: false,
+        ..StepConfig::default()
+    };
+    let (mut world, bodies) = drop_boxes(&landscape, config);
+    let landed: Vec<Vec3> = bodies
+        .iter()
+        .map(|(body, _)| world.pose(*body).unwrap().position)
+        .collect();
+    for _ in 0..600 {
+        world.step();
+    }
+    for ((body, _), landed) in bodies.iter().zip(&landed) {
+        let moved = world.pose(*body).unwrap().position.distance(*landed);
+        assert!(moved < 0.001, "a resting box moved {moved} m in 10 s");
     }
 }
 
@@ -163,7 +194,7 @@ fn barrels_dropped_with_the_other_shapes_never_sink() {
         Shape::sphere(0.3),
         Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)),
     ];
-    drop_grid(&Landscape::new(0.05), &shapes);
+    drop_grid(&Landscape::new(0.05), &shapes, StepConfig::default());
 }
 
 /// The `convex-trimesh` scene at a small scale: its barrels fall onto the landscape, none

@@ -19,6 +19,18 @@
 //! narrowphase replaces the normal of a contact on an inactive edge with the face normal, as
 //! Jolt's active edges and Bullet's `btAdjustInternalEdgeContacts` do.
 //!
+//! # Concave edges (speculative contacts across a valley)
+//!
+//! A contact computed at the start of a step holds a point only against the triangle it is
+//! over; a capsule pivoting over a valley edge within the step puts its far end into the
+//! other triangle, whose plane rises above the near one's. So the narrowphase lets a
+//! triangle's capsule points (the part of the segment over the triangle) reach past its
+//! *concave* edges (folding towards the front by more than [`CONCAVE_EDGE_ANGLE`]) by the
+//! speculative margin: beyond such an edge the triangle's plane runs below the neighbour's
+//! surface, so a point there is never closer to it than to the neighbour and the extra points
+//! cannot push a body that does not touch. Past convex edges the plane runs above the
+//! neighbour (a ghost contact), and past flat ones the neighbour's own points suffice.
+//!
 //! # Degenerate triangles are errors
 //!
 //! A triangle of zero area has no normal, so no contact against it is defined, and silently
@@ -32,6 +44,10 @@ use std::collections::HashMap;
 /// Fold angle (rad) above which a convex edge is active: 5°, Jolt's default. Gentler folds,
 /// like a height field's, act as flat.
 pub const ACTIVE_EDGE_ANGLE: f32 = 5.0 * std::f32::consts::PI / 180.0;
+
+/// Fold angle (rad) above which an edge folding towards the front is concave (module docs):
+/// 0.5°, the narrowphase's coplanar angle, so a flat mesh's rounding never counts.
+pub const CONCAVE_EDGE_ANGLE: f32 = 0.5 * std::f32::consts::PI / 180.0;
 
 /// `|a × b|²` (m⁴) under which a triangle counts as zero area: it is `4 · area²`.
 const DEGENERATE_CROSS_SQUARED: f32 = 1.0e-20;
@@ -49,6 +65,8 @@ pub struct TriMesh {
     /// Bit `e` set when edge `e` (from vertex `e` to vertex `(e + 1) % 3` of the triangle) is
     /// active.
     active_edges: Vec<u8>,
+    /// Bit `e` set when edge `e` is concave.
+    concave_edges: Vec<u8>,
     /// Farthest vertex from the mesh origin (m).
     bounding_radius: f32,
 }
@@ -109,7 +127,7 @@ impl TriMesh {
             })
             .collect();
         let bvh = Bvh::build(&triangle_aabbs);
-        let active_edges = active_edges(&vertices, &triangles, &normals);
+        let (active_edges, concave_edges) = edge_kinds(&vertices, &triangles, &normals);
         let bounding_radius = vertices.iter().map(|v| v.length()).fold(0.0, f32::max);
         Ok(Self {
             vertices,
@@ -118,6 +136,7 @@ impl TriMesh {
             triangle_aabbs,
             bvh,
             active_edges,
+            concave_edges,
             bounding_radius,
         })
     }
@@ -169,6 +188,7 @@ impl TriMesh {
             vertices: self.triangles[i].map(|v| self.vertices[v as usize]),
             normal: self.normals[i],
             active_edges: self.active_edges[i],
+            concave_edges: self.concave_edges[i],
         }
     }
 }
@@ -181,6 +201,8 @@ pub struct Triangle {
     pub normal: Vec3,
     /// Bit `e` set when edge `e` (vertex `e` to `(e + 1) % 3`) is active (module docs).
     pub active_edges: u8,
+    /// Bit `e` set when edge `e` is concave (module docs): contacts may reach past it.
+    pub concave_edges: u8,
 }
 
 impl Triangle {
@@ -190,6 +212,12 @@ impl Triangle {
         self.active_edges & (1 << edge) != 0
     }
 
+    /// True when edge `e` is concave.
+    #[inline]
+    pub fn edge_is_concave(&self, edge: usize) -> bool {
+        self.concave_edges & (1 << edge) != 0
+    }
+
     /// A vertex may push sideways when either of its two edges in this triangle may.
     #[inline]
     pub fn vertex_is_active(&self, vertex: usize) -> bool {
@@ -197,8 +225,8 @@ impl Triangle {
     }
 }
 
-/// The active-edge bits of every triangle (module docs).
-fn active_edges(vertices: &[Vec3], triangles: &[[u32; 3]], normals: &[Vec3]) -> Vec<u8> {
+/// The active-edge and concave-edge bits of every triangle (module docs).
+fn edge_kinds(vertices: &[Vec3], triangles: &[[u32; 3]], normals: &[Vec3]) -> (Vec<u8>, Vec<u8>) {
     // Undirected edge → the (triangle, edge) slots using it. Only looked up, never iterated,
     // so the hash order cannot leak into the result.
     let mut users: HashMap<(u32, u32), Vec<(usize, usize)>> = HashMap::new();
@@ -212,11 +240,12 @@ fn active_edges(vertices: &[Vec3], triangles: &[[u32; 3]], normals: &[Vec3]) -> 
         }
     }
     let fold_sine_limit = ACTIVE_EDGE_ANGLE.sin();
+    let concave_sine_limit = CONCAVE_EDGE_ANGLE.sin();
     triangles
         .iter()
         .enumerate()
         .map(|(triangle, indices)| {
-            let mut bits = 0u8;
+            let (mut bits, mut concave) = (0u8, 0u8);
             for edge in 0..3 {
                 let (i, j) = (indices[edge], indices[(edge + 1) % 3]);
                 let slots = &users[&(i.min(j), i.max(j))];
@@ -238,10 +267,13 @@ fn active_edges(vertices: &[Vec3], triangles: &[[u32; 3]], normals: &[Vec3]) -> 
                 if fold_sine < -fold_sine_limit {
                     bits |= 1 << edge;
                 }
+                if fold_sine > concave_sine_limit {
+                    concave |= 1 << edge;
+                }
             }
-            bits
+            (bits, concave)
         })
-        .collect()
+        .unzip()
 }
 
 #[cfg(test)]
@@ -281,6 +313,26 @@ mod tests {
         // A 2° fold stays inactive.
         let gentle = hinge((2.0f32).to_radians().tan());
         assert_eq!(gentle.triangle(0).active_edges, 0b101);
+    }
+
+    #[test]
+    fn only_valleys_beyond_half_a_degree_are_concave() {
+        // The shared edge: triangle 0's edge 1, triangle 1's edge 0.
+        let valley = hinge(-1.0);
+        assert_eq!(valley.triangle(0).concave_edges, 0b010);
+        assert_eq!(valley.triangle(1).concave_edges, 0b001);
+        let gentle_valley = hinge(-(1.0f32).to_radians().tan());
+        assert_eq!(gentle_valley.triangle(0).concave_edges, 0b010);
+        for flat_or_convex in [
+            0.0,
+            (0.3f32).to_radians().tan(),
+            -(0.3f32).to_radians().tan(),
+            1.0,
+        ] {
+            let mesh = hinge(flat_or_convex);
+            assert_eq!(mesh.triangle(0).concave_edges, 0, "drop {flat_or_convex}");
+            assert_eq!(mesh.triangle(1).concave_edges, 0, "drop {flat_or_convex}");
+        }
     }
 
     #[test]

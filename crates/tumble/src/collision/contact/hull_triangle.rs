@@ -425,6 +425,7 @@ mod tests {
             ],
             normal: Vec3::Y,
             active_edges,
+            concave_edges: 0,
         }
     }
 
@@ -548,6 +549,7 @@ mod tests {
             ],
             normal: Vec3::Z,
             active_edges,
+            concave_edges: 0,
         };
         // Edge 2 runs from (2, 0, 0) to (-2, 0, 0): the top.
         let cube = cube_hull(Vec3::splat(0.5));
