@@ -2,8 +2,8 @@
 //! largest force, and falls when let go.
 mod common;
 use common::*;
-use tumble::World;
 use tumble::math::Vec3;
+use tumble::{BodyDesc, Shape, StepConfig, World};
 
 /// Where the dragged point of `body` is now.
 fn dragged_point(world: &World, body: tumble::BodyHandle, local_anchor: Vec3) -> Vec3 {
@@ -96,5 +96,40 @@ fn bad_drags_are_errors() {
         world
             .set_drag_target(body, Vec3::ZERO, Vec3::ZERO, 1.0)
             .is_err()
+    );
+}
+
+#[test]
+fn a_rejected_drag_leaves_a_sleeping_body_asleep() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));
+    for _ in 0..600 {
+        if world.is_sleeping(body).unwrap() {
+            break;
+        }
+        world.step();
+    }
+    assert!(
+        world.is_sleeping(body).unwrap(),
+        "the resting box never slept"
+    );
+    assert!(
+        world
+            .set_drag_target(body, Vec3::ZERO, Vec3::ZERO, -1.0)
+            .is_err()
+    );
+    assert!(
+        world.is_sleeping(body).unwrap(),
+        "a rejected drag woke the box"
+    );
+    world
+        .set_drag_target(body, Vec3::ZERO, Vec3::ZERO, 1.0)
+        .unwrap();
+    assert!(
+        !world.is_sleeping(body).unwrap(),
+        "an accepted drag left the box asleep"
     );
 }

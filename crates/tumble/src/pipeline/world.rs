@@ -587,13 +587,14 @@ impl World {
         if !(local_anchor.is_finite() && target.is_finite()) {
             return Err(BodyError::NotFinite { field: "drag" });
         }
-        self.wake(&[index]);
         if !(max_force.is_finite() && max_force >= 0.0) {
             return Err(BodyError::Negative {
                 field: "max_force",
                 value: max_force,
             });
         }
+        // Only an accepted drag wakes the body's island.
+        self.wake(&[index]);
         // The same point keeps its warm-start impulse, so a moving target pulls smoothly.
         let impulse = self
             .drag
