@@ -7,7 +7,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use tumble::StepStats;
-use tumble::profile::{ProfileLine, ProfileReport, SpanKind};
+use tumble::profile::{ProfileLine, ProfileReport};
 
 use crate::font::{CELL_HEIGHT, CELL_WIDTH, glyph_index};
 use crate::input::HELP;
@@ -78,11 +78,7 @@ fn stage_lines(parent: &ProfileLine, step_ms: f64, depth: usize, lines: &mut Vec
         } else {
             0.0
         };
-        let tag = match line.kind {
-            SpanKind::Cpu => "",
-            SpanKind::Gpu => " [gpu]",
-            SpanKind::Copy => " [copy]",
-        };
+        let tag = line.kind.tag();
         let name = format!("{}{}{tag}", "  ".repeat(depth), line.name);
         lines.push(format!(
             "{name:<30} {:>8.3} ms {percent:>5.1} %",
@@ -189,6 +185,7 @@ pub fn panel_rect(lines: &[String], height: u32) -> (u32, u32, u32, u32) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use tumble::profile::SpanKind;
 
     fn line(
         name: &'static str,

@@ -26,6 +26,17 @@ pub enum SpanKind {
     Copy,
 }
 
+impl SpanKind {
+    /// What a report writes after a line's name: nothing for host time.
+    pub fn tag(self) -> &'static str {
+        match self {
+            SpanKind::Cpu => "",
+            SpanKind::Gpu => " [gpu]",
+            SpanKind::Copy => " [copy]",
+        }
+    }
+}
+
 #[derive(Clone, Debug)]
 struct Node {
     name: &'static str,
@@ -255,11 +266,7 @@ fn write_children(
         } else {
             0.0
         };
-        let tag = match line.kind {
-            SpanKind::Cpu => "",
-            SpanKind::Gpu => " [gpu]",
-            SpanKind::Copy => " [copy]",
-        };
+        let tag = line.kind.tag();
         writeln!(
             f,
             "{indent}{number} -- {}{tag} ({percent:.2} %) :: {:.3} ms / frame ({} calls)",
