@@ -161,6 +161,27 @@ impl Camera {
         glam::camera::rh::proj::directx::perspective(FOV_Y, aspect, near, far) * view
     }
 
+    /// The camera's view direction (unit): from the eye towards the target.
+    pub fn forward(&self) -> Vec3 {
+        -self.axes().0
+    }
+
+    /// The ray from the eye through the pixel `cursor` (x right, y down, from the top-left
+    /// corner) of a `viewport` of (width, height) pixels: (origin, unit direction). It is the
+    /// inverse of [`view_projection`](Self::view_projection) at that aspect: every point on it
+    /// projects to `cursor`. A zero viewport side counts as 1 pixel.
+    pub fn ray_through(&self, cursor: (f32, f32), viewport: (u32, u32)) -> (Vec3, Vec3) {
+        let (width, height) = (viewport.0.max(1) as f32, viewport.1.max(1) as f32);
+        // Normalized device coordinates: -1..1 across the picture, y up.
+        let ndc_x = 2.0 * cursor.0 / width - 1.0;
+        let ndc_y = 1.0 - 2.0 * cursor.1 / height;
+        let tan_y = (FOV_Y * 0.5).tan();
+        let tan_x = tan_y * width / height;
+        let (back, right, up) = self.axes();
+        let direction = -back + right * (ndc_x * tan_x) + up * (ndc_y * tan_y);
+        (self.eye(), direction.normalize())
+    }
+
     /// Turns the eye around the target (radians).
     pub fn orbit(&mut self, yaw: f32, pitch: f32) {
         self.yaw += yaw;
@@ -256,6 +277,47 @@ mod tests {
         let ndc = clip.truncate() / clip.w;
         assert!(ndc.x.abs() < 1e-5 && ndc.y.abs() < 1e-5);
         assert!((0.0..1.0).contains(&ndc.z));
+    }
+
+    #[test]
+    fn the_centre_pixel_unprojects_to_the_forward_ray() {
+        let camera = Camera::look_at(Vec3::new(2.0, 3.0, 6.0), Vec3::new(0.0, 1.0, 0.0));
+        for viewport in [(800, 600), (600, 800), (1, 1)] {
+            let centre = (viewport.0 as f32 / 2.0, viewport.1 as f32 / 2.0);
+            let (origin, direction) = camera.ray_through(centre, viewport);
+            assert!((origin - camera.eye()).length() < 1e-5, "{origin}");
+            let forward = (camera.target - camera.eye()).normalize();
+            assert!(
+                (direction - forward).length() < 1e-5,
+                "{direction} vs {forward}"
+            );
+            assert!((camera.forward() - forward).length() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn a_projected_point_unprojects_onto_the_ray_through_it() {
+        let camera = Camera::look_at(Vec3::new(-3.0, 4.0, 5.0), Vec3::new(0.5, 0.0, -1.0));
+        let viewport = (1280, 720);
+        let aspect = 1280.0 / 720.0;
+        for point in [
+            Vec3::new(0.5, 0.0, -1.0),
+            Vec3::new(2.0, 1.0, 0.0),
+            Vec3::new(-1.5, -0.5, -3.0),
+            Vec3::new(1.0, 2.5, 1.0),
+        ] {
+            // To the pixel, as the renderer and the headless tests map clip space.
+            let p = ndc(&camera, aspect, point);
+            assert!(p.x.abs() < 1.0 && p.y.abs() < 1.0, "{point} out of view");
+            let cursor = (
+                (p.x + 1.0) * 0.5 * viewport.0 as f32,
+                (1.0 - p.y) * 0.5 * viewport.1 as f32,
+            );
+            let (origin, direction) = camera.ray_through(cursor, viewport);
+            let along = (point - origin).dot(direction);
+            let miss = (origin + along * direction - point).length();
+            assert!(along > 0.0 && miss < 1e-4, "{point}: {miss} m off the ray");
+        }
     }
 
     fn fixed(world: &mut World, shape: Shape) {

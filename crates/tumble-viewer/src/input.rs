@@ -1,11 +1,17 @@
 //! The talk's demo keys and the mouse, as a state machine with no window attached, so the key
 //! map is unit-tested. The window (window.rs) translates winit events into [`Key`]s and mouse
 //! calls, and carries out the returned [`Action`]s.
+//!
+//! The mouse: a left drag that starts on a dynamic body pulls that body (the world's drag,
+//! see [`pick`](crate::pick)); one that starts anywhere else, and every right drag, orbits the
+//! camera, so the camera can still be turned when bodies fill the picture.
 
+use tumble::World;
 use tumble::stages::batching::Batcher;
 
 use crate::camera::Camera;
 use crate::draw::DrawSettings;
+use crate::pick::{self, Grab};
 
 /// Keys the viewer reacts to, independent of the window library.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -18,6 +24,36 @@ pub enum Key {
     Right,
     Up,
     Down,
+}
+
+/// Mouse buttons the viewer reacts to, independent of the window library.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MouseButton {
+    /// Picks and drags a body, or orbits the camera off the bodies.
+    Left,
+    /// Orbits the camera.
+    Right,
+}
+
+/// What the held mouse button does as the cursor moves.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Gesture {
+    /// Turning the camera; the cursor was last at `last` (pixels).
+    Orbit {
+        button: MouseButton,
+        last: (f32, f32),
+    },
+    /// Pulling a body (left button).
+    Drag(Grab),
+}
+
+impl Gesture {
+    fn button(&self) -> MouseButton {
+        match self {
+            Gesture::Orbit { button, .. } => *button,
+            Gesture::Drag(_) => MouseButton::Left,
+        }
+    }
 }
 
 /// Where a stage of the step runs.
@@ -75,7 +111,9 @@ tumble view keys:
   w            wireframe / solid
   h            this help (on / off)
   q, escape    quit
-  cursor keys  orbit the camera;  z / x  move closer / farther;  mouse drag  orbit";
+  cursor keys  orbit the camera;  z / x  move closer / farther;  mouse wheel  zoom
+  left drag    on a body: pull it by that point (let go to drop it);  elsewhere: orbit
+  right drag   orbit the camera";
 
 /// Camera turn per cursor key press (radians) and per pixel of mouse drag.
 const KEY_TURN: f32 = 0.08;
@@ -98,13 +136,16 @@ pub struct InputState {
     pub batcher: Batcher,
     /// Batches of the last step, for cycling through single batches with `b`.
     pub batch_count: usize,
-    /// Where the mouse button went down or the cursor last was while dragging (pixels).
-    drag_from: Option<(f32, f32)>,
+    /// The window's size in pixels, which the cursor's pixels are relative to.
+    pub viewport: (u32, u32),
+    /// What the held mouse button does; `None` while no button is held.
+    gesture: Option<Gesture>,
 }
 
 impl InputState {
-    /// The simulation starts running, drawn solid, every stage on the CPU.
-    pub fn new(camera: Camera) -> Self {
+    /// The simulation starts running, drawn solid, every stage on the CPU, in a window of
+    /// `viewport` pixels.
+    pub fn new(camera: Camera, viewport: (u32, u32)) -> Self {
         Self {
             camera,
             running: true,
@@ -116,7 +157,8 @@ impl InputState {
             solver: Executor::Cpu,
             batcher: Batcher::default(),
             batch_count: 0,
-            drag_from: None,
+            viewport,
+            gesture: None,
         }
     }
 
@@ -130,7 +172,11 @@ impl InputState {
 
     pub fn key(&mut self, key: Key) -> Action {
         match key {
-            Key::Space => Action::Reset,
+            Key::Space => {
+                // The rebuilt world has no drag, and the grabbed handle is not its body.
+                self.gesture = None;
+                Action::Reset
+            }
             Key::Escape | Key::Char('q') => Action::Quit,
             Key::Left => self.turn(-KEY_TURN, 0.0),
             Key::Right => self.turn(KEY_TURN, 0.0),
@@ -195,18 +241,82 @@ impl InputState {
         }
     }
 
-    /// The left mouse button went down (`pressed`) or up at `position` (pixels).
-    pub fn mouse_button(&mut self, pressed: bool, position: (f32, f32)) {
-        self.drag_from = pressed.then_some(position);
+    /// The body the mouse is dragging, if any.
+    pub fn grab(&self) -> Option<&Grab> {
+        match &self.gesture {
+            Some(Gesture::Drag(grab)) => Some(grab),
+            _ => None,
+        }
     }
 
-    /// The cursor moved to `position` (pixels): while dragging, orbit the camera with it.
-    pub fn cursor_moved(&mut self, position: (f32, f32)) {
-        if let Some((x, y)) = self.drag_from {
-            // Dragging right turns the scene right (the eye left); dragging up tilts it down.
-            self.camera
-                .orbit(-(position.0 - x) * DRAG_TURN, (position.1 - y) * DRAG_TURN);
-            self.drag_from = Some(position);
+    /// `button` went down (`pressed`) or up with the cursor at `position` (pixels). The left
+    /// button picks the dynamic body under the cursor and starts dragging it in `world`, or
+    /// else orbits; letting go of it ends the drag. While one button is held, the other does
+    /// nothing.
+    pub fn mouse_button(
+        &mut self,
+        button: MouseButton,
+        pressed: bool,
+        position: (f32, f32),
+        world: &mut World,
+    ) {
+        if !pressed {
+            match self.gesture {
+                // Only letting go of the button that started the gesture ends it.
+                Some(gesture) if gesture.button() == button => {
+                    self.gesture = None;
+                    if let Gesture::Drag(_) = gesture {
+                        world.clear_drag();
+                    }
+                }
+                _ => {}
+            }
+            return;
+        }
+        if self.gesture.is_some() {
+            return;
+        }
+        let grab = match button {
+            MouseButton::Left => pick::pick(world, &self.camera, position, self.viewport),
+            MouseButton::Right => None,
+        };
+        self.gesture = Some(match grab {
+            // The picked body exists and the hit point is finite, so the world takes it.
+            Some(grab) if grab.apply(world).is_ok() => Gesture::Drag(grab),
+            _ => Gesture::Orbit {
+                button,
+                last: position,
+            },
+        });
+    }
+
+    /// The cursor moved to `position` (pixels): orbit the camera with it, or move the dragged
+    /// body's target under it (in `world`), while a button is held.
+    pub fn cursor_moved(&mut self, position: (f32, f32), world: &mut World) {
+        match &mut self.gesture {
+            None => {}
+            Some(Gesture::Orbit { last, .. }) => {
+                let (x, y) = *last;
+                // Dragging right turns the scene right (the eye left); dragging up tilts it down.
+                self.camera
+                    .orbit(-(position.0 - x) * DRAG_TURN, (position.1 - y) * DRAG_TURN);
+                *last = position;
+            }
+            Some(Gesture::Drag(grab)) => {
+                // With the picked point behind the camera (orbited past it with the keys) there
+                // is no point under the cursor: the target stays.
+                let Some(target) =
+                    pick::drag_target(&self.camera, position, self.viewport, grab.picked_at)
+                else {
+                    return;
+                };
+                grab.target = target;
+                if grab.apply(world).is_err() {
+                    // The body is gone from `world`: nothing is left to drag.
+                    self.gesture = None;
+                    world.clear_drag();
+                }
+            }
         }
     }
 
@@ -221,8 +331,13 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
+    const VIEWPORT: (u32, u32) = (800, 600);
+
     fn state() -> InputState {
-        InputState::new(Camera::look_at(Vec3::new(0.0, 2.0, 10.0), Vec3::ZERO))
+        InputState::new(
+            Camera::look_at(Vec3::new(0.0, 2.0, 10.0), Vec3::ZERO),
+            VIEWPORT,
+        )
     }
 
     /// Presses `key` on a fresh state; returns the action and the state after.
@@ -329,19 +444,115 @@ mod tests {
         assert_eq!(left.camera.target, start.target);
     }
 
+    /// A ground plane at y = -0.5 and a unit box on it, centred where [`state`]'s camera looks.
+    fn scene() -> (World, tumble::BodyHandle) {
+        let mut world = World::new(tumble::StepConfig::default()).unwrap();
+        world
+            .add_body(tumble::BodyDesc::fixed(tumble::Shape::plane(Vec3::Y, -0.5)))
+            .unwrap();
+        let cube = world
+            .add_body(tumble::BodyDesc::dynamic(tumble::Shape::cuboid(
+                Vec3::splat(0.5),
+            )))
+            .unwrap();
+        (world, cube)
+    }
+
+    /// The picture's centre (on the box), its top-left corner (sky) and bottom middle (ground).
+    const ON_THE_BOX: (f32, f32) = (400.0, 300.0);
+    const ON_THE_SKY: (f32, f32) = (10.0, 10.0);
+    const ON_THE_GROUND: (f32, f32) = (400.0, 590.0);
+
     #[test]
     fn mouse_drag_orbits_only_while_pressed() {
+        let (mut world, _) = scene();
         let mut s = state();
         let start = s.camera;
-        s.cursor_moved((10.0, 10.0));
+        s.cursor_moved((10.0, 10.0), &mut world);
         assert_eq!(s.camera, start, "moving without a button does nothing");
-        s.mouse_button(true, (10.0, 10.0));
-        s.cursor_moved((50.0, 10.0));
+        s.mouse_button(MouseButton::Left, true, ON_THE_SKY, &mut world);
+        assert_eq!(s.camera, start, "pressing does not turn the camera");
+        s.cursor_moved((50.0, 10.0), &mut world);
         assert!(s.camera.yaw != start.yaw);
         let dragged = s.camera;
-        s.mouse_button(false, (50.0, 10.0));
-        s.cursor_moved((90.0, 30.0));
+        s.mouse_button(MouseButton::Left, false, (50.0, 10.0), &mut world);
+        s.cursor_moved((90.0, 30.0), &mut world);
         assert_eq!(s.camera, dragged);
+        assert_eq!(s.grab(), None);
+    }
+
+    #[test]
+    fn a_left_press_on_a_body_drags_it_until_let_go() {
+        let (mut world, cube) = scene();
+        let mut s = state();
+        let start = s.camera;
+        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, &mut world);
+        let grab = *s.grab().expect("the press is on the box");
+        assert_eq!(grab.body, cube);
+        // Picked on its front face (+Z, towards the camera), pulled where it was picked.
+        assert!((grab.picked_at.z - 0.5).abs() < 1e-4, "{grab:?}");
+        assert_eq!(grab.target, grab.picked_at);
+
+        // Moving the cursor up moves the target up, and the camera stays.
+        s.cursor_moved((ON_THE_BOX.0, ON_THE_BOX.1 - 100.0), &mut world);
+        let moved = *s.grab().unwrap();
+        assert_eq!((moved.body, moved.local_anchor), (cube, grab.local_anchor));
+        assert!(moved.target.y > grab.target.y + 0.5, "{moved:?}");
+        assert_eq!(s.camera, start);
+        // The world pulls the box towards the new target.
+        for _ in 0..30 {
+            world.step();
+        }
+        assert!(world.pose(cube).unwrap().position.y > 0.1);
+
+        // The right button does nothing while the left drags.
+        s.mouse_button(MouseButton::Right, true, ON_THE_BOX, &mut world);
+        s.cursor_moved((ON_THE_BOX.0 + 50.0, ON_THE_BOX.1), &mut world);
+        s.mouse_button(MouseButton::Right, false, ON_THE_BOX, &mut world);
+        assert_eq!(s.camera, start);
+        assert_eq!(s.grab().unwrap().body, cube);
+
+        // Letting go ends the drag: the box falls back to the ground.
+        s.mouse_button(MouseButton::Left, false, ON_THE_BOX, &mut world);
+        assert_eq!(s.grab(), None);
+        for _ in 0..120 {
+            world.step();
+        }
+        let y = world.pose(cube).unwrap().position.y;
+        assert!(y.abs() < 0.05, "the box was let go but hangs at {y}");
+    }
+
+    #[test]
+    fn a_press_off_the_bodies_drags_nothing() {
+        for (button, at) in [
+            (MouseButton::Left, ON_THE_SKY),
+            (MouseButton::Left, ON_THE_GROUND),
+            (MouseButton::Right, ON_THE_BOX),
+        ] {
+            let (mut world, cube) = scene();
+            let mut s = state();
+            let start = s.camera;
+            s.mouse_button(button, true, at, &mut world);
+            assert_eq!(s.grab(), None, "{button:?} at {at:?}");
+            assert_eq!(s.camera, start, "{button:?} at {at:?}");
+            // It orbits instead, and the box stays where it is.
+            s.cursor_moved((at.0 + 40.0, at.1), &mut world);
+            assert!(s.camera.yaw != start.yaw, "{button:?} at {at:?}");
+            for _ in 0..30 {
+                world.step();
+            }
+            assert!(world.pose(cube).unwrap().position.y.abs() < 0.01);
+        }
+    }
+
+    #[test]
+    fn reset_lets_go_of_the_dragged_body() {
+        let (mut world, _) = scene();
+        let mut s = state();
+        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, &mut world);
+        assert!(s.grab().is_some());
+        assert_eq!(s.key(Key::Space), Action::Reset);
+        assert_eq!(s.grab(), None);
     }
 
     #[test]

@@ -7,7 +7,8 @@
 //! - [`Renderer`] owns the pipelines and meshes on a device it is given and records a frame
 //!   (a shadow map pass, then the scene and the [`overlay`] text drawn with the [`font`]);
 //! - [`headless::Offscreen`] renders into a texture and reads it back; the window path
-//!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes.
+//!   (`window.rs`) renders into a surface and turns keys into [`input::InputState`] changes;
+//! - [`pick`] turns a mouse drag on a body into the world's drag (a point constraint).
 //!
 //! Headless, the viewer draws on the physics' device ([`context::GpuContext`]): after a step
 //! on the GPU (`--device gpu`) a compute pass builds the bodies' instance models from the
@@ -23,6 +24,7 @@ pub mod headless;
 pub mod input;
 pub mod mesh;
 pub mod overlay;
+pub mod pick;
 mod renderer;
 mod window;
 

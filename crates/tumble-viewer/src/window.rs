@@ -10,7 +10,7 @@ use tumble::World;
 use tumble::scene::Scene;
 use winit::application::ApplicationHandler;
 use winit::dpi::{LogicalSize, PhysicalPosition};
-use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event::{ElementState, MouseButton as WinitButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
 use winit::keyboard::{Key as WinitKey, NamedKey};
 use winit::window::{Window, WindowId};
@@ -19,7 +19,7 @@ use crate::camera::Camera;
 use crate::context::GpuContext;
 use crate::draw::DrawList;
 use crate::error::ViewError;
-use crate::input::{Action, Executor, HELP, InputState, Key};
+use crate::input::{Action, Executor, HELP, InputState, Key, MouseButton};
 use crate::overlay::{self, OverlayKind};
 use crate::renderer::{Renderer, depth_view};
 use crate::{ImageSize, StepDevice, ViewOptions};
@@ -57,7 +57,8 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         .camera
         .unwrap_or_else(|| Camera::framing(&world, aspect));
     println!("{HELP}");
-    let mut input = InputState::new(camera);
+    // The window's size in pixels is known once it opens (`resumed`).
+    let mut input = InputState::new(camera, (options.size.width, options.size.height));
     if options.device == StepDevice::Gpu {
         input.solver = Executor::Gpu;
     }
@@ -332,7 +333,10 @@ impl ApplicationHandler for App<'_> {
                 Ok(view)
             });
             match opened {
-                Ok(view) => self.view = Some(view),
+                Ok(view) => {
+                    self.input.viewport = (view.config.width, view.config.height);
+                    self.view = Some(view);
+                }
                 Err(error) => self.fail(event_loop, error),
             }
         }
@@ -347,6 +351,7 @@ impl ApplicationHandler for App<'_> {
                     view.config.height = size.height;
                     view.surface.configure(&view.context.device, &view.config);
                     view.depth = depth_view(&view.context.device, size.width, size.height);
+                    self.input.viewport = (size.width, size.height);
                 }
             }
             WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
@@ -355,19 +360,19 @@ impl ApplicationHandler for App<'_> {
                     self.act(event_loop, action);
                 }
             }
-            WindowEvent::MouseInput {
-                state,
-                button: MouseButton::Left,
-                ..
-            } => self
-                .input
-                .mouse_button(state == ElementState::Pressed, self.cursor),
+            WindowEvent::MouseInput { state, button, .. } => {
+                if let Some(button) = translate_button(button) {
+                    let pressed = state == ElementState::Pressed;
+                    self.input
+                        .mouse_button(button, pressed, self.cursor, &mut self.world);
+                }
+            }
             WindowEvent::CursorMoved {
                 position: PhysicalPosition { x, y },
                 ..
             } => {
                 self.cursor = (x as f32, y as f32);
-                self.input.cursor_moved(self.cursor);
+                self.input.cursor_moved(self.cursor, &mut self.world);
             }
             WindowEvent::MouseWheel { delta, .. } => {
                 let lines = match delta {
@@ -405,6 +410,14 @@ fn translate(key: &WinitKey) -> Option<Key> {
     }
 }
 
+fn translate_button(button: WinitButton) -> Option<MouseButton> {
+    match button {
+        WinitButton::Left => Some(MouseButton::Left),
+        WinitButton::Right => Some(MouseButton::Right),
+        _ => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -432,5 +445,15 @@ mod tests {
             Some(Key::Escape)
         );
         assert_eq!(translate(&WinitKey::Named(NamedKey::Shift)), None);
+    }
+
+    #[test]
+    fn winit_buttons_translate_to_viewer_buttons() {
+        assert_eq!(translate_button(WinitButton::Left), Some(MouseButton::Left));
+        assert_eq!(
+            translate_button(WinitButton::Right),
+            Some(MouseButton::Right)
+        );
+        assert_eq!(translate_button(WinitButton::Middle), None);
     }
 }
