@@ -13,12 +13,10 @@ use tumble::{BodyHandle, QueryFilter, World};
 
 use crate::camera::Camera;
 
-/// The drag's largest force, in weights of the grabbed body, as tumble's drag tests pull. The
-/// drag is rigid in the solver's relax iteration, which stops the dragged point at the end of
-/// each substep, so the force has to get it going again every substep. Measured on the
-/// 1 kg box of tests/pick.rs pulled to a target 1.2 m away: at 10 weights the point is still
-/// 0.5 m short after 2 s; at 50 it is within 2 cm after 0.8 s.
-pub const DRAG_FORCE_PER_WEIGHT: f32 = 50.0;
+/// The drag's largest force, in weights of the grabbed body: enough to lift it briskly, not
+/// enough to fling it (tumble's tests/drag.rs: at 10 weights a box's top reaches a target 1.5 m
+/// up within 1 cm in 0.3 s, without overshooting).
+pub const DRAG_FORCE_PER_WEIGHT: f32 = 10.0;
 /// Weight per kilogram (N / kg) the drag's force is sized by in a world with weaker or no
 /// gravity, so that a body can still be pulled there.
 const MIN_WEIGHT_PER_KG: f32 = 9.81;

@@ -311,7 +311,8 @@ fn solve_joint(index: u32) {
     var bias = vec3<f32>(0.0);
     var mass_scale = 1.0;
     var impulse_scale = 0.0;
-    if params.use_bias != 0u {
+    // A drag stays soft in the relax sweeps too (see solve_joint in joint.rs).
+    if params.use_bias != 0u || is_finite((*j).max_point_impulse) {
         bias = gap * softness.bias_rate;
         mass_scale = softness.mass_scale;
         impulse_scale = softness.impulse_scale;
