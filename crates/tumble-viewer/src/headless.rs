@@ -65,6 +65,17 @@ pub struct Offscreen {
     padded_row: u32,
     width: u32,
     height: u32,
+    /// How long the last picture took, for frame-rate reports.
+    pub last_times: FrameTimes,
+}
+
+/// The two parts of a headless picture's time (ms): drawing it (from building the GPU work to
+/// the GPU being done), which a window spends too, and copying it out of mapped memory, which
+/// a window does not.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct FrameTimes {
+    pub draw_ms: f64,
+    pub read_back_ms: f64,
 }
 
 impl Offscreen {
@@ -101,6 +112,7 @@ impl Offscreen {
             mapped_at_creation: false,
         });
         Ok(Self {
+            last_times: FrameTimes::default(),
             renderer: Renderer::new(device, &context.queue, FORMAT),
             color_view: color.create_view(&Default::default()),
             color,
@@ -139,6 +151,7 @@ impl Offscreen {
         camera: &Camera,
         device_poses: Option<DevicePoses>,
     ) -> Result<Image, ViewError> {
+        let start = std::time::Instant::now();
         let device = &context.device;
         // Validation errors (an adapter that cannot do what we ask) become an error value
         // instead of wgpu's default panic.
@@ -171,10 +184,15 @@ impl Offscreen {
                 reason: error.to_string(),
             });
         }
-        self.read_back(device)
+        self.read_back(device, start)
     }
 
-    fn read_back(&self, device: &wgpu::Device) -> Result<Image, ViewError> {
+    /// Waits for the GPU and copies the picture out; `start` is when the frame's work began.
+    fn read_back(
+        &mut self,
+        device: &wgpu::Device,
+        start: std::time::Instant,
+    ) -> Result<Image, ViewError> {
         let slice = self.readback.slice(..);
         let (sender, receiver) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |result| {
@@ -187,6 +205,7 @@ impl Offscreen {
                 timeout: Some(std::time::Duration::from_secs(60)),
             })
             .map_err(|e| ViewError::Readback(e.to_string()))?;
+        let drawn = std::time::Instant::now();
         receiver
             .recv()
             .map_err(|e| ViewError::Readback(e.to_string()))?
@@ -201,6 +220,10 @@ impl Offscreen {
             }
         }
         self.readback.unmap();
+        self.last_times = FrameTimes {
+            draw_ms: (drawn - start).as_secs_f64() * 1e3,
+            read_back_ms: drawn.elapsed().as_secs_f64() * 1e3,
+        };
         Ok(Image {
             width: self.width,
             height: self.height,

@@ -32,6 +32,7 @@ use crate::draw::DrawSettings;
 use crate::input::BatchView;
 use crate::overlay::OverlayKind;
 use std::path::PathBuf;
+use std::time::Instant;
 
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::Scene;
@@ -148,6 +149,9 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         },
         ..DrawSettings::default()
     };
+    // Frame times, PNG writing left out: a step and a draw are what a window spends per frame;
+    // the read-back is the headless picture's own cost.
+    let (mut step_ms, mut draw_ms, mut read_back_ms) = (Vec::new(), Vec::new(), Vec::new());
     let mut picture = |world: &tumble::World, path: PathBuf| {
         let camera =
             *camera.get_or_insert_with(|| Camera::framing(world, width as f32 / height as f32));
@@ -160,9 +164,10 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
                 world.stats(),
             ),
         };
-        offscreen
-            .render(&context, world, &camera, settings, &overlay)?
-            .save_png(&path)
+        let image = offscreen.render(&context, world, &camera, settings, &overlay)?;
+        draw_ms.push(offscreen.last_times.draw_ms);
+        read_back_ms.push(offscreen.last_times.read_back_ms);
+        image.save_png(&path)
     };
     if let Some(dir) = &options.frames {
         std::fs::create_dir_all(dir).map_err(|e| ViewError::Write {
@@ -172,7 +177,9 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         picture(&world, dir.join("frame_00000.png"))?;
     }
     for step in 1..=options.steps {
+        let start = Instant::now();
         world.step();
+        step_ms.push(start.elapsed().as_secs_f64() * 1e3);
         if let Some(dir) = &options.frames {
             picture(&world, dir.join(format!("frame_{step:05}.png")))?;
         }
@@ -194,5 +201,33 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         options.steps,
         context.describe()
     );
+    if options.frames.is_some() && options.steps > 0 {
+        let step = median(&mut step_ms);
+        let draw = median(&mut draw_ms);
+        println!(
+            "per frame (medians): step {step:.2} ms, draw {draw:.2} ms ({:.0} frames/s as a \
+             window would run), read back {:.2} ms (headless only; PNG writing not timed)",
+            1e3 / (step + draw),
+            median(&mut read_back_ms)
+        );
+    }
     Ok(())
+}
+
+/// The median of `samples` (sorted in place; the upper middle of an even count); 0 for none.
+fn median(samples: &mut [f64]) -> f64 {
+    samples.sort_by(f64::total_cmp);
+    samples.get(samples.len() / 2).copied().unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::median;
+
+    #[test]
+    fn median_of_frame_times() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0]), 4.0);
+        assert_eq!(median(&mut []), 0.0);
+    }
 }
