@@ -61,7 +61,8 @@ pub enum ScanPath {
     /// Workgroup memory and one polling thread: any adapter.
     Baseline,
     /// Subgroup scans and a subgroup polling 32 (or the subgroup's width) tiles at once:
-    /// adapters with subgroups. 1.2× the baseline's speed on an H100 (64M u32).
+    /// adapters with subgroups. 1.45× the baseline's speed on an H100 (64M u32: 0.40 against
+    /// 0.58 ms).
     Subgroups,
 }
 

@@ -60,9 +60,7 @@ fn subgroup_reduce_tile(ids: ThreadIds, tile: u32) -> u32 {
 // tile back; the statuses up to the nearest PREFIX are summed at once, tiles that have not
 // published after POLLS polls are summed from the input by the subgroup.
 fn look_back(ids: ThreadIds, tile: u32, aggregate: u32) -> u32 {
-    // The last invocation publishes, so the first subgroup starts looking back without
-    // waiting for the exchange to return.
-    if ids.local == WORKGROUP_SIZE - 1u {
+    if ids.local == 0u {
         publish(tile, select(FLAG_AGGREGATE, FLAG_PREFIX, tile == 0u), aggregate);
     }
     if tile == 0u {
