@@ -12,7 +12,7 @@
 
 use std::time::Instant;
 use tumble::gpu::prims::fill::copy_dispatch;
-use tumble::gpu::prims::radix_sort::RadixSort;
+use tumble::gpu::prims::radix_sort::{RadixSort, SortPath};
 use tumble::gpu::prims::scan::{Scan, ScanKind, ScanPath};
 use tumble::gpu::{GpuContext, GpuVec};
 use tumble::particles::{ParticleConfig, ParticleDevice, ParticleSystem};
@@ -37,12 +37,17 @@ pub fn run(scale: f64) -> Result<(), String> {
     println!("# GPU primitives on {}", context.describe());
     let mut lines = Vec::new();
     for count in [sized(1 << 20), sized(1 << 24)] {
-        let ms = radix_sort_ms(&context, count)?;
-        lines.push(Line {
-            what: format!("radix sort u32 key-value, {count} pairs"),
-            ms,
-            rate: format!("{:.0} Mkeys/s", count as f64 / ms / 1e3),
-        });
+        for (path, name) in [
+            (SortPath::best(&context), ""),
+            (SortPath::Baseline, ", baseline path"),
+        ] {
+            let ms = radix_sort_ms(&context, count, path)?;
+            lines.push(Line {
+                what: format!("radix sort u32 key-value, {count} pairs{name}"),
+                ms,
+                rate: format!("{:.0} Mkeys/s", count as f64 / ms / 1e3),
+            });
+        }
     }
     let count = sized(1 << 26);
     let bytes = 2.0 * 4.0 * count as f64; // read and write every u32 once
@@ -118,7 +123,7 @@ fn keys(count: usize) -> Vec<u32> {
         .collect()
 }
 
-fn radix_sort_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
+fn radix_sort_ms(context: &GpuContext, count: usize, path: SortPath) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
     let keys_in = GpuVec::from_slice(context, "bench keys", &keys(count)).map_err(error)?;
     let values_in = GpuVec::from_slice(
@@ -131,7 +136,7 @@ fn radix_sort_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
         GpuVec::<u32>::with_capacity(context, "bench keys out", count).map_err(error)?;
     let mut values_out =
         GpuVec::<u32>::with_capacity(context, "bench values out", count).map_err(error)?;
-    let mut sort = RadixSort::new();
+    let mut sort = RadixSort::on(path);
     time_repeated(context, || {
         context.submit_pass("bench radix sort", |pass| {
             for _ in 0..REPEATS {

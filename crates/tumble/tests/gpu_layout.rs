@@ -90,16 +90,23 @@ fn primitive_parameter_blocks_match_rust() {
             &["ThreadIds"],
         );
     }
+    // Both rankings of the sort define `ThreadIds` too.
     for key_words in [1, 2] {
-        check(
-            radix_sort::wgsl(key_words),
-            vec![rust_layout!(radix_sort::RadixParams {
-                count,
-                pass_index,
-                passes,
-                tile_count
-            })],
-        );
+        for path in [
+            radix_sort::SortPath::Baseline,
+            radix_sort::SortPath::Subgroups,
+        ] {
+            check_with_gpu_only(
+                radix_sort::wgsl(key_words, path, 32),
+                vec![rust_layout!(radix_sort::RadixParams {
+                    count,
+                    pass_index,
+                    passes,
+                    tile_count
+                })],
+                &["ThreadIds"],
+            );
+        }
     }
     check(
         bitonic_sort::wgsl(),

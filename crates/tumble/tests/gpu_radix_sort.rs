@@ -4,15 +4,41 @@ mod gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;
-use tumble::gpu::prims::radix_sort::{RadixKey, RadixSort, radix_sort_cpu};
+use tumble::gpu::prims::radix_sort::{RadixKey, RadixSort, SortPath, radix_sort_cpu};
 
+/// The paths this adapter runs: every sort below is checked on each.
+fn paths() -> Vec<SortPath> {
+    let context = context();
+    [SortPath::Baseline, SortPath::Subgroups]
+        .into_iter()
+        .filter(|path| path.runs_on(&context))
+        .collect()
+}
+
+/// The sort on every path this adapter runs; panics unless all paths agree.
 fn sort_on_gpu<K: RadixKey>(keys: &[K], values: &[u32], key_bits: u32) -> (Vec<K>, Vec<u32>) {
+    let mut results = paths()
+        .into_iter()
+        .map(|path| (path, sort_on_gpu_path(path, keys, values, key_bits)));
+    let (_, first) = results.next().expect("the baseline path runs everywhere");
+    for (path, result) in results {
+        assert!(result == first, "{path:?} differs from the baseline");
+    }
+    first
+}
+
+fn sort_on_gpu_path<K: RadixKey>(
+    path: SortPath,
+    keys: &[K],
+    values: &[u32],
+    key_bits: u32,
+) -> (Vec<K>, Vec<u32>) {
     let context = context();
     let keys_in = GpuVec::from_slice(&context, "keys", keys).expect("upload");
     let values_in = GpuVec::from_slice(&context, "values", values).expect("upload");
     let mut keys_out = GpuVec::with_capacity(&context, "sorted keys", 0).expect("alloc");
     let mut values_out = GpuVec::with_capacity(&context, "sorted values", 0).expect("alloc");
-    let mut sort = RadixSort::new();
+    let mut sort = RadixSort::on(path);
     context
         .submit_pass("radix sort", |pass| {
             sort.encode(

@@ -9,6 +9,9 @@
 //! output buffers, ping-ponging through its own scratch so the last pass always lands in the
 //! output; the input is left as it was.
 //!
+//! Two ways to rank a tile's elements by digit ([`SortPath`]): bit masks in workgroup memory
+//! (any adapter) or subgroup ballots (adapters with subgroups).
+//!
 //! Stability: equal keys keep their input order (the rank inside a tile is the position among
 //! equal digits, tiles are laid out in order by the look-back), so sorting (key, index) pairs
 //! gives the same result on every device and every run.
@@ -25,9 +28,9 @@ use crate::gpu::prims::fill::fill_dispatch;
 /// Values per digit.
 const RADIX: u32 = 256;
 const _: () = assert!(WORKGROUP_SIZE == RADIX, "a thread per digit value");
-/// Rounds of WORKGROUP_SIZE elements per tile: more rounds, fewer tiles to look back over and
-/// longer runs per digit in the output. At least 8, so that the rank masks (RADIX ×
-/// WORKGROUP_SIZE bits) fit in the tile's workgroup memory.
+/// Elements per thread of a tile: more, fewer tiles to look back over and longer runs per
+/// digit in the output. At least 8, so that the baseline's rank masks (RADIX × WORKGROUP_SIZE
+/// bits) fit in the tile's workgroup memory.
 const ROUNDS: u32 = 8;
 const _: () = assert!(ROUNDS * WORKGROUP_SIZE >= RADIX * WORKGROUP_SIZE / 32);
 /// Elements per tile (one workgroup of a pass).
@@ -40,6 +43,8 @@ const POLLS: u32 = 64;
 const MAX_COUNT: usize = (1 << 30) - 1;
 
 const WGSL: &str = include_str!("radix_sort.wgsl");
+const WGSL_BASELINE: &str = include_str!("radix_rank_baseline.wgsl");
+const WGSL_SUBGROUPS: &str = include_str!("radix_rank_subgroups.wgsl");
 const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
     Binding::StorageRead,
@@ -74,13 +79,66 @@ pub struct RadixParams {
 }
 const _: () = assert!(size_of::<RadixParams>() == 16);
 
-pub fn wgsl(key_words: u32) -> Source {
-    Source::new()
+/// How a tile's elements are ranked by digit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum SortPath {
+    /// Per-digit bit masks in workgroup memory, three barriers per WORKGROUP_SIZE elements:
+    /// any adapter.
+    Baseline,
+    /// Subgroup ballots and a count per subgroup and digit, two barriers per tile: adapters
+    /// with subgroups whose smallest width leaves room for those counts.
+    Subgroups,
+}
+
+impl SortPath {
+    /// The fastest path `context` runs.
+    pub fn best(context: &GpuContext) -> Self {
+        if Self::Subgroups.runs_on(context) {
+            Self::Subgroups
+        } else {
+            Self::Baseline
+        }
+    }
+
+    /// Whether `context` can run this path.
+    pub fn runs_on(self, context: &GpuContext) -> bool {
+        match self {
+            Self::Baseline => true,
+            Self::Subgroups => {
+                let limit = context.device.limits().max_compute_workgroup_storage_size;
+                context.has_subgroups()
+                    && SCATTER_BYTES + subgroup_counts_bytes(context.info.subgroup_min_size)
+                        <= limit
+            }
+        }
+    }
+}
+
+/// Workgroup memory of the scatter besides the subgroup counts: the tile, three words per
+/// digit, two words.
+const SCATTER_BYTES: u32 = (RADIX_TILE + 3 * RADIX + 2) * 4;
+
+/// Workgroup memory of the subgroup ranking's counts (16 bits per subgroup and digit) for
+/// subgroups at least `min_width` wide.
+fn subgroup_counts_bytes(min_width: u32) -> u32 {
+    (WORKGROUP_SIZE / min_width.max(1)) * RADIX * 2
+}
+
+/// The sort's WGSL on `path`, for subgroups at least `min_subgroup_width` wide (ignored on the
+/// baseline path).
+pub fn wgsl(key_words: u32, path: SortPath, min_subgroup_width: u32) -> Source {
+    let source = Source::new()
         .constant_u32("KEY_WORDS", key_words)
         .constant_u32("ROUNDS", ROUNDS)
         .constant_u32("HISTOGRAM_ITEMS", HISTOGRAM_ITEMS)
         .constant_u32("POLLS", POLLS)
-        .snippet("radix_sort.wgsl", WGSL)
+        .snippet("radix_sort.wgsl", WGSL);
+    match path {
+        SortPath::Baseline => source.snippet("radix_rank_baseline.wgsl", WGSL_BASELINE),
+        SortPath::Subgroups => source
+            .constant_u32("SUBGROUPS", WORKGROUP_SIZE / min_subgroup_width.max(1))
+            .snippet("radix_rank_subgroups.wgsl", WGSL_SUBGROUPS),
+    }
 }
 
 /// CPU twin: a stable sort by key (same order as the GPU, since both are stable).
@@ -98,6 +156,8 @@ pub fn passes_for(key_bits: u32) -> u32 {
 /// The radix sort of one set of buffers, built once and encoded every step.
 #[derive(Debug, Default)]
 pub struct RadixSort {
+    /// None: the context's best path.
+    path: Option<SortPath>,
     cached: Option<(SortKey, Vec<Dispatch>)>,
 }
 
@@ -107,6 +167,14 @@ type SortKey = ([wgpu::Buffer; 4], usize, u32);
 impl RadixSort {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A sort that always takes `path` (for tests and benchmarks of each path).
+    pub fn on(path: SortPath) -> Self {
+        Self {
+            path: Some(path),
+            cached: None,
+        }
     }
 
     /// Encodes a sort of `input` = (keys, values) by key, stable, into `output`, resized to
@@ -138,7 +206,8 @@ impl RadixSort {
         let dispatches = match &mut self.cached {
             Some((cached_key, dispatches)) if *cached_key == key => dispatches,
             cached => {
-                let dispatches = sort_dispatches::<K>(context, &key.0, count, key_bits)?;
+                let path = self.path.unwrap_or_else(|| SortPath::best(context));
+                let dispatches = sort_dispatches::<K>(path, context, &key.0, count, key_bits)?;
                 &mut cached.insert((key, dispatches)).1
             }
         };
@@ -149,6 +218,7 @@ impl RadixSort {
 
 /// Builds the passes. `buffers` = [keys in, values in, keys out, values out].
 fn sort_dispatches<K: RadixKey>(
+    path: SortPath,
     context: &GpuContext,
     buffers: &[wgpu::Buffer; 4],
     count: usize,
@@ -166,14 +236,17 @@ fn sort_dispatches<K: RadixKey>(
             limit: (MAX_COUNT * size_of::<K>()) as u64,
         });
     }
-    let source = wgsl(K::WORDS);
+    assert!(
+        path.runs_on(context),
+        "{path:?} does not run on this adapter"
+    );
+    let source = wgsl(K::WORDS, path, context.info.subgroup_min_size);
     let histogram = Kernel::new(context, "radix histogram", &source, "histogram", &BINDINGS);
     let scatter = Kernel::new(context, "radix scatter", &source, "scatter", &BINDINGS);
     let tiles = workgroups_for(count, RADIX_TILE);
-    // Digit counts and tickets of every pass, then the status of every (pass, tile, digit).
+    // Digit counts of every pass, then the status of every (pass, tile, digit).
     let max_passes = 4 * K::WORDS as usize;
-    let state_words =
-        max_passes * (RADIX as usize + 1) + passes as usize * tiles as usize * RADIX as usize;
+    let state_words = (max_passes + passes as usize * tiles as usize) * RADIX as usize;
     let state = GpuVec::<u32>::with_capacity(context, "radix state", state_words)?;
     let scratch_keys = GpuVec::<K>::with_capacity(context, "radix scratch keys", count)?;
     let scratch_values = GpuVec::<u32>::with_capacity(context, "radix scratch values", count)?;

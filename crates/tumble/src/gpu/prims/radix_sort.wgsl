@@ -2,24 +2,24 @@
 // of Onesweep (Adinets & Merrill, 2022): the digit counts of the whole input are taken once, up
 // front, and each pass finds where its tile's runs go by a decoupled look-back over the tiles
 // before it. Keys are KEY_WORDS u32 words (1: u32 keys; 2: u64 keys, low word first).
-// Injected: KEY_WORDS, ROUNDS, HISTOGRAM_ITEMS, POLLS. `gpu::prims::radix_sort` zeroes `state` before
-// each sort.
+// Injected: KEY_WORDS, ROUNDS, HISTOGRAM_ITEMS, POLLS (and SUBGROUPS on the subgroup path).
+// `gpu::prims::radix_sort` zeroes `state` before each sort.
 //
 //   histogram:  state.counts[pass][digit] = elements of the input with that digit, all passes
-//   scatter:    one pass; per tile of TILE = ROUNDS × WORKGROUP_SIZE elements:
-//     1. ticket (atomicAdd): the tile is the ticket, so a tile only looks back at tiles whose
-//        workgroups have started (workgroup ids come in no promised order);
-//     2. rank: each element's position among the tile's equal digits;
-//     3. publish the tile's digit counts (AGGREGATE), look back for the counts of all earlier
+//   scatter:    one pass; per tile of TILE = ROUNDS × WORKGROUP_SIZE elements (the workgroup
+//               id's tile: see `scan.wgsl` on why no ticket is taken):
+//     1. rank: each element's position among the tile's equal digits;
+//     2. publish the tile's digit counts (AGGREGATE), look back for the counts of all earlier
 //        tiles (counting a tile's digits itself when that tile is slow to publish: see
 //        `look_back`), publish those plus its own (PREFIX);
-//     4. place the elements in the tile's workgroup memory sorted by digit, then write them out
+//     3. place the elements in the tile's workgroup memory sorted by digit, then write them out
 //        in that order: each digit's elements go out as one contiguous run.
 //
-// The rank comes from per-digit bit masks of each round of WORKGROUP_SIZE elements (bit t set
-// when thread t holds the digit): the popcount of the bits below t, plus the digit's count in
-// earlier rounds. It depends only on positions, never on which thread ran first, so the sort is
-// stable and deterministic without subgroups.
+// The rank of an element is its position among the tile's elements with the same digit, so
+// it depends only on positions, never on which thread ran first: the sort is stable and
+// deterministic. Two ways to find it, each in its own file (`radix_rank_*.wgsl`): per-digit
+// bit masks in workgroup memory (any adapter), or subgroup ballots and a count per subgroup and
+// digit (Onesweep's warp-level multisplit). Each file says which thread holds which element.
 
 struct RadixParams {
     count: u32,
@@ -35,24 +35,21 @@ struct RadixParams {
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(4) var<storage, read_write> values_out: array<u32>;
-// [pass × RADIX + digit]: digit counts of the input; [TICKETS + pass]: next ticket of a pass;
+// [pass × RADIX + digit]: digit counts of the input;
 // [STATUS + (pass × tile_count + tile) × RADIX + digit]: a tile's count of a digit, with a flag
 // in the top two bits (counts stay below 2^30, checked in Rust).
 @group(0) @binding(5) var<storage, read_write> state: array<atomic<u32>>;
 
 const RADIX: u32 = 256u;
 const MAX_PASSES: u32 = 4u * KEY_WORDS;
-const TICKETS: u32 = MAX_PASSES * RADIX;
-const STATUS: u32 = TICKETS + MAX_PASSES;
+const STATUS: u32 = MAX_PASSES * RADIX;
 const TILE: u32 = ROUNDS * WORKGROUP_SIZE;
-// 32-bit mask words per digit: one bit per thread of a round.
-const MASK_WORDS: u32 = WORKGROUP_SIZE / 32u;
 const FLAG_AGGREGATE: u32 = 1u << 30u;
 const FLAG_PREFIX: u32 = 2u << 30u;
 const COUNT_MASK: u32 = FLAG_AGGREGATE - 1u;
 
-// In turn: the rank masks of a round (RADIX × MASK_WORDS ≤ TILE words, checked in Rust), the
-// scan of the digit counts, the tile in sorted order.
+// In turn: the baseline ranking's bit masks (RADIX × WORKGROUP_SIZE bits ≤ TILE words, checked
+// in Rust), the scan of the digit counts, the tile in sorted order.
 var<workgroup> exchange: array<atomic<u32>, TILE>;
 // Per digit: elements of the tile seen so far (after ranking: the tile's count).
 var<workgroup> digit_count: array<u32, RADIX>;
@@ -60,7 +57,6 @@ var<workgroup> digit_count: array<u32, RADIX>;
 var<workgroup> digit_start: array<u32, RADIX>;
 // Per digit: output index minus slot in the sorted tile.
 var<workgroup> digit_offset: array<u32, RADIX>;
-var<workgroup> ticket: u32;
 // The look-back's latest stuck tile + 1 (0: none), and its copy for a uniform read.
 var<workgroup> stuck_tile: atomic<u32>;
 var<workgroup> stuck_tile_read: u32;
@@ -230,59 +226,24 @@ fn look_back(tile: u32, local: u32) -> u32 {
     return earlier;
 }
 
-// Whether round `round`'s element of this thread is in the input.
-fn in_input(start: u32, round: u32, local: u32) -> bool {
-    return start + round * WORKGROUP_SIZE + local < params.count;
-}
-
-// The digit this pass sorts round `round`'s element by (meaningless past the end of the input,
+// The digit this pass sorts element `element` by (meaningless past the end of the input,
 // where it is never used).
-fn load_digit(start: u32, round: u32, local: u32) -> u32 {
-    return digit_of(key_word_at(start + round * WORKGROUP_SIZE + local, params.pass_index / 4u), params.pass_index);
+fn load_digit(element: u32) -> u32 {
+    return digit_of(key_word_at(element, params.pass_index / 4u), params.pass_index);
 }
 
-// Word `word` of round `round`'s element: a key word, or the value after the last key word.
-fn load_word(start: u32, round: u32, local: u32, word: u32) -> u32 {
-    let index = min(start + round * WORKGROUP_SIZE + local, params.count - 1u);
+// Word `word` of element `element`: a key word, or the value after the last key word.
+fn load_word(element: u32, word: u32) -> u32 {
+    let index = min(element, params.count - 1u);
     if word < KEY_WORDS {
         return keys_in[index * KEY_WORDS + word];
     }
     return values_in[index];
 }
 
-// The rank of round `round`'s element (digit `digit`): its position among the tile's elements
-// with that digit, from the bit masks of the round (thread t holds bit t of its digit's mask)
-// and the digit's count in earlier rounds, which this adds the round's counts to. Call from
-// uniform control flow.
-fn rank_round(start: u32, round: u32, digit: u32, local: u32) -> u32 {
-    let own_mask = local / 32u;
-    let own_bit = 1u << (local % 32u);
-    // Thread t clears (and below, counts) the masks of digit t.
-    for (var mask = 0u; mask < MASK_WORDS; mask++) {
-        atomicStore(&exchange[local * MASK_WORDS + mask], 0u);
-    }
-    workgroupBarrier();
-    if in_input(start, round, local) {
-        atomicOr(&exchange[digit * MASK_WORDS + own_mask], own_bit);
-    }
-    workgroupBarrier();
-    // (Meaningless past the end of the input; never used there.)
-    var rank = digit_count[digit] + countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + own_mask]) & (own_bit - 1u));
-    for (var mask = 0u; mask < own_mask; mask++) {
-        rank += countOneBits(atomicLoad(&exchange[digit * MASK_WORDS + mask]));
-    }
-    workgroupBarrier();
-    var round_count = 0u;
-    for (var mask = 0u; mask < MASK_WORDS; mask++) {
-        round_count += countOneBits(atomicLoad(&exchange[local * MASK_WORDS + mask]));
-    }
-    digit_count[local] += round_count;
-    return rank;
-}
-
 // Puts `word` in slot `slot` of the sorted tile, for elements in the input.
-fn place(start: u32, round: u32, local: u32, slot: u32, word: u32) {
-    if in_input(start, round, local) {
+fn place(element: u32, slot: u32, word: u32) {
+    if element < params.count {
         atomicStore(&exchange[slot], word);
     }
 }
@@ -305,37 +266,45 @@ fn write_out(round: u32, local: u32, filled: u32, destination: u32, word: u32) {
 // histogram's items: each round's loads are issued together.
 const_assert ROUNDS == 8u;
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn scatter(@builtin(local_invocation_index) local: u32) {
-    if local == 0u {
-        ticket = atomicAdd(&state[TICKETS + params.pass_index], 1u);
-        atomicStore(&stuck_tile, 0u);
-    }
-    let tile = workgroupUniformLoad(&ticket);
+fn scatter(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let local = ids.local;
+    let tile = flat_workgroup(workgroup, groups);
     if tile >= params.tile_count {
         return;
     }
+    if local == 0u {
+        atomicStore(&stuck_tile, 0u);
+    }
     let start = tile * TILE;
 
-    // 2. Rank, a round of WORKGROUP_SIZE consecutive elements at a time.
-    let digit0 = load_digit(start, 0u, local);
-    let digit1 = load_digit(start, 1u, local);
-    let digit2 = load_digit(start, 2u, local);
-    let digit3 = load_digit(start, 3u, local);
-    let digit4 = load_digit(start, 4u, local);
-    let digit5 = load_digit(start, 5u, local);
-    let digit6 = load_digit(start, 6u, local);
-    let digit7 = load_digit(start, 7u, local);
-    digit_count[local] = 0u;
-    let rank0 = rank_round(start, 0u, digit0, local);
-    let rank1 = rank_round(start, 1u, digit1, local);
-    let rank2 = rank_round(start, 2u, digit2, local);
-    let rank3 = rank_round(start, 3u, digit3, local);
-    let rank4 = rank_round(start, 4u, digit4, local);
-    let rank5 = rank_round(start, 5u, digit5, local);
-    let rank6 = rank_round(start, 6u, digit6, local);
-    let rank7 = rank_round(start, 7u, digit7, local);
-    workgroupBarrier();
-    // 3. Thread d handles digit d: publish the tile's count...
+    // 1. Rank: each thread's ROUNDS elements, in the order the path lays them out.
+    let element0 = element_index(ids, start, 0u);
+    let element1 = element_index(ids, start, 1u);
+    let element2 = element_index(ids, start, 2u);
+    let element3 = element_index(ids, start, 3u);
+    let element4 = element_index(ids, start, 4u);
+    let element5 = element_index(ids, start, 5u);
+    let element6 = element_index(ids, start, 6u);
+    let element7 = element_index(ids, start, 7u);
+    let digit0 = load_digit(element0);
+    let digit1 = load_digit(element1);
+    let digit2 = load_digit(element2);
+    let digit3 = load_digit(element3);
+    let digit4 = load_digit(element4);
+    let digit5 = load_digit(element5);
+    let digit6 = load_digit(element6);
+    let digit7 = load_digit(element7);
+    begin_ranking(ids);
+    let rank0 = rank_element(ids, element0, digit0);
+    let rank1 = rank_element(ids, element1, digit1);
+    let rank2 = rank_element(ids, element2, digit2);
+    let rank3 = rank_element(ids, element3, digit3);
+    let rank4 = rank_element(ids, element4, digit4);
+    let rank5 = rank_element(ids, element5, digit5);
+    let rank6 = rank_element(ids, element6, digit6);
+    let rank7 = rank_element(ids, element7, digit7);
+    finish_ranking(ids);
+    // 2. Thread d handles digit d: publish the tile's count...
     let tile_digits = digit_count[local];
     let own_status = status_index(tile, local);
     atomicExchange(&state[own_status], select(FLAG_AGGREGATE, FLAG_PREFIX, tile == 0u) | tile_digits);
@@ -368,25 +337,25 @@ fn scatter(@builtin(local_invocation_index) local: u32) {
     digit_offset[local] = before.y + earlier - before.x;
     workgroupBarrier();
 
-    // 4. Through workgroup memory in sorted order: first each slot's output index, then each
+    // 3. Through workgroup memory in sorted order: first each slot's output index, then each
     // key word and the value. Slots below `filled` hold the tile's elements.
     let filled = min(TILE, params.count - start);
-    let slot0 = digit_start[digit0] + rank0;
-    let slot1 = digit_start[digit1] + rank1;
-    let slot2 = digit_start[digit2] + rank2;
-    let slot3 = digit_start[digit3] + rank3;
-    let slot4 = digit_start[digit4] + rank4;
-    let slot5 = digit_start[digit5] + rank5;
-    let slot6 = digit_start[digit6] + rank6;
-    let slot7 = digit_start[digit7] + rank7;
-    place(start, 0u, local, slot0, digit_offset[digit0] + slot0);
-    place(start, 1u, local, slot1, digit_offset[digit1] + slot1);
-    place(start, 2u, local, slot2, digit_offset[digit2] + slot2);
-    place(start, 3u, local, slot3, digit_offset[digit3] + slot3);
-    place(start, 4u, local, slot4, digit_offset[digit4] + slot4);
-    place(start, 5u, local, slot5, digit_offset[digit5] + slot5);
-    place(start, 6u, local, slot6, digit_offset[digit6] + slot6);
-    place(start, 7u, local, slot7, digit_offset[digit7] + slot7);
+    let slot0 = digit_start[digit0] + rank_offset(ids, digit0) + rank0;
+    let slot1 = digit_start[digit1] + rank_offset(ids, digit1) + rank1;
+    let slot2 = digit_start[digit2] + rank_offset(ids, digit2) + rank2;
+    let slot3 = digit_start[digit3] + rank_offset(ids, digit3) + rank3;
+    let slot4 = digit_start[digit4] + rank_offset(ids, digit4) + rank4;
+    let slot5 = digit_start[digit5] + rank_offset(ids, digit5) + rank5;
+    let slot6 = digit_start[digit6] + rank_offset(ids, digit6) + rank6;
+    let slot7 = digit_start[digit7] + rank_offset(ids, digit7) + rank7;
+    place(element0, slot0, digit_offset[digit0] + slot0);
+    place(element1, slot1, digit_offset[digit1] + slot1);
+    place(element2, slot2, digit_offset[digit2] + slot2);
+    place(element3, slot3, digit_offset[digit3] + slot3);
+    place(element4, slot4, digit_offset[digit4] + slot4);
+    place(element5, slot5, digit_offset[digit5] + slot5);
+    place(element6, slot6, digit_offset[digit6] + slot6);
+    place(element7, slot7, digit_offset[digit7] + slot7);
     workgroupBarrier();
     let destination0 = atomicLoad(&exchange[0u * WORKGROUP_SIZE + local]);
     let destination1 = atomicLoad(&exchange[1u * WORKGROUP_SIZE + local]);
@@ -397,23 +366,23 @@ fn scatter(@builtin(local_invocation_index) local: u32) {
     let destination6 = atomicLoad(&exchange[6u * WORKGROUP_SIZE + local]);
     let destination7 = atomicLoad(&exchange[7u * WORKGROUP_SIZE + local]);
     for (var word = 0u; word <= KEY_WORDS; word++) {
-        let word0 = load_word(start, 0u, local, word);
-        let word1 = load_word(start, 1u, local, word);
-        let word2 = load_word(start, 2u, local, word);
-        let word3 = load_word(start, 3u, local, word);
-        let word4 = load_word(start, 4u, local, word);
-        let word5 = load_word(start, 5u, local, word);
-        let word6 = load_word(start, 6u, local, word);
-        let word7 = load_word(start, 7u, local, word);
+        let word0 = load_word(element0, word);
+        let word1 = load_word(element1, word);
+        let word2 = load_word(element2, word);
+        let word3 = load_word(element3, word);
+        let word4 = load_word(element4, word);
+        let word5 = load_word(element5, word);
+        let word6 = load_word(element6, word);
+        let word7 = load_word(element7, word);
         workgroupBarrier();
-        place(start, 0u, local, slot0, word0);
-        place(start, 1u, local, slot1, word1);
-        place(start, 2u, local, slot2, word2);
-        place(start, 3u, local, slot3, word3);
-        place(start, 4u, local, slot4, word4);
-        place(start, 5u, local, slot5, word5);
-        place(start, 6u, local, slot6, word6);
-        place(start, 7u, local, slot7, word7);
+        place(element0, slot0, word0);
+        place(element1, slot1, word1);
+        place(element2, slot2, word2);
+        place(element3, slot3, word3);
+        place(element4, slot4, word4);
+        place(element5, slot5, word5);
+        place(element6, slot6, word6);
+        place(element7, slot7, word7);
         workgroupBarrier();
         write_out(0u, local, filled, destination0, word);
         write_out(1u, local, filled, destination1, word);

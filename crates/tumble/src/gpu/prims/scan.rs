@@ -2,10 +2,10 @@
 //!
 //! One pass over the data: a chained scan with decoupled look-back (see `scan.wgsl`), so the
 //! input is read once and the output written once, as a copy would. Two dispatches: zero the
-//! tile status words, then scan. A tile looks back only at tiles of workgroups that started
-//! before it (tickets taken with an atomic), and sums an earlier tile's input itself when that
-//! tile is slow to publish, so no workgroup waits on another unboundedly: the scan needs no
-//! forward-progress guarantee and runs on Mesa's CPU drivers too.
+//! tile status words, then scan. A tile sums an earlier tile's input itself when that tile is
+//! slow to publish, so no workgroup waits on another unboundedly: the scan needs no
+//! forward-progress guarantee (nor workgroups started in order) and runs on Mesa's CPU drivers
+//! too.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -134,8 +134,8 @@ pub fn scan_dispatches_on(
     }
     let kernel = Kernel::new(context, "scan", &wgsl(path), "scan", &BINDINGS);
     let tiles = workgroups_for(count, SCAN_TILE);
-    // The ticket counter, then two words per tile.
-    let status_words = 1 + 2 * tiles as usize;
+    // Two words per tile.
+    let status_words = 2 * tiles as usize;
     let status = GpuVec::<u32>::with_capacity(context, "scan tile status", status_words)?;
     let slots = UniformSlots::new(
         context,

@@ -5,19 +5,22 @@
 // The thread sums and the look-back come in two halves, `scan_baseline.wgsl` (any adapter)
 // and `scan_subgroups.wgsl` (adapters with subgroups).
 //
-// A tile is TILE = WORKGROUP_SIZE × ITEMS_PER_THREAD consecutive elements. Each workgroup
-//   1. takes a ticket (atomicAdd on status[0]): its tile is the ticket, not its workgroup id,
-//      so it only ever looks back at tiles whose workgroups have already started;
-//   2. loads its tile, sums it, publishes the sum as AGGREGATE;
-//   3. walks back over earlier tiles, adding AGGREGATEs until it meets a PREFIX (the sum of
+// A tile is TILE = WORKGROUP_SIZE × ITEMS_PER_THREAD consecutive elements; workgroup k scans
+// tile k. Each workgroup
+//   1. loads its tile, sums it, publishes the sum as AGGREGATE;
+//   2. walks back over earlier tiles, adding AGGREGATEs until it meets a PREFIX (the sum of
 //      everything up to and including that tile), and publishes its own PREFIX;
-//   4. scans its tile starting from the sum of all earlier tiles and writes it.
+//   3. scans its tile starting from the sum of all earlier tiles and writes it.
 //
 // Fallback: a tile that has not published after POLLS polls is summed from the input by the
 // waiting workgroup itself. Nothing ever waits unboundedly, which matters on Mesa's CPU
 // drivers: they run workgroups on a thread pool the OS may deschedule for milliseconds, and
 // llvmpipe ends a shader's loops after 65535 iterations in all, so a spin-wait there would
 // silently give up. On a GPU the fallback is rare (the tile is usually published by then).
+// It also makes the order in which workgroups start irrelevant to progress, so the tile is the
+// workgroup id rather than a ticket from an atomic counter, which would delay every tile's
+// loads by one round trip to memory (on an H100: 64M u32 0.390 → 0.385 ms; the radix sort of
+// 1M pairs 0.163 → 0.149 ms).
 //
 // Status of tile k: two words, the low and the high 16 bits of its sum, each with the flag
 // in its own high 16 bits (WGSL has no 64-bit atomics on the baseline, and a sum needs all 32
@@ -37,7 +40,7 @@ struct ScanParams {
 @group(0) @binding(0) var<uniform> params: ScanParams;
 @group(0) @binding(1) var<storage, read> source: array<u32>;
 @group(0) @binding(2) var<storage, read_write> destination: array<u32>;
-// [0]: next ticket; [1 + 2k], [2 + 2k]: status of tile k (low, high half).
+// [2k], [2k + 1]: status of tile k (low, high half).
 @group(0) @binding(3) var<storage, read_write> status: array<atomic<u32>>;
 
 const TILE: u32 = WORKGROUP_SIZE * ITEMS_PER_THREAD;
@@ -49,7 +52,7 @@ const HALF_MASK: u32 = 0xffffu;
 // elements starts at word t × ITEMS_PER_THREAD; an odd ITEMS_PER_THREAD puts the 32 runs a
 // subgroup reads at once in 32 different banks.
 var<workgroup> exchange: array<u32, TILE>;
-// The scan of the thread sums, the ticket, the look-back's status and the fallback's sum.
+// The scan of the thread sums, the look-back's status and the fallback's sum.
 var<workgroup> partial: array<u32, WORKGROUP_SIZE>;
 
 // Status words are written with atomicExchange and read with atomicOr(0): naga's GLSL output
@@ -58,14 +61,14 @@ var<workgroup> partial: array<u32, WORKGROUP_SIZE>;
 // On an H100 through Vulkan they are also faster here than atomicStore and atomicLoad
 // (the whole scan: 0.39 against 0.46 ms for 64M u32).
 fn publish(tile: u32, flag: u32, sum: u32) {
-    atomicExchange(&status[1u + 2u * tile], (flag << 16u) | (sum & HALF_MASK));
-    atomicExchange(&status[2u + 2u * tile], (flag << 16u) | (sum >> 16u));
+    atomicExchange(&status[2u * tile], (flag << 16u) | (sum & HALF_MASK));
+    atomicExchange(&status[2u * tile + 1u], (flag << 16u) | (sum >> 16u));
 }
 
 // (flag, sum) of tile `tile`; flag 0 while it has not published, or published only one half.
 fn status_of(tile: u32) -> vec2<u32> {
-    let low = atomicOr(&status[1u + 2u * tile], 0u);
-    let high = atomicOr(&status[2u + 2u * tile], 0u);
+    let low = atomicOr(&status[2u * tile], 0u);
+    let high = atomicOr(&status[2u * tile + 1u], 0u);
     if (low >> 16u) != (high >> 16u) {
         return vec2<u32>(0u, 0u);
     }
@@ -82,11 +85,8 @@ fn poll_status(tile: u32) -> vec2<u32> {
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn scan(ids: ThreadIds) {
-    if ids.local == 0u {
-        partial[0] = atomicAdd(&status[0], 1u);
-    }
-    let tile = workgroupUniformLoad(&partial[0]);
+fn scan(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let tile = flat_workgroup(workgroup, groups);
     if tile >= params.tile_count {
         return;
     }
