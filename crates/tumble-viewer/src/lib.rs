@@ -182,10 +182,22 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
         read_back_ms.push(times.read_back_ms);
         match (&mut pass_ms, &times.gpu_passes) {
             (Some(passes), Some(frame)) => {
-                for &(name, ms) in frame {
-                    match passes.iter_mut().find(|(seen, _)| *seen == name) {
-                        Some((_, samples)) => samples.push(ms),
-                        None => passes.push((name, vec![ms])),
+                let known = |passes: &[(&str, Vec<f64>)], name: &str| {
+                    passes.iter().position(|(seen, _)| *seen == name)
+                };
+                for (index, &(name, ms)) in frame.iter().enumerate() {
+                    match known(passes, name) {
+                        Some(at) => passes[at].1.push(ms),
+                        // A pass new in this frame (the pose pass after the first step) goes
+                        // before those that follow it here: the line keeps the frame's order.
+                        None => {
+                            let at = frame[index + 1..]
+                                .iter()
+                                .filter_map(|&(next, _)| known(passes, next))
+                                .min()
+                                .unwrap_or(passes.len());
+                            passes.insert(at, (name, vec![ms]));
+                        }
                     }
                 }
             }
