@@ -88,6 +88,7 @@ struct RunArgs {
 }
 
 fn main() -> ExitCode {
+    end_quietly_on_a_closed_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Run(args) => run(&args),
@@ -112,6 +113,18 @@ fn main() -> ExitCode {
             eprintln!("tumble: error: {message}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// Rust ignores SIGPIPE, so a write to a pipe whose reader is gone (`tumble run ... | head -1`)
+/// is an error, and `println!` panics on it. Unix tools end quietly there: SIGPIPE's default
+/// action, given back here, ends the process at that write, before it can panic.
+fn end_quietly_on_a_closed_pipe() {
+    // SAFETY: first thing in `main`, before any other thread exists; SIG_DFL is a valid action
+    // for SIGPIPE.
+    #[cfg(unix)]
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
 }
 

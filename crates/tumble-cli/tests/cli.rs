@@ -242,3 +242,39 @@ fn auto_runs_large_scenes_on_a_hardware_gpu() {
     // 3.4 × 3008 boxes: 10.2k bodies.
     assert_eq!(device_of("falling-boxes", "3.4"), expected);
 }
+
+#[test]
+fn a_closed_pipe_ends_the_output_quietly() {
+    // `tumble run ... | head -1`: the reader is gone before tumble writes. A closed pipe
+    // read end, made before the child starts, makes every write fail, with no race.
+    let (reader, writer) = std::io::pipe().expect("a pipe");
+    drop(reader);
+    let output = Command::new(env!("CARGO_BIN_EXE_tumble"))
+        .args([
+            "run",
+            "falling-boxes",
+            "--scale",
+            "0.01",
+            "--steps",
+            "5",
+            "--device",
+            "cpu",
+        ])
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .expect("tumble runs");
+    let message = stderr(&output);
+    assert!(!message.contains("panicked"), "{message}");
+    assert!(message.is_empty(), "{message}");
+    // Ended by SIGPIPE, as `yes | head -1` ends `yes` (no exit code), or exited successfully.
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        assert!(
+            output.status.success() || output.status.signal() == Some(13),
+            "{:?}",
+            output.status
+        );
+    }
+}

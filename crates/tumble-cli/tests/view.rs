@@ -106,4 +106,25 @@ fn png_and_frames_are_written_headless() {
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", path.display());
     }
     assert!(!frames.join("frame_00003.png").exists());
+    // With frames, the medians: the step, the draw, and each pass's GPU time (all positive)
+    // or why there are none.
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("per frame (medians): step"), "{stdout}");
+    let passes = stdout
+        .lines()
+        .find(|line| line.starts_with("GPU per pass"))
+        .unwrap_or_else(|| panic!("no GPU pass line in {stdout}"));
+    if !passes.ends_with("no timestamps (the adapter has no TIMESTAMP_QUERY)") {
+        let (_, times) = passes.split_once("): ").expect("name ms, ...");
+        let names: Vec<&str> = times
+            .split(", ")
+            .map(|pass| {
+                let (name, ms) = pass.trim_end_matches(" ms").rsplit_once(' ').unwrap();
+                let ms: f64 = ms.parse().unwrap_or_else(|e| panic!("{pass}: {e}"));
+                assert!(ms > 0.0, "{passes}");
+                name
+            })
+            .collect();
+        assert_eq!(names, ["shadow", "meshes", "ground"], "{passes}");
+    }
 }

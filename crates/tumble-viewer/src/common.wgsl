@@ -21,12 +21,13 @@ struct Globals {
 @group(1) @binding(0) var shadow_map: texture_depth_2d;
 @group(1) @binding(1) var shadow_sampler: sampler_comparison;
 
-// Fraction of the light reaching `position` (0 shadowed, 1 lit): 3 x 3 texels compared against
-// the map (percentage-closer filtering, so shadow edges are soft instead of jagged). Points
-// outside the map are lit: the map covers the bodies and whatever they can shade.
+// Fraction of the light reaching `position` (0 shadowed, 1 lit): the map's depths around the
+// point compared with the point's (percentage-closer filtering, so shadow edges are soft
+// instead of jagged), as SHADOW_FILTER (prepended by renderer.rs, `ShadowFilter` in quality.rs)
+// says. Points outside the map are lit: the map covers the bodies and whatever they can shade.
 fn light_reaching(position: vec3<f32>, normal: vec3<f32>) -> f32 {
     let size = globals.shadow.x;
-    if (size == 0.0) {
+    if (size == 0.0 || SHADOW_FILTER == FILTER_OFF) {
         return 1.0;
     }
     let moved = position + normal * globals.shadow.y;
@@ -36,15 +37,53 @@ fn light_reaching(position: vec3<f32>, normal: vec3<f32>) -> f32 {
     if (any(uv < vec2<f32>(0.0)) || any(uv > vec2<f32>(1.0)) || ndc.z > 1.0) {
         return 1.0;
     }
-    var lit = 0.0;
-    for (var dy = -1; dy <= 1; dy++) {
-        for (var dx = -1; dx <= 1; dx++) {
-            let offset = vec2<f32>(f32(dx), f32(dy)) / size;
-            // The Level variant: no derivatives, so it may sit behind the branch above.
-            lit += textureSampleCompareLevel(shadow_map, shadow_sampler, uv + offset, ndc.z);
-        }
+    // The Level variants: no derivatives, so they may sit behind the branches above (gathers
+    // never use any).
+    if (SHADOW_FILTER == FILTER_TAP1) {
+        return textureSampleCompareLevel(shadow_map, shadow_sampler, uv, ndc.z);
     }
+    if (SHADOW_FILTER == FILTER_TAPS9) {
+        var lit = 0.0;
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let offset = vec2<f32>(f32(dx), f32(dy)) / size;
+                lit += textureSampleCompareLevel(shadow_map, shadow_sampler, uv + offset, ndc.z);
+            }
+        }
+        return lit / 9.0;
+    }
+    // Else (SHADOW_FILTER 0, gather4): the nine bilinear taps above, one texel apart, cover the 4 x 4 texels
+    // from `base` - 1 to `base` + 2 on each axis (texel centres at whole `texel` values), with
+    // weights 1 - f, 1, 1, f (f: the point's fraction between texel centres); the product of
+    // the two axes' weights over 9 is the filter. Four gathers read the 16 comparisons.
+    let texel = uv * size - 0.5;
+    let base = floor(texel);
+    let f = texel - base;
+    // A gather at (base + 0) / size reads texels base - 1 and base on each axis (it sits
+    // halfway between their centres); at (base + 2) / size, base + 1 and base + 2.
+    let low = (base + 0.0) / size;
+    let high = (base + 2.0) / size;
+    let near_x = vec2<f32>(1.0 - f.x, 1.0);
+    let far_x = vec2<f32>(1.0, f.x);
+    let near_y = vec2<f32>(1.0 - f.y, 1.0);
+    let far_y = vec2<f32>(1.0, f.y);
+    let lit = gathered(vec2<f32>(low.x, low.y), ndc.z, near_x, near_y)
+        + gathered(vec2<f32>(high.x, low.y), ndc.z, far_x, near_y)
+        + gathered(vec2<f32>(low.x, high.y), ndc.z, near_x, far_y)
+        + gathered(vec2<f32>(high.x, high.y), ndc.z, far_x, far_y);
     return lit / 9.0;
+}
+
+const FILTER_TAPS9: u32 = 1u;
+const FILTER_TAP1: u32 = 2u;
+const FILTER_OFF: u32 = 3u;
+
+// The 2 x 2 comparisons a bilinear tap at `coords` would blend, weighted by `x` (the lower and
+// the higher column) and `y` (the lower and the higher row). A gather's components are the
+// texels (x_low, y_high), (x_high, y_high), (x_high, y_low), (x_low, y_low), in that order.
+fn gathered(coords: vec2<f32>, depth: f32, x: vec2<f32>, y: vec2<f32>) -> f32 {
+    let compared = textureGatherCompare(shadow_map, shadow_sampler, coords, depth);
+    return dot(compared, vec4<f32>(x.x * y.y, x.y * y.y, x.y * y.x, x.x * y.x));
 }
 
 // Lambert + ambient, the Lambert part shadowed: a scalar times the colour, so the hue of a

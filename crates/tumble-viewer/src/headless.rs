@@ -12,6 +12,7 @@ use crate::camera::Camera;
 use crate::context::GpuContext;
 use crate::draw::{DrawList, DrawSettings};
 use crate::error::ViewError;
+use crate::quality::Quality;
 use crate::renderer::{Renderer, depth_view};
 
 /// sRGB, so the hardware encodes the linear shading for the PNG (which is sRGB by default).
@@ -70,16 +71,31 @@ pub struct Offscreen {
 }
 
 /// The two parts of a headless picture's time (ms): drawing it (from building the GPU work to
-/// the GPU being done), which a window spends too, and copying it out of mapped memory, which
-/// a window does not.
-#[derive(Clone, Copy, Debug, Default)]
+/// the GPU being done), which a window spends too, and reading it back (copying the picture
+/// into a buffer the host can map, waiting for that, and copying it out of mapped memory),
+/// which a window does not; and the GPU time of each of the drawing's passes.
+#[derive(Clone, Debug, Default)]
 pub struct FrameTimes {
     pub draw_ms: f64,
     pub read_back_ms: f64,
+    /// Each pass's name and GPU time (ms), in the order they ran; `None` where the device has
+    /// no timestamp queries.
+    pub gpu_passes: Option<Vec<(&'static str, f64)>>,
 }
 
 impl Offscreen {
+    /// An offscreen target of `width` x `height` pixels drawn with the default [`Quality`].
     pub fn new(context: &GpuContext, width: u32, height: u32) -> Result<Self, ViewError> {
+        Self::with_quality(context, width, height, Quality::default())
+    }
+
+    /// An offscreen target drawn with `quality`'s choices.
+    pub fn with_quality(
+        context: &GpuContext,
+        width: u32,
+        height: u32,
+        quality: Quality,
+    ) -> Result<Self, ViewError> {
         let limit = context.device.limits().max_texture_dimension_2d;
         if width == 0 || height == 0 || width > limit || height > limit {
             return Err(ViewError::TooLarge {
@@ -111,9 +127,11 @@ impl Offscreen {
             usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
             mapped_at_creation: false,
         });
+        let mut renderer = Renderer::new(device, &context.queue, FORMAT, quality);
+        renderer.time_passes();
         Ok(Self {
             last_times: FrameTimes::default(),
-            renderer: Renderer::new(device, &context.queue, FORMAT),
+            renderer,
             color_view: color.create_view(&Default::default()),
             color,
             depth: depth_view(device, width, height),
@@ -155,12 +173,35 @@ impl Offscreen {
         let device = &context.device;
         // Validation errors (an adapter that cannot do what we ask) become an error value
         // instead of wgpu's default panic.
+        let validated = |scope: wgpu::ErrorScopeGuard| match pollster::block_on(scope.pop()) {
+            Some(error) => Err(ViewError::Render {
+                adapter: context.describe(),
+                reason: error.to_string(),
+            }),
+            None => Ok(()),
+        };
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         self.renderer
             .prepare(list, camera, (self.width, self.height), device_poses);
         let mut encoder = device.create_command_encoder(&Default::default());
         self.renderer
             .encode(&mut encoder, &self.color_view, &self.depth);
+        context.queue.submit([encoder.finish()]);
+        validated(scope)?;
+        // The drawing is waited for on its own, so that its time is what a window's frame
+        // spends, without the picture's copy to host memory (8 MB at 1920x1080).
+        device
+            .poll(wgpu::PollType::Wait {
+                submission_index: None,
+                timeout: Some(std::time::Duration::from_secs(60)),
+            })
+            .map_err(|e| ViewError::Readback(e.to_string()))?;
+        let draw_ms = start.elapsed().as_secs_f64() * 1e3;
+        let gpu_passes = self.renderer.pass_times()?;
+
+        let read_back = std::time::Instant::now();
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = device.create_command_encoder(&Default::default());
         encoder.copy_texture_to_buffer(
             self.color.as_image_copy(),
             wgpu::TexelCopyBufferInfo {
@@ -178,21 +219,18 @@ impl Offscreen {
             },
         );
         context.queue.submit([encoder.finish()]);
-        if let Some(error) = pollster::block_on(scope.pop()) {
-            return Err(ViewError::Render {
-                adapter: context.describe(),
-                reason: error.to_string(),
-            });
-        }
-        self.read_back(device, start)
+        validated(scope)?;
+        let image = self.read_back(device)?;
+        self.last_times = FrameTimes {
+            draw_ms,
+            read_back_ms: read_back.elapsed().as_secs_f64() * 1e3,
+            gpu_passes,
+        };
+        Ok(image)
     }
 
-    /// Waits for the GPU and copies the picture out; `start` is when the frame's work began.
-    fn read_back(
-        &mut self,
-        device: &wgpu::Device,
-        start: std::time::Instant,
-    ) -> Result<Image, ViewError> {
+    /// Waits for the picture's copy and copies the picture out.
+    fn read_back(&mut self, device: &wgpu::Device) -> Result<Image, ViewError> {
         let slice = self.readback.slice(..);
         let (sender, receiver) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |result| {
@@ -205,7 +243,6 @@ impl Offscreen {
                 timeout: Some(std::time::Duration::from_secs(60)),
             })
             .map_err(|e| ViewError::Readback(e.to_string()))?;
-        let drawn = std::time::Instant::now();
         receiver
             .recv()
             .map_err(|e| ViewError::Readback(e.to_string()))?
@@ -220,10 +257,6 @@ impl Offscreen {
             }
         }
         self.readback.unmap();
-        self.last_times = FrameTimes {
-            draw_ms: (drawn - start).as_secs_f64() * 1e3,
-            read_back_ms: drawn.elapsed().as_secs_f64() * 1e3,
-        };
         Ok(Image {
             width: self.width,
             height: self.height,

@@ -25,7 +25,9 @@ pub mod input;
 pub mod mesh;
 pub mod overlay;
 pub mod pick;
+pub mod quality;
 mod renderer;
+mod timing;
 mod window;
 
 use crate::draw::DrawSettings;
@@ -40,6 +42,7 @@ use tumble::scene::Scene;
 pub use camera::Camera;
 pub use context::GpuContext;
 pub use error::ViewError;
+pub use quality::Quality;
 pub use renderer::{LIGHT_DIRECTION, Renderer};
 
 /// A picture size `WIDTHxHEIGHT` in pixels.
@@ -96,6 +99,12 @@ pub struct ViewOptions {
     /// pictures are drawn on that same device).
     #[arg(long, value_enum, default_value = "cpu")]
     pub device: StepDevice,
+    /// The renderer's cost knobs, to compare frame rates: `legacy` (the first renderer's
+    /// choices) and/or comma-separated changes, `filter=gather4|taps9|tap1|off`,
+    /// `shadow-size=TEXELS`, `order=front-to-back|submitted`, `prepass=on|off`. Default:
+    /// filter=gather4,shadow-size=2048,order=front-to-back,prepass=off.
+    #[arg(long)]
+    pub quality: Option<Quality>,
 }
 
 /// `--device` of `tumble view`.
@@ -137,7 +146,8 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
     let mut world = build_world(scene, options.device, None)?;
     let context = GpuContext::headless()?;
     let ImageSize { width, height } = options.size;
-    let mut offscreen = headless::Offscreen::new(&context, width, height)?;
+    let quality = options.quality.unwrap_or_default();
+    let mut offscreen = headless::Offscreen::with_quality(&context, width, height, quality)?;
     // The camera frames the bodies as they are in the first picture, and then stays put so
     // that frames of a video line up.
     let mut camera = options.camera;
@@ -152,6 +162,8 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
     // Frame times, PNG writing left out: a step and a draw are what a window spends per frame;
     // the read-back is the headless picture's own cost.
     let (mut step_ms, mut draw_ms, mut read_back_ms) = (Vec::new(), Vec::new(), Vec::new());
+    // Each pass's GPU times, in the order the passes first ran; `None`: no timestamp queries.
+    let mut pass_ms: Option<Vec<(&'static str, Vec<f64>)>> = Some(Vec::new());
     let mut picture = |world: &tumble::World, path: PathBuf| {
         let camera =
             *camera.get_or_insert_with(|| Camera::framing(world, width as f32 / height as f32));
@@ -165,8 +177,32 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
             ),
         };
         let image = offscreen.render(&context, world, &camera, settings, &overlay)?;
-        draw_ms.push(offscreen.last_times.draw_ms);
-        read_back_ms.push(offscreen.last_times.read_back_ms);
+        let times = &offscreen.last_times;
+        draw_ms.push(times.draw_ms);
+        read_back_ms.push(times.read_back_ms);
+        match (&mut pass_ms, &times.gpu_passes) {
+            (Some(passes), Some(frame)) => {
+                let known = |passes: &[(&str, Vec<f64>)], name: &str| {
+                    passes.iter().position(|(seen, _)| *seen == name)
+                };
+                for (index, &(name, ms)) in frame.iter().enumerate() {
+                    match known(passes, name) {
+                        Some(at) => passes[at].1.push(ms),
+                        // A pass new in this frame (the pose pass after the first step) goes
+                        // before those that follow it here: the line keeps the frame's order.
+                        None => {
+                            let at = frame[index + 1..]
+                                .iter()
+                                .filter_map(|&(next, _)| known(passes, next))
+                                .min()
+                                .unwrap_or(passes.len());
+                            passes.insert(at, (name, vec![ms]));
+                        }
+                    }
+                }
+            }
+            (passes, _) => *passes = None,
+        }
         image.save_png(&path)
     };
     if let Some(dir) = &options.frames {
@@ -210,8 +246,30 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
             1e3 / (step + draw),
             median(&mut read_back_ms)
         );
+        println!("{}", pass_line(pass_ms.as_mut(), &quality));
     }
     Ok(())
+}
+
+/// "GPU per pass (medians, quality ...): shadow 0.41 ms, meshes 2.10 ms, ...", or why there are
+/// no timestamps.
+fn pass_line(passes: Option<&mut Vec<(&'static str, Vec<f64>)>>, quality: &Quality) -> String {
+    match passes {
+        Some(passes) => {
+            let times: Vec<String> = passes
+                .iter_mut()
+                .map(|(name, samples)| format!("{name} {:.3} ms", median(samples)))
+                .collect();
+            format!(
+                "GPU per pass (medians, quality {quality}): {}",
+                times.join(", ")
+            )
+        }
+        None => format!(
+            "GPU per pass (quality {quality}): no timestamps (the adapter has no \
+             TIMESTAMP_QUERY)"
+        ),
+    }
 }
 
 /// The median of `samples` (sorted in place; the upper middle of an even count); 0 for none.

@@ -13,7 +13,9 @@ struct VertexIn {
 };
 
 struct VertexOut {
-    @builtin(position) clip: vec4<f32>,
+    // Invariant: the depth pre-pass draws with this same vertex stage, and the colour pass's
+    // depth must equal it.
+    @builtin(position) @invariant clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) colour: vec3<f32>,
     @location(2) world: vec3<f32>,

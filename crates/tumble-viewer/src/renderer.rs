@@ -2,14 +2,18 @@
 //! code draws into a window's surface and into an offscreen texture, and on the physics'
 //! device from its buffers.
 //!
-//! A frame is two render passes. The shadow pass draws every solid mesh's depth as the light
+//! A frame is a few render passes. The shadow pass draws every solid mesh's depth as the light
 //! sees it (an orthographic view along the light over the bodies' bounds) into the shadow map.
-//! The frame pass clears, draws the ground grids, then every mesh instanced once (solid
-//! triangles, or its edges as lines in wireframe mode), contact segments as lines, and last the
-//! overlay text on top. Lit surfaces look their point up in the shadow map. When the step ran
-//! on this device, a compute pass first writes the bodies' instance models from the physics'
-//! pose buffers (pose.wgsl).
+//! Then, with [`Quality::depth_prepass`], a pass draws the depth of every surface. The meshes
+//! pass draws every mesh instanced once (solid triangles, or its edges as lines in wireframe
+//! mode) and contact segments as lines, the ground pass the ground grids (after the meshes, so
+//! that the ground hidden by bodies is never shaded; before them in [`DrawOrder::Submitted`]),
+//! and the overlay pass the text on top. The first of them clears. Lit surfaces look their
+//! point up in the shadow map. When the step ran on this device, a compute pass first writes
+//! the bodies' instance models from the physics' pose buffers (pose.wgsl).
 //! Triangle meshes are drawn from both sides, as the physics collides with both.
+//! Each pass is timed on the GPU where the device has timestamp queries and
+//! [`Renderer::time_passes`] asked for it.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -21,9 +25,12 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey, NO_BODY, PoseLink};
+use crate::error::ViewError;
 use crate::font::{CELL_HEIGHT, CELL_WIDTH, GLYPH_COUNT, GLYPH_HEIGHT, GLYPH_WIDTH};
 use crate::mesh::{MeshData, Vertex};
 use crate::overlay::{PANEL, TextQuad};
+use crate::quality::{DrawOrder, Quality};
+use crate::timing::PassTimer;
 
 pub const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
@@ -33,9 +40,6 @@ pub const LIGHT_DIRECTION: Vec3 = Vec3::new(0.5, 0.8, 0.3);
 /// Light reaching a surface facing away from the light, and the Lambert weight on top.
 const AMBIENT: f32 = 0.3;
 const DIFFUSE: f32 = 0.7;
-/// Side of the square shadow map in texels: 2048 keeps a box's shadow crisp with a few thousand
-/// bodies in view, and clears in well under a millisecond even on lavapipe.
-const SHADOW_MAP_SIZE: u32 = 2048;
 /// Shadow acne: depth bias of the shadow pass (in units of the depth format's precision and
 /// of the triangle's depth slope) and the push of a lit point along its normal, in shadow map
 /// texels.
@@ -157,12 +161,54 @@ pub struct Renderer {
     wireframe: bool,
     /// Whether this frame has a shadow caster (and so a light view to draw the map from).
     shadows: bool,
+    /// Side of the square shadow map in texels.
+    shadow_map_size: u32,
+    order: DrawOrder,
+    /// Depth-only pipelines, with [`Quality::depth_prepass`].
+    prepass: Option<Prepass>,
+    /// The pose pass's bindings, kept while its buffers stay the same.
+    pose_binding: Option<PoseBinding>,
+    timer: Option<PassTimer>,
+}
+
+/// The depth pre-pass's pipelines: the frame pipelines' vertex stages, no fragment stage.
+struct Prepass {
+    culled: wgpu::RenderPipeline,
+    two_sided: wgpu::RenderPipeline,
+    ground: wgpu::RenderPipeline,
+}
+
+/// The pose pass's bind group and what it binds: the physics' start poses and motion, the
+/// links and the instances (the last two grow), and how many links.
+struct PoseBinding {
+    buffers: [wgpu::Buffer; 4],
+    links: usize,
+    bind_group: wgpu::BindGroup,
+}
+
+/// A colour pass of the frame, after the shadow map and the depth pre-pass.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ColourPass {
+    Meshes,
+    Ground,
+    Overlay,
 }
 
 impl Renderer {
-    /// Pipelines for colour targets of `format` (an sRGB format: shading is in linear RGB).
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, format: wgpu::TextureFormat) -> Self {
-        let common = include_str!("common.wgsl");
+    /// Pipelines for colour targets of `format` (an sRGB format: shading is in linear RGB),
+    /// drawing with `quality`'s choices.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        format: wgpu::TextureFormat,
+        quality: Quality,
+    ) -> Self {
+        let common = format!(
+            "const SHADOW_FILTER: u32 = {}u;\n{}",
+            quality.shadow_filter.wgsl(),
+            include_str!("common.wgsl")
+        );
+        let shadow_map_size = quality.shadow_map_size;
         let mesh_source = format!("{common}\n{}", include_str!("mesh.wgsl"));
         let [gr, gg, gb] = GROUND_COLOUR;
         let [lr, lg, lb] = LINE_COLOUR;
@@ -220,8 +266,8 @@ impl Renderer {
             .create_texture(&wgpu::TextureDescriptor {
                 label: Some("shadow map"),
                 size: wgpu::Extent3d {
-                    width: SHADOW_MAP_SIZE,
-                    height: SHADOW_MAP_SIZE,
+                    width: shadow_map_size,
+                    height: shadow_map_size,
                     depth_or_array_layers: 1,
                 },
                 mip_level_count: 1,
@@ -233,8 +279,8 @@ impl Renderer {
                 view_formats: &[],
             })
             .create_view(&Default::default());
-        // Linear filtering of the comparisons: each of the shader's 3 x 3 taps is itself a
-        // bilinear blend of four, so shadow edges come out smooth.
+        // Linear filtering of the comparisons: each bilinear tap of the shader is itself a
+        // blend of four (gathers ignore the filter and weigh the four in the shader).
         let shadow_sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("shadow"),
             mag_filter: wgpu::FilterMode::Linear,
@@ -297,8 +343,9 @@ impl Renderer {
             bind_group_layouts: &[Some(&globals_layout), Some(&textures_layout)],
             immediate_size: 0,
         });
+        // The shadow and depth pre-pass pipelines read only the globals.
         let shadow_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("shadow"),
+            label: Some("depth only"),
             bind_group_layouts: &[Some(&globals_layout)],
             immediate_size: 0,
         });
@@ -404,25 +451,71 @@ impl Renderer {
             wgpu::PrimitiveTopology::TriangleList,
             None,
         );
+        let depth_only = |label: &str,
+                          shader: &wgpu::ShaderModule,
+                          entry_point: &str,
+                          buffers: &[Option<wgpu::VertexBufferLayout>],
+                          cull_mode: Option<wgpu::Face>,
+                          bias: wgpu::DepthBiasState| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&shadow_layout),
+                vertex: wgpu::VertexState {
+                    module: shader,
+                    entry_point: Some(entry_point),
+                    compilation_options: Default::default(),
+                    buffers,
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    bias,
+                    ..depth_test.clone()
+                }),
+                multisample: Default::default(),
+                fragment: None,
+                multiview_mask: None,
+                cache: None,
+            })
+        };
         // Both faces cast: triangle meshes are open, and the bias handles the lit faces.
-        let shadow_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("shadow"),
-            layout: Some(&shadow_layout),
-            vertex: wgpu::VertexState {
-                module: &mesh_shader,
-                entry_point: Some("vs_shadow"),
-                compilation_options: Default::default(),
-                buffers: &mesh_buffers,
-            },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                bias: SHADOW_DEPTH_BIAS,
-                ..depth_test.clone()
-            }),
-            multisample: Default::default(),
-            fragment: None,
-            multiview_mask: None,
-            cache: None,
+        let shadow_pipeline = depth_only(
+            "shadow",
+            &mesh_shader,
+            "vs_shadow",
+            &mesh_buffers,
+            None,
+            SHADOW_DEPTH_BIAS,
+        );
+        // The frame's own vertex stages (their positions are @invariant), so that the colour
+        // passes' fragments meet the depth the pre-pass wrote exactly.
+        let prepass = quality.depth_prepass.then(|| Prepass {
+            culled: depth_only(
+                "prepass",
+                &mesh_shader,
+                "vs_main",
+                &mesh_buffers,
+                Some(wgpu::Face::Back),
+                Default::default(),
+            ),
+            two_sided: depth_only(
+                "prepass two-sided",
+                &mesh_shader,
+                "vs_main",
+                &mesh_buffers,
+                None,
+                Default::default(),
+            ),
+            ground: depth_only(
+                "prepass ground",
+                &grid_shader,
+                "vs_main",
+                &grid_buffers,
+                None,
+                Default::default(),
+            ),
         });
         // Text lies on top of everything and blends its panel over the scene.
         let text_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -484,7 +577,28 @@ impl Renderer {
             text_quads: 0,
             wireframe: false,
             shadows: false,
+            order: quality.order,
+            prepass,
+            pose_binding: None,
+            timer: None,
+            shadow_map_size,
         }
+    }
+
+    /// Times each pass of every later frame on the GPU ([`Self::pass_times`]); false (and no
+    /// timing) where the device has no timestamp queries.
+    pub fn time_passes(&mut self) -> bool {
+        self.timer = PassTimer::new(&self.device, &self.queue);
+        self.timer.is_some()
+    }
+
+    /// The GPU time (ms) of each pass of the last frame encoded, in order, once it is done
+    /// (this waits for it); `None` without [`Self::time_passes`].
+    pub fn pass_times(&self) -> Result<Option<Vec<(&'static str, f64)>>, ViewError> {
+        self.timer
+            .as_ref()
+            .map(|timer| timer.read(&self.device))
+            .transpose()
     }
 
     /// Uploads what `list` draws, seen by `camera` on a viewport of `width` × `height` pixels.
@@ -497,18 +611,23 @@ impl Renderer {
         (width, height): (u32, u32),
         device_poses: Option<DevicePoses>,
     ) {
+        if let Some(timer) = &mut self.timer {
+            timer.start_frame();
+        }
         let light = LIGHT_DIRECTION.normalize();
         // Solid meshes cast shadows; wireframes are lines, which would cast none.
         let shadow_view = list
             .shadow_bounds
             .filter(|_| !list.wireframe)
-            .map(|(center, radius)| light_view_projection(light, center, radius));
+            .map(|(center, radius)| {
+                light_view_projection(light, center, radius, self.shadow_map_size)
+            });
         self.shadows = shadow_view.is_some();
         let (light_view_projection, shadow) = match shadow_view {
             Some((matrix, texel)) => (
                 matrix,
                 [
-                    SHADOW_MAP_SIZE as f32,
+                    self.shadow_map_size as f32,
                     SHADOW_NORMAL_OFFSET_TEXELS * texel,
                     0.0,
                     0.0,
@@ -531,18 +650,33 @@ impl Renderer {
 
         let mut instances: Vec<Instance> = Vec::new();
         let mut links: Vec<PoseLink> = Vec::new();
+        let mut order: Vec<(f32, u32)> = Vec::new();
+        let eye = camera.eye();
         self.draws.clear();
         for (&key, group) in &list.instances {
             if !self.meshes.contains_key(&key) {
                 let mesh = upload_mesh(&self.device, &mesh_data(key, list));
                 self.meshes.insert(key, mesh);
             }
-            let start = instances.len() as u32;
-            instances.extend_from_slice(group);
-            self.draws.push((key, start..instances.len() as u32));
             let group_links = list.links.get(&key).map_or(&[][..], Vec::as_slice);
             debug_assert_eq!(group_links.len(), group.len(), "{key:?}");
-            links.extend_from_slice(group_links);
+            // Nearest first, by the distance of the instance's origin from the eye (the host's
+            // poses, also when the device's are drawn: the order needs only be nearly right).
+            // A stable sort on a total order: the same frame is drawn the same way every time.
+            order.clear();
+            order.extend(group.iter().enumerate().map(|(i, instance)| {
+                let origin = Vec3::from_slice(&instance.model[3][..3]);
+                (origin.distance_squared(eye), i as u32)
+            }));
+            if self.order == DrawOrder::FrontToBack {
+                order.sort_by(|a, b| a.0.total_cmp(&b.0));
+            }
+            let start = instances.len() as u32;
+            instances.extend(order.iter().map(|&(_, i)| group[i as usize]));
+            if !group_links.is_empty() {
+                links.extend(order.iter().map(|&(_, i)| group_links[i as usize]));
+            }
+            self.draws.push((key, start..instances.len() as u32));
         }
         self.instances
             .write(&self.device, &self.queue, bytemuck::cast_slice(&instances));
@@ -563,9 +697,10 @@ impl Renderer {
     }
 
     /// Records the frame prepared last into `encoder`: the shadow map, then clears `color` and
-    /// `depth` (a [`DEPTH_FORMAT`] view of the same size) and draws.
+    /// `depth` (a [`DEPTH_FORMAT`] view of the same size) and draws; with pass timing, resolves
+    /// the frame's timestamps last.
     pub fn encode(
-        &self,
+        &mut self,
         encoder: &mut wgpu::CommandEncoder,
         color: &wgpu::TextureView,
         depth: &wgpu::TextureView,
@@ -573,59 +708,156 @@ impl Renderer {
         if self.shadows {
             self.encode_shadows(encoder);
         }
+        let prepass = self.prepass.is_some() && !self.wireframe;
+        if prepass {
+            self.encode_prepass(encoder, depth);
+        }
+        let ground = (self.ground_vertices > 0).then_some(ColourPass::Ground);
+        let (first, second) = match self.order {
+            DrawOrder::FrontToBack => (Some(ColourPass::Meshes), ground),
+            DrawOrder::Submitted => (ground, Some(ColourPass::Meshes)),
+        };
+        let overlay = (self.text_quads > 0).then_some(ColourPass::Overlay);
+        let passes = [first, second, overlay].into_iter().flatten();
+        for (index, kind) in passes.enumerate() {
+            self.encode_colour_pass(encoder, kind, color, depth, index == 0, prepass);
+        }
+        if let Some(timer) = &self.timer {
+            timer.resolve(encoder);
+        }
+    }
+
+    /// One colour pass: the first clears `color`, and `depth` unless the pre-pass drew it.
+    fn encode_colour_pass(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        kind: ColourPass,
+        color: &wgpu::TextureView,
+        depth: &wgpu::TextureView,
+        first: bool,
+        prepass: bool,
+    ) {
         let [r, g, b] = BACKGROUND.map(f64::from);
+        let name = match kind {
+            ColourPass::Meshes => "meshes",
+            ColourPass::Ground => "ground",
+            ColourPass::Overlay => "overlay",
+        };
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-            label: Some("frame"),
+            label: Some(name),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {
                 view: color,
                 depth_slice: None,
                 resolve_target: None,
                 ops: wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                    load: if first {
+                        wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 })
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
                     store: wgpu::StoreOp::Store,
                 },
             })],
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                 view: depth,
                 depth_ops: Some(wgpu::Operations {
-                    load: wgpu::LoadOp::Clear(1.0),
-                    store: wgpu::StoreOp::Discard,
+                    load: if first && !prepass {
+                        wgpu::LoadOp::Clear(1.0)
+                    } else {
+                        wgpu::LoadOp::Load
+                    },
+                    // The overlay, always last, neither tests nor writes depth.
+                    store: if kind == ColourPass::Overlay {
+                        wgpu::StoreOp::Discard
+                    } else {
+                        wgpu::StoreOp::Store
+                    },
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: None,
+            timestamp_writes: self.timer.as_mut().map(|timer| timer.render_pass(name)),
             occlusion_query_set: None,
             multiview_mask: None,
         });
         pass.set_bind_group(0, &self.globals_bind_group, &[]);
         pass.set_bind_group(1, &self.textures_bind_group, &[]);
-        if self.ground_vertices > 0 {
-            pass.set_pipeline(&self.grid_pipeline);
-            pass.set_vertex_buffer(0, self.ground.buffer.slice(..));
-            pass.draw(0..self.ground_vertices, 0..1);
+        match kind {
+            ColourPass::Ground => {
+                pass.set_pipeline(&self.grid_pipeline);
+                pass.set_vertex_buffer(0, self.ground.buffer.slice(..));
+                pass.draw(0..self.ground_vertices, 0..1);
+            }
+            ColourPass::Meshes => {
+                pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
+                for (key, range) in &self.draws {
+                    let mesh = &self.meshes[key];
+                    let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
+                        (Some(triangles), false) if matches!(key, MeshKey::TriMesh(_)) => {
+                            (&self.two_sided_pipeline, triangles)
+                        }
+                        (Some(triangles), false) => (&self.solid_pipeline, triangles),
+                        _ => match &mesh.lines {
+                            Some(lines) => (&self.line_pipeline, lines),
+                            None => continue,
+                        },
+                    };
+                    pass.set_pipeline(pipeline);
+                    pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                    pass.set_index_buffer(indices.0.slice(..), wgpu::IndexFormat::Uint32);
+                    pass.draw_indexed(0..indices.1, 0, range.clone());
+                }
+            }
+            ColourPass::Overlay => {
+                pass.set_pipeline(&self.text_pipeline);
+                pass.set_vertex_buffer(0, self.text.buffer.slice(..));
+                pass.draw(0..6, 0..self.text_quads);
+            }
         }
+    }
+
+    /// The depth pre-pass: clears `depth` and draws the depth of every solid surface (lines,
+    /// thin, are left to the colour pass), so that the colour passes shade each pixel once.
+    fn encode_prepass(&mut self, encoder: &mut wgpu::CommandEncoder, depth: &wgpu::TextureView) {
+        let Some(prepass) = &self.prepass else {
+            return;
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("depth pre-pass"),
+            color_attachments: &[],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: self
+                .timer
+                .as_mut()
+                .map(|timer| timer.render_pass("depth pre-pass")),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_bind_group(0, &self.globals_bind_group, &[]);
         pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
         for (key, range) in &self.draws {
             let mesh = &self.meshes[key];
-            let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
-                (Some(triangles), false) if matches!(key, MeshKey::TriMesh(_)) => {
-                    (&self.two_sided_pipeline, triangles)
-                }
-                (Some(triangles), false) => (&self.solid_pipeline, triangles),
-                _ => match &mesh.lines {
-                    Some(lines) => (&self.line_pipeline, lines),
-                    None => continue,
-                },
-            };
-            pass.set_pipeline(pipeline);
-            pass.set_vertex_buffer(0, mesh.vertices.slice(..));
-            pass.set_index_buffer(indices.0.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..indices.1, 0, range.clone());
+            if let Some((indices, count)) = &mesh.triangles {
+                pass.set_pipeline(if matches!(key, MeshKey::TriMesh(_)) {
+                    &prepass.two_sided
+                } else {
+                    &prepass.culled
+                });
+                pass.set_vertex_buffer(0, mesh.vertices.slice(..));
+                pass.set_index_buffer(indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..*count, 0, range.clone());
+            }
         }
-        if self.text_quads > 0 {
-            pass.set_pipeline(&self.text_pipeline);
-            pass.set_vertex_buffer(0, self.text.buffer.slice(..));
-            pass.draw(0..6, 0..self.text_quads);
+        if self.ground_vertices > 0 {
+            pass.set_pipeline(&prepass.ground);
+            pass.set_vertex_buffer(0, self.ground.buffer.slice(..));
+            pass.draw(0..self.ground_vertices, 0..1);
         }
     }
 
@@ -658,49 +890,74 @@ impl Renderer {
         });
         self.links
             .write(device, &self.queue, bytemuck::cast_slice(links));
-        let bytes = |count: usize, size: usize| wgpu::BufferSize::new((count * size) as u64);
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("poses"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: poses.start.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: poses.motion.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.links.buffer,
-                        offset: 0,
-                        size: bytes(links.len(), size_of::<PoseLink>()),
-                    }),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 3,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &self.instances.buffer,
-                        offset: 0,
-                        size: bytes(links.len(), size_of::<Instance>()),
-                    }),
-                },
-            ],
-        });
+        // A new bind group only when a buffer was replaced (the physics' grew, or ours) or the
+        // link count changed: the bindings' sizes are the count's (pose.wgsl's arrayLength).
+        let buffers = [
+            poses.start.clone(),
+            poses.motion.clone(),
+            self.links.buffer.clone(),
+            self.instances.buffer.clone(),
+        ];
+        let current = self
+            .pose_binding
+            .as_ref()
+            .is_some_and(|binding| binding.buffers == buffers && binding.links == links.len());
+        if !current {
+            let bytes = |count: usize, size: usize| wgpu::BufferSize::new((count * size) as u64);
+            let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("poses"),
+                layout: &pipeline.get_bind_group_layout(0),
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: poses.start.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: poses.motion.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.links.buffer,
+                            offset: 0,
+                            size: bytes(links.len(), size_of::<PoseLink>()),
+                        }),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 3,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &self.instances.buffer,
+                            offset: 0,
+                            size: bytes(links.len(), size_of::<Instance>()),
+                        }),
+                    },
+                ],
+            });
+            self.pose_binding = Some(PoseBinding {
+                buffers,
+                links: links.len(),
+                bind_group,
+            });
+        }
+        let Some(binding) = &self.pose_binding else {
+            return;
+        };
         let mut encoder = device.create_command_encoder(&Default::default());
         {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("poses"),
+                timestamp_writes: self.timer.as_mut().map(|timer| timer.compute_pass("pose")),
+            });
             pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, &bind_group, &[]);
+            pass.set_bind_group(0, &binding.bind_group, &[]);
             pass.dispatch_workgroups((links.len() as u32).div_ceil(POSE_WORKGROUP_SIZE), 1, 1);
         }
         self.queue.submit([encoder.finish()]);
     }
 
     /// The shadow pass: every solid mesh's depth as the light sees it.
-    fn encode_shadows(&self, encoder: &mut wgpu::CommandEncoder) {
+    fn encode_shadows(&mut self, encoder: &mut wgpu::CommandEncoder) {
         let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("shadow"),
             color_attachments: &[],
@@ -712,7 +969,7 @@ impl Renderer {
                 }),
                 stencil_ops: None,
             }),
-            timestamp_writes: None,
+            timestamp_writes: self.timer.as_mut().map(|timer| timer.render_pass("shadow")),
             occlusion_query_set: None,
             multiview_mask: None,
         });
@@ -732,9 +989,15 @@ impl Renderer {
 
 /// The light's view of a sphere (`center`, `radius`) and what lies below it along the light:
 /// world to the shadow map's clip space (orthographic, depth 0 at the light), and the size of a
-/// map texel in metres. The map spans the sphere across; in depth it reaches from in front of
-/// the sphere to far enough behind it for the ground under raised bodies.
-fn light_view_projection(light: Vec3, center: Vec3, radius: f32) -> (Mat4, f32) {
+/// texel in metres of a map `shadow_map_size` texels across. The map spans the sphere across;
+/// in depth it reaches from in front of the sphere to far enough behind it for the ground under
+/// raised bodies.
+fn light_view_projection(
+    light: Vec3,
+    center: Vec3,
+    radius: f32,
+    shadow_map_size: u32,
+) -> (Mat4, f32) {
     let radius = radius.max(1.0e-3);
     let eye = center + light * (2.0 * radius);
     // Any up vector not along the light will do; the light is never straight up here.
@@ -747,7 +1010,7 @@ fn light_view_projection(light: Vec3, center: Vec3, radius: f32) -> (Mat4, f32) 
     let far = 2.0 * radius + (8.0 * radius).max(50.0);
     let projection =
         glam::camera::rh::proj::directx::orthographic(-radius, radius, -radius, radius, 0.0, far);
-    (projection * view, 2.0 * radius / SHADOW_MAP_SIZE as f32)
+    (projection * view, 2.0 * radius / shadow_map_size as f32)
 }
 
 /// The font atlas (font.rs) as a one-channel texture.
@@ -858,4 +1121,62 @@ fn ground_vertices(quad: &GroundQuad) -> [GridVertex; 6] {
         corner(-1.0, 1.0),
     );
     [a, b, c, a, c, d]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draw::DrawSettings;
+    use tumble::pipeline::devices::{Executor, StageDevices};
+    use tumble::{BodyDesc, Shape, StepConfig, World};
+
+    #[test]
+    fn the_pose_pass_makes_its_bind_group_once_while_its_buffers_stay() {
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for x in 0..3 {
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(
+                        2.0 * x as f32,
+                        0.5,
+                        0.0,
+                    )),
+                )
+                .unwrap();
+        }
+        world
+            .set_stage_devices(StageDevices::all(Executor::Gpu))
+            .unwrap();
+        let context = crate::GpuContext::headless().expect("an adapter");
+        let mut renderer = Renderer::new(
+            &context.device,
+            &context.queue,
+            wgpu::TextureFormat::Rgba8UnormSrgb,
+            Quality::default(),
+        );
+        let camera = Camera::look_at(Vec3::new(0.0, 4.0, 8.0), Vec3::ZERO);
+        let mut bind_groups = Vec::new();
+        for _ in 0..3 {
+            world.step();
+            let list = DrawList::build(&world, DrawSettings::default());
+            renderer.prepare(&list, &camera, (64, 48), world.device_poses());
+            let binding = renderer.pose_binding.as_ref().expect("poses were bound");
+            bind_groups.push(binding.bind_group.clone());
+        }
+        assert!(bind_groups.iter().all(|group| *group == bind_groups[0]));
+        // Contact markers add instances that belong to no body: more links, a new group.
+        let list = DrawList::build(
+            &world,
+            DrawSettings {
+                contacts: true,
+                ..Default::default()
+            },
+        );
+        renderer.prepare(&list, &camera, (64, 48), world.device_poses());
+        let binding = renderer.pose_binding.as_ref().expect("poses were bound");
+        assert_ne!(binding.bind_group, bind_groups[0]);
+    }
 }

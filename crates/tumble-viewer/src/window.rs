@@ -21,6 +21,7 @@ use crate::draw::DrawList;
 use crate::error::ViewError;
 use crate::input::{Action, Executor, HELP, InputState, Key, MouseButton};
 use crate::overlay::{self, OverlayKind};
+use crate::quality::Quality;
 use crate::renderer::{Renderer, depth_view};
 use crate::{ImageSize, StepDevice, ViewOptions};
 
@@ -72,6 +73,7 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         world,
         input,
         size: options.size,
+        quality: options.quality.unwrap_or_default(),
         instance,
         backends,
         view: None,
@@ -121,6 +123,7 @@ struct App<'a> {
     world: World,
     input: InputState,
     size: ImageSize,
+    quality: Quality,
     instance: wgpu::Instance,
     backends: wgpu::Backends,
     view: Option<WindowView>,
@@ -171,7 +174,7 @@ impl App<'_> {
         }
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&context.device, &config);
-        let renderer = Renderer::new(&context.device, &context.queue, config.format);
+        let renderer = Renderer::new(&context.device, &context.queue, config.format, self.quality);
         let depth = depth_view(&context.device, width, height);
         println!("drawing on {}", context.describe());
         Ok(WindowView {

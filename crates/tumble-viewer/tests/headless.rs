@@ -3,8 +3,9 @@
 //! where its centre projects with the same camera matrix the renderer uses), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
 //! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
-//! overlay's panel with it, none without), and a world stepped on the GPU drawn from the step's
-//! device buffers.
+//! overlay's panel with it, none without), a world stepped on the GPU drawn from the step's
+//! device buffers, each pass timed on the GPU, and a pile of boxes drawn alike with every
+//! quality knob (quality.rs).
 
 use tumble::math::Vec3;
 use tumble::pipeline::devices::{Executor, StageDevices};
@@ -13,6 +14,7 @@ use tumble::{BodyDesc, Shape, StepConfig, World};
 use tumble_viewer::draw::{BACKGROUND, DrawList, DrawSettings, TRIMESH_COLOUR, body_colour};
 use tumble_viewer::headless::{Image, Offscreen};
 use tumble_viewer::overlay::{TEXT_COLOUR, help_lines, panel_rect, profile_lines};
+use tumble_viewer::quality::{DrawOrder, Quality};
 use tumble_viewer::{Camera, GpuContext, LIGHT_DIRECTION};
 
 // Small: lavapipe rasterizes on the CPU.
@@ -377,4 +379,140 @@ fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
     let floats: &[f32] = bytemuck::cast_slice(&mapped);
     let slot = 8 * ball.index() as usize;
     assert_eq!(floats[slot..slot + 3], start.to_array());
+}
+
+#[test]
+fn each_pass_is_timed_on_the_gpu() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let timestamps = context
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY);
+    let overlay = help_lines();
+    for quality in [
+        Quality::default(),
+        Quality::LEGACY,
+        "prepass=on".parse().unwrap(),
+    ] {
+        let mut offscreen = Offscreen::with_quality(&context, WIDTH, HEIGHT, quality).unwrap();
+        offscreen
+            .render(&context, &world, &camera, DrawSettings::default(), &overlay)
+            .unwrap();
+        let Some(passes) = &offscreen.last_times.gpu_passes else {
+            assert!(
+                !timestamps,
+                "{}: timestamp queries but no times",
+                context.describe()
+            );
+            continue;
+        };
+        let names: Vec<&str> = passes.iter().map(|&(name, _)| name).collect();
+        let expected: &[&str] = match (quality.order, quality.depth_prepass) {
+            (DrawOrder::FrontToBack, false) => &["shadow", "meshes", "ground", "overlay"],
+            (DrawOrder::FrontToBack, true) => {
+                &["shadow", "depth pre-pass", "meshes", "ground", "overlay"]
+            }
+            (DrawOrder::Submitted, _) => &["shadow", "ground", "meshes", "overlay"],
+        };
+        assert_eq!(names, expected, "{quality}");
+        for &(name, ms) in passes {
+            assert!(ms > 0.0 && ms < 10_000.0, "{quality}: {name} took {ms} ms");
+        }
+    }
+}
+
+/// A pile of 64 boxes, some tilted and some in the air (shadows on boxes and on the ground),
+/// seen from above at an angle.
+fn pile() -> (World, Camera) {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    for i in 0..64 {
+        let (x, z, y) = ((i % 4) as f32, ((i / 4) % 4) as f32, (i / 16) as f32);
+        let rotation = tumble::math::Quat::from_rotation_y(0.3 * i as f32);
+        world
+            .add_body(
+                BodyDesc::dynamic(Shape::cuboid(Vec3::new(0.4, 0.3, 0.35)))
+                    .position(Vec3::new(1.1 * x - 1.6, 0.3 + 1.2 * y, 1.1 * z - 1.6))
+                    .rotation(rotation),
+            )
+            .unwrap();
+    }
+    let camera = Camera::look_at(Vec3::new(5.0, 7.0, 9.0), Vec3::new(0.0, 1.5, 0.0));
+    (world, camera)
+}
+
+/// Per pixel, the largest difference of a colour channel (0 to 255).
+fn channel_differences(a: &Image, b: &Image) -> Vec<u8> {
+    a.rgba
+        .chunks_exact(4)
+        .zip(b.rgba.chunks_exact(4))
+        .map(|(p, q)| (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap())
+        .collect()
+}
+
+#[test]
+fn every_quality_draws_the_legacy_picture() {
+    let (world, camera) = pile();
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let (width, height) = (320, 240);
+    let render = |quality: Quality| {
+        let mut offscreen = Offscreen::with_quality(&context, width, height, quality).unwrap();
+        offscreen
+            .render(&context, &world, &camera, DrawSettings::default(), &[])
+            .unwrap()
+    };
+    let legacy = render(Quality::LEGACY);
+    let changes = |text: &str| -> Quality { text.parse().unwrap() };
+    // (knobs, differing pixels allowed (by more than 2 of 255), largest difference allowed)
+    for (quality, differing, largest) in [
+        // The same filter as legacy's in other reads: only the bilinear weights' rounding.
+        (changes("legacy,filter=gather4"), 0, 2),
+        // Another order: where two surfaces have the same depth, the other one wins.
+        (
+            changes("legacy,order=front-to-back"),
+            width * height / 1000,
+            255,
+        ),
+        (changes("legacy,prepass=on"), width * height / 1000, 255),
+        (Quality::default(), width * height / 1000, 255),
+        (changes("prepass=on"), width * height / 1000, 255),
+    ] {
+        let image = render(quality);
+        let differences = channel_differences(&legacy, &image);
+        let over = differences.iter().filter(|&&d| d > 2).count();
+        let max = differences.iter().copied().max().unwrap();
+        let mean =
+            differences.iter().map(|&d| f64::from(d)).sum::<f64>() / differences.len() as f64;
+        println!("{quality}: {over} pixels differ by more than 2, at most {max}, mean {mean:.4}");
+        assert!(
+            over <= differing as usize && max <= largest,
+            "{quality}: {over} pixels differ by more than 2 (at most {differing}), largest {max}"
+        );
+    }
+    // Without shadows, the shadowed pixels change (over 1% of the picture); one bilinear tap
+    // keeps the shadows and changes only their edges (under a tenth as many pixels).
+    let differing = |filter: &str| {
+        let quality = changes(&format!("filter={filter}"));
+        let over = channel_differences(&legacy, &render(quality))
+            .iter()
+            .filter(|&&d| d > 2)
+            .count();
+        println!("{quality}: {over} pixels differ by more than 2");
+        over
+    };
+    let (unshadowed, one_tap) = (differing("off"), differing("tap1"));
+    assert!(unshadowed > (width * height / 100) as usize, "{unshadowed}");
+    assert!(one_tap < unshadowed / 10, "{one_tap} against {unshadowed}");
 }
