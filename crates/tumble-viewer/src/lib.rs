@@ -102,7 +102,7 @@ pub struct ViewOptions {
     /// The renderer's cost knobs, to compare frame rates: `legacy` (the first renderer's
     /// choices) and/or comma-separated changes, `filter=gather4|taps9|tap1|off`,
     /// `shadow-size=TEXELS`, `order=front-to-back|submitted`, `prepass=on|off`. Default:
-    /// filter=gather4,shadow-size=2048,order=front-to-back,prepass=off.
+    /// filter=gather4,shadow-size=1024,order=front-to-back,prepass=off.
     #[arg(long)]
     pub quality: Option<Quality>,
 }

@@ -52,9 +52,10 @@ pub enum DrawOrder {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Quality {
     pub shadow_filter: ShadowFilter,
-    /// Side of the square shadow map in texels: 2048 keeps a box's shadow crisp with a few
-    /// thousand bodies in view. The shadow pass's cost grows with its square; the frame's
-    /// does not.
+    /// Side of the square shadow map in texels. The shadow pass's cost grows with its square,
+    /// the frame's does not: on an H100 at 1920x1080 (falling-boxes) it took 2.67 ms at 2048
+    /// and 0.95 ms at 1024, of a 7.3 and a 5.5 ms frame, and the two pictures look the same
+    /// (their shadows' edges move by a texel of the map).
     pub shadow_map_size: u32,
     pub order: DrawOrder,
     /// Draw every surface's depth first (no shading), then shade only the nearest fragment
@@ -66,7 +67,7 @@ impl Default for Quality {
     fn default() -> Self {
         Self {
             shadow_filter: ShadowFilter::Gather4,
-            shadow_map_size: 2048,
+            shadow_map_size: 1024,
             order: DrawOrder::FrontToBack,
             depth_prepass: false,
         }
