@@ -361,20 +361,33 @@ fn clip_hull_polygon(source: u32, count: u32, side: vec3<f32>, offset: f32, plan
         if (previous_distance <= 0.0) != (distance <= 0.0) {
             let t = previous_distance / (previous_distance - distance);
             let leaving = select(0u, 1u, previous_distance <= 0.0);
-            hull_polygons[write_at + written] = HullClipVertex(
-                previous.position + (current.position - previous.position) * t,
-                HULL_CROSSING_BIT | (plane << 1u) | leaving,
+            written = push_hull_clipped(
+                write_at,
+                written,
+                HullClipVertex(
+                    previous.position + (current.position - previous.position) * t,
+                    HULL_CROSSING_BIT | (plane << 1u) | leaving,
+                ),
             );
-            written += 1u;
         }
         if distance <= 0.0 {
-            hull_polygons[write_at + written] = current;
-            written += 1u;
+            written = push_hull_clipped(write_at, written, current);
         }
         previous = current;
         previous_distance = distance;
     }
     return written;
+}
+
+// Appends `vertex` to the polygon at `write_at` holding `count` vertices; returns the new
+// count. A convex polygon gains at most one vertex per side plane, so a vertex past the
+// capacity could only come from rounding (a polygon made locally concave by it): left out.
+fn push_hull_clipped(write_at: u32, count: u32, vertex: HullClipVertex) -> u32 {
+    if count == HULL_POLYGON_CAPACITY {
+        return count;
+    }
+    hull_polygons[write_at + count] = vertex;
+    return count + 1u;
 }
 
 // hull.rs `edge_contact`: one point midway between the closest points of A's and B's edges.
