@@ -95,10 +95,7 @@ pub const MAX_HULL_FACE_VERTICES: u32 = 16;
 pub fn gpu_pair(a: &Shape, b: &Shape) -> bool {
     let polyhedral = |shape: &Shape| match shape {
         Shape::Cuboid(_) | Shape::Plane(_) => true,
-        Shape::ConvexHull(hull) => hull
-            .faces()
-            .iter()
-            .all(|face| face.count <= MAX_HULL_FACE_VERTICES),
+        Shape::ConvexHull(hull) => hull.max_face_vertices() <= MAX_HULL_FACE_VERTICES,
         _ => false,
     };
     match (a.kind(), b.kind()) {
