@@ -293,8 +293,18 @@ fn narrowphase_structs_match_rust() {
             rust_layout!(PointImpulse { normal, tangent }),
             rust_layout!(PairContact { manifold, impulses }),
         ],
-        // The polygon vertex of box-box clipping lives in one thread's private memory.
-        &["ClipVertex"],
+        // Box–box's polygon vertex and the hull pairs' views of the packed hulls, frames,
+        // queries and polygon vertices live in one thread's private memory; the hulls
+        // themselves are words (`pack_hulls`).
+        &[
+            "ClipVertex",
+            "Polyhedron",
+            "Frame",
+            "HullClipVertex",
+            "FaceQuery",
+            "EdgeQuery",
+            "PlaneCandidates",
+        ],
     );
 }
 

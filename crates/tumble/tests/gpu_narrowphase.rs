@@ -20,7 +20,8 @@ use tumble::dynamics::body::{BodyPose, BodyVelocity, Collider, ColliderData};
 use tumble::gpu::{GpuContext, GpuVec};
 use tumble::math::{Quat, Vec3, vec3};
 use tumble::stages::narrowphase::{
-    GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseInputs, PairContact, update_contacts,
+    GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseInputs, PairContact, pack_hulls,
+    update_contacts,
 };
 use tumble::stages::pairs::pair_key;
 
@@ -105,6 +106,15 @@ fn collider(shape: Shape) -> Collider {
 /// that about half touch: B at random, A at a random distance from it up to the sum of their
 /// bounding radii (along a plane's normal, for a plane).
 fn random_world(random: &mut Random, pairs: usize) -> World {
+    random_world_with(random, pairs, |random| (random.shape(), random.shape()))
+}
+
+/// [`random_world`] with the pairs' shapes from `shapes`.
+fn random_world_with(
+    random: &mut Random,
+    pairs: usize,
+    mut shapes: impl FnMut(&mut Random) -> (Shape, Shape),
+) -> World {
     let mut world = World {
         poses: Vec::new(),
         velocities: Vec::new(),
@@ -113,8 +123,7 @@ fn random_world(random: &mut Random, pairs: usize) -> World {
         skipped: Vec::new(),
     };
     for pair in 0..pairs {
-        let shape_a = random.shape();
-        let shape_b = random.shape();
+        let (shape_a, shape_b) = shapes(random);
         let pose_b = BodyPose::new(
             vec3(
                 random.range(-10.0, 10.0),
@@ -219,6 +228,12 @@ fn assert_parity(cpu: &[PairContact], gpu: &[PairContact]) {
     }
 }
 
+fn hull_words(world: &World) -> Vec<u32> {
+    let mut words = Vec::new();
+    pack_hulls(&world.colliders, &mut words);
+    words
+}
+
 /// Runs the GPU stage through `encode`, on device buffers, with last step's contacts reached
 /// through `old_index`.
 fn gpu_step(
@@ -235,6 +250,7 @@ fn gpu_step(
     let poses = GpuVec::from_slice(context, "poses", &world.poses).unwrap();
     let velocities = GpuVec::from_slice(context, "velocities", &world.velocities).unwrap();
     let colliders = GpuVec::from_slice(context, "colliders", &colliders).unwrap();
+    let hulls = GpuVec::from_slice(context, "hulls", &hull_words(world)).unwrap();
     let skipped = GpuVec::from_slice(context, "skipped", &world.skipped).unwrap();
     let mut contacts = GpuVec::with_capacity(context, "contacts", 0).unwrap();
     let mut encoder = context
@@ -249,6 +265,7 @@ fn gpu_step(
             poses: &poses,
             velocities: &velocities,
             colliders: &colliders,
+            hulls: &hulls,
             skipped: &skipped,
             margin: MARGIN,
             dt: DT,
@@ -269,75 +286,182 @@ fn random_pairs_match_the_cpu() {
     let mut narrowphase = GpuNarrowphase::new(&context);
     for (seed, pairs) in [0usize, 1, 2, 100, 10_000].into_iter().enumerate() {
         let mut random = Random::new(seed as u64 + 1);
-        let mut world = random_world(&mut random, pairs);
-
-        // Last step: the pairs but every fifth (new this step), in a sorted array of their
-        // own, with contacts computed at slightly different poses and impulses set.
-        let old_keys: Vec<u64> = world
-            .keys
-            .iter()
-            .enumerate()
-            .filter(|(index, _)| index % 5 != 3)
-            .map(|(_, &key)| key)
-            .collect();
-        let mut old_contacts = vec![PairContact::default(); old_keys.len()];
-        let old_world = World {
-            keys: old_keys.clone(),
-            skipped: Vec::new(),
-            poses: world.poses.clone(),
-            velocities: world.velocities.clone(),
-            colliders: world.colliders.clone(),
-        };
-        update_contacts(&old_keys, &mut old_contacts, &old_world.inputs());
-        give_impulses(&mut random, &mut old_contacts);
-        nudge(&mut random, &mut world.poses);
-
-        let old_index: Vec<u32> = world
-            .keys
-            .iter()
-            .map(|key| {
-                old_keys
-                    .binary_search(key)
-                    .map_or(NEW_PAIR, |index| index as u32)
-            })
-            .collect();
-        let mut cpu: Vec<PairContact> = old_index
-            .iter()
-            .map(|&index| {
-                if index == NEW_PAIR {
-                    PairContact::default()
-                } else {
-                    old_contacts[index as usize]
-                }
-            })
-            .collect();
-        update_contacts(&world.keys, &mut cpu, &world.inputs());
-        let gpu = gpu_step(
-            &context,
-            &mut narrowphase,
-            &world,
-            &old_index,
-            &old_contacts,
-        );
-        assert_parity(&cpu, &gpu);
-
+        let world = random_world(&mut random, pairs);
+        let cpu = compare_with_cpu(&context, &mut narrowphase, &mut random, world);
         if pairs == 10_000 {
             // The test means something: contacts of every kind, and carried impulses.
             let touching = cpu.iter().filter(|c| c.manifold.count > 0).count();
             let carried = cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count();
             assert!(touching > pairs / 4, "{touching} pairs touch");
             assert!(carried > pairs / 10, "{carried} pairs carry impulses");
-            // Deterministic: a second run is bitwise the same.
-            let again = gpu_step(
-                &context,
-                &mut narrowphase,
-                &world,
-                &old_index,
-                &old_contacts,
-            );
-            assert!(bytemuck::cast_slice::<_, u8>(&gpu) == bytemuck::cast_slice::<_, u8>(&again));
         }
     }
+}
+
+/// Runs `world` as the second of two steps on both executors (last step: the pairs but every
+/// fifth, at slightly different poses, with impulses set) and asserts parity; with 1000 pairs
+/// or more, also that a second GPU run is bitwise the same. Returns the CPU's contacts.
+fn compare_with_cpu(
+    context: &GpuContext,
+    narrowphase: &mut GpuNarrowphase,
+    random: &mut Random,
+    mut world: World,
+) -> Vec<PairContact> {
+    // Last step: the pairs but every fifth (new this step), in a sorted array of their own,
+    // with contacts computed at slightly different poses and impulses set.
+    let old_keys: Vec<u64> = world
+        .keys
+        .iter()
+        .enumerate()
+        .filter(|(index, _)| index % 5 != 3)
+        .map(|(_, &key)| key)
+        .collect();
+    let mut old_contacts = vec![PairContact::default(); old_keys.len()];
+    let old_world = World {
+        keys: old_keys.clone(),
+        skipped: Vec::new(),
+        poses: world.poses.clone(),
+        velocities: world.velocities.clone(),
+        colliders: world.colliders.clone(),
+    };
+    update_contacts(&old_keys, &mut old_contacts, &old_world.inputs());
+    give_impulses(random, &mut old_contacts);
+    nudge(random, &mut world.poses);
+
+    let old_index: Vec<u32> = world
+        .keys
+        .iter()
+        .map(|key| {
+            old_keys
+                .binary_search(key)
+                .map_or(NEW_PAIR, |index| index as u32)
+        })
+        .collect();
+    let mut cpu: Vec<PairContact> = old_index
+        .iter()
+        .map(|&index| {
+            if index == NEW_PAIR {
+                PairContact::default()
+            } else {
+                old_contacts[index as usize]
+            }
+        })
+        .collect();
+    update_contacts(&world.keys, &mut cpu, &world.inputs());
+    let gpu = gpu_step(context, narrowphase, &world, &old_index, &old_contacts);
+    assert_parity(&cpu, &gpu);
+    if world.keys.len() >= 1000 {
+        // Deterministic: a second run is bitwise the same.
+        let again = gpu_step(context, narrowphase, &world, &old_index, &old_contacts);
+        assert!(bytemuck::cast_slice::<_, u8>(&gpu) == bytemuck::cast_slice::<_, u8>(&again));
+    }
+    cpu
+}
+
+/// A hull of 4 to 40 random points in a box of random proportions (0.1 to 1 m a side):
+/// lopsided, so its frame is turned and shifted from the points'.
+fn random_hull(random: &mut Random) -> Shape {
+    loop {
+        let half = vec3(
+            random.range(0.1, 1.0),
+            random.range(0.1, 1.0),
+            random.range(0.1, 1.0),
+        );
+        let count = 4 + random.below(37) as usize;
+        let points: Vec<Vec3> = (0..count)
+            .map(|_| {
+                half * vec3(
+                    random.range(-1.0, 1.0),
+                    random.range(-1.0, 1.0),
+                    random.range(-1.0, 1.0),
+                )
+            })
+            .collect();
+        // Thin draws (all points nearly coplanar) make no hull: draw again.
+        if let Ok(hull) = tumble::shape::ConvexHull::new(&points) {
+            return Shape::ConvexHull(std::sync::Arc::new(hull.in_own_frame()));
+        }
+    }
+}
+
+/// Hull pairs on the GPU: hull–hull, box–hull and hull–plane of the scene's barrel and of
+/// random hulls, in both index orders, touching, overlapping and apart within the margin:
+/// face contacts (with more than four clipped points to reduce), edge contacts and a hull's
+/// many vertices on a plane. (Before hulls had a kernel, the GPU gave these pairs no
+/// contact.)
+#[test]
+fn random_hull_pairs_match_the_cpu() {
+    let context = context();
+    let mut narrowphase = GpuNarrowphase::new(&context);
+    // One barrel shared by every pair that draws it, as the scene's bodies share it.
+    let barrel = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+    for (seed, pairs) in [0usize, 1, 257, 3000].into_iter().enumerate() {
+        let mut random = Random::new(seed as u64 + 50);
+        let world = random_world_with(&mut random, pairs, |random| {
+            let hull = |random: &mut Random| {
+                if random.below(2) == 0 {
+                    barrel.clone()
+                } else {
+                    random_hull(random)
+                }
+            };
+            let a = hull(random);
+            let b = match random.below(3) {
+                0 => hull(random),
+                1 => Shape::cuboid(vec3(
+                    random.range(0.1, 1.0),
+                    random.range(0.1, 1.0),
+                    random.range(0.1, 1.0),
+                )),
+                _ => Shape::plane(random.direction(), random.range(-0.5, 0.5)),
+            };
+            assert!(tumble::stages::narrowphase::gpu_pair(&a, &b));
+            (a, b)
+        });
+        let cpu = compare_with_cpu(&context, &mut narrowphase, &mut random, world);
+        if pairs == 3000 {
+            let points = || cpu.iter().flat_map(|c| c.manifold.points());
+            let touching = cpu.iter().filter(|c| c.manifold.count > 0).count();
+            let edges = points().filter(|p| p.id & (1 << 31) != 0).count();
+            let full = cpu.iter().filter(|c| c.manifold.count == 4).count();
+            let carried = cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count();
+            assert!(touching > pairs / 4, "{touching} pairs touch");
+            assert!(edges > 50, "{edges} edge contacts");
+            assert!(full > pairs / 10, "{full} manifolds of four points");
+            assert!(carried > pairs / 10, "{carried} pairs carry impulses");
+        }
+    }
+}
+
+/// Sphere– and capsule–hull pairs (GJK and EPA) are host work, and so are the pairs of a hull
+/// with a face of more than `MAX_HULL_FACE_VERTICES` vertices (the kernel's clip polygon
+/// holds twice that many).
+#[test]
+fn round_shapes_and_large_faces_stay_on_the_host() {
+    use tumble::stages::narrowphase::gpu_pair;
+    let hull = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+    for round in [Shape::sphere(0.5), Shape::capsule(0.3, 0.5)] {
+        assert!(!gpu_pair(&round, &hull) && !gpu_pair(&hull, &round));
+    }
+    for polyhedral in [
+        hull.clone(),
+        Shape::cuboid(Vec3::ONE),
+        Shape::plane(Vec3::Y, 0.0),
+    ] {
+        assert!(gpu_pair(&polyhedral, &hull) && gpu_pair(&hull, &polyhedral));
+    }
+    let prism = |sides: usize| {
+        let points: Vec<Vec3> = (0..2 * sides)
+            .map(|k| {
+                let angle = std::f32::consts::TAU * (k % sides) as f32 / sides as f32;
+                vec3(angle.cos(), if k < sides { -0.5 } else { 0.5 }, angle.sin())
+            })
+            .collect();
+        Shape::convex_hull(&points).unwrap()
+    };
+    let (fits, too_large) = (prism(16), prism(17));
+    assert!(gpu_pair(&fits, &hull) && gpu_pair(&fits, &Shape::cuboid(Vec3::ONE)));
+    assert!(!gpu_pair(&too_large, &hull) && !gpu_pair(&Shape::cuboid(Vec3::ONE), &too_large));
 }
 
 /// Runs `frames` (the same pairs at successive poses) as successive steps on both executors,
@@ -618,6 +742,7 @@ fn device_resident_steps_match_the_cpu() {
     let mut poses = GpuVec::from_slice(&context, "poses", &world.poses).unwrap();
     let velocities = GpuVec::from_slice(&context, "velocities", &world.velocities).unwrap();
     let colliders = GpuVec::from_slice(&context, "colliders", &colliders).unwrap();
+    let hulls = GpuVec::from_slice(&context, "hulls", &hull_words(&world)).unwrap();
     let skipped = GpuVec::from_slice(&context, "skipped", &world.skipped).unwrap();
     let mut contacts = [
         GpuVec::from_slice(&context, "contacts 0", &cpu).unwrap(),
@@ -646,6 +771,7 @@ fn device_resident_steps_match_the_cpu() {
                 poses: &poses,
                 velocities: &velocities,
                 colliders: &colliders,
+                hulls: &hulls,
                 skipped: &skipped,
                 margin: MARGIN,
                 dt: DT,

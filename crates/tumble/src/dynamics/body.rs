@@ -101,9 +101,10 @@ impl Collider {
             Shape::Capsule(c) => Vec4::new(c.radius, c.half_height, 0.0, 0.0),
             Shape::Cuboid(c) => c.half_extents.extend(0.0),
             Shape::Plane(p) => p.normal.extend(p.offset),
-            // The GPU narrowphase leaves hulls, meshes and compounds to the host
-            // (`narrowphase::gpu_pair`); the AABB kernel bounds them as a box of these half
-            // extents about the body origin, which holds the shape's local box.
+            // The GPU narrowphase reads a hull from its own table (`narrowphase::gpu::
+            // pack_hulls`) and leaves meshes and compounds to the host; the AABB kernel bounds
+            // all three as a box of these half extents about the body origin, which holds the
+            // shape's local box.
             Shape::ConvexHull(_) | Shape::TriMesh(_) | Shape::Compound(_) => {
                 let local = self.shape.aabb(&Transform::IDENTITY);
                 local.min.abs().max(local.max.abs()).extend(0.0)

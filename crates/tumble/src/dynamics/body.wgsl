@@ -6,8 +6,8 @@ const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_CAPSULE: u32 = 1u;
 const SHAPE_CUBOID: u32 = 2u;
 const SHAPE_PLANE: u32 = 3u;
-// The GPU narrowphase reads no hulls, meshes or compounds yet (the AABB kernel bounds them by
-// a box, `ColliderData.params`); the values keep the kinds in step with Rust.
+// The GPU narrowphase reads a hull's polyhedron from its own table (`pack_hulls`), and no
+// meshes or compounds; the AABB kernel bounds all three by a box, `ColliderData.params`.
 const SHAPE_CONVEX_HULL: u32 = 4u;
 const SHAPE_TRIMESH: u32 = 5u;
 const SHAPE_COMPOUND: u32 = 6u;

@@ -13,7 +13,9 @@ use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
-use crate::stages::narrowphase::{NarrowphaseInputs, PairContact, gpu_pair, update_contacts_where};
+use crate::stages::narrowphase::{
+    NarrowphaseInputs, PairContact, gpu_pair, pack_hulls, update_contacts_where,
+};
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
 use crate::stages::solver::{Batched, SolverBody, SolverSettings};
@@ -115,6 +117,8 @@ struct DeviceBodies {
     poses: GpuVec<BodyPose>,
     velocities: GpuVec<BodyVelocity>,
     colliders: GpuVec<ColliderData>,
+    /// The colliders' hulls for the narrowphase ([`pack_hulls`]), uploaded with them.
+    hulls: GpuVec<u32>,
     /// The host's colliders changed since the last upload.
     colliders_stale: bool,
     /// Poses and velocities were uploaded this step (they change only in the solver).
@@ -177,6 +181,7 @@ impl GpuStages {
                 poses: GpuVec::with_capacity(&context, "poses", 0)?,
                 velocities: GpuVec::with_capacity(&context, "velocities", 0)?,
                 colliders: GpuVec::with_capacity(&context, "colliders", 0)?,
+                hulls: GpuVec::with_capacity(&context, "hulls", 0)?,
                 colliders_stale: true,
                 uploaded_this_step: false,
             },
@@ -361,6 +366,7 @@ impl GpuStages {
             poses: &self.bodies.poses,
             velocities: &self.bodies.velocities,
             colliders: &self.bodies.colliders,
+            hulls: &self.bodies.hulls,
             skipped: &self.skipped,
             margin: inputs.margin,
             dt: inputs.dt,
@@ -376,8 +382,9 @@ impl GpuStages {
 
         let start = Instant::now();
         self.contacts.download_into(context, &mut self.downloaded)?;
-        // Pairs with a hull or a mesh have no kernel yet: they keep last step's contact (for
-        // its impulses) and the host computes them, as the `cpu pairs` line shows.
+        // Pairs with a mesh or a compound, and sphere– and capsule–hull pairs, have no kernel
+        // yet: they keep last step's contact (for its impulses) and the host computes them, as
+        // the `cpu pairs` line shows.
         let colliders = inputs.colliders;
         let on_gpu = |key: u64| {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
@@ -674,6 +681,9 @@ fn upload_bodies(
         collider_data.clear();
         collider_data.extend(inputs.colliders.iter().map(Collider::data));
         bodies.colliders.upload(context, collider_data)?;
+        let mut hull_words = Vec::new();
+        pack_hulls(inputs.colliders, &mut hull_words);
+        bodies.hulls.upload(context, &hull_words)?;
         bodies.colliders_stale = false;
     }
     Ok(())

@@ -82,6 +82,8 @@ pub struct ConvexHull {
     /// Principal moments of inertia per kg of mass (m²).
     unit_inertia: Vec3,
     bounding_radius: f32,
+    /// Vertices of the longest face loop.
+    max_face_vertices: u32,
 }
 
 impl ConvexHull {
@@ -183,6 +185,7 @@ impl ConvexHull {
         let unit_inertia =
             DVec3::new(inertia.x_axis.x, inertia.y_axis.y, inertia.z_axis.z) / volume;
         let bounding_radius = vertices.iter().map(|v| v.length()).fold(0.0, f32::max);
+        let max_face_vertices = faces.iter().map(|face| face.count).max().unwrap_or(0);
         Self {
             vertices,
             faces,
@@ -192,6 +195,7 @@ impl ConvexHull {
             volume: volume as f32,
             unit_inertia: unit_inertia.as_vec3(),
             bounding_radius,
+            max_face_vertices,
         }
     }
 
@@ -240,6 +244,11 @@ impl ConvexHull {
     /// Principal moments of inertia for a mass of 1 kg (kg m²).
     pub fn unit_inertia(&self) -> Vec3 {
         self.unit_inertia
+    }
+
+    /// Vertices of the longest face loop (the GPU narrowphase takes hulls up to a bound).
+    pub fn max_face_vertices(&self) -> u32 {
+        self.max_face_vertices
     }
 
     /// Distance from the hull frame's origin (the centroid) to the farthest vertex (m).

@@ -83,6 +83,12 @@ impl<'a> Polyhedron<'a> {
         }
     }
 
+    /// Vertices, faces, face loops and edges: what the GPU narrowphase packs
+    /// (`stages/narrowphase/gpu.rs`).
+    pub(crate) fn parts(&self) -> (&'a [Vec3], &'a [HullFace], &'a [u32], &'a [HullEdge]) {
+        (self.vertices, self.faces, self.face_vertices, self.edges)
+    }
+
     #[inline]
     pub(super) fn support(&self, direction: Vec3) -> Vec3 {
         let mut best = self.vertices[0];

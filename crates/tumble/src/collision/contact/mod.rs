@@ -43,7 +43,7 @@
 mod box_box;
 mod capsule;
 mod compound;
-mod hull;
+pub(crate) mod hull;
 mod hull_triangle;
 mod mesh;
 mod plane;
@@ -95,6 +95,9 @@ pub(crate) fn wgsl_constants(source: Source) -> Source {
         )
         .constant_u32("REFERENCE_IS_A_BIT", box_box::REFERENCE_IS_A_BIT)
         .constant_u32("EDGE_CONTACT_BIT", box_box::EDGE_CONTACT_BIT)
+        .constant_u32("HULL_REFERENCE_IS_A_BIT", hull::REFERENCE_IS_A_BIT)
+        .constant_u32("HULL_EDGE_CONTACT_BIT", hull::EDGE_CONTACT_BIT)
+        .constant_u32("HULL_CROSSING_BIT", hull::CROSSING_BIT)
         .constant_f32("MINIMUM_OVERLAP", capsule::MINIMUM_OVERLAP)
         .constant_f32(
             "DEGENERATE_LENGTH_SQUARED",

@@ -16,8 +16,9 @@
 // functions (normal from B to A, as on the CPU).
 var<private> out: Manifold;
 
-// Candidate points of box pairs before reduction: 8 box vertices, or 8 clipped vertices.
-var<private> candidates: array<ContactPoint, 8>;
+// Candidate points before reduction: 8 box vertices, 8 clipped box vertices, or the clipped
+// incident face of a hull pair (contact_hull.wgsl), of at most 2 * MAX_HULL_FACE_VERTICES.
+var<private> candidates: array<ContactPoint, 2u * MAX_HULL_FACE_VERTICES>;
 
 fn element_sum(v: vec3<f32>) -> f32 {
     return v.x + v.y + v.z;

@@ -33,24 +33,42 @@
 //! equal anchor distances in the warm-start matching. A driver that rounds differently may
 //! pick the other of two equally good answers there. (Lavapipe through Vulkan and llvmpipe
 //! through GL agreed with the CPU on all of 300 000 random pairs and on the tests' ties.)
+//!
+//! # Hulls
+//!
+//! Box–hull, hull–hull and hull–plane pairs run `contact_hull.wgsl`, the twin of
+//! `collision/contact/hull.rs`: the polyhedra come from one word array, [`pack_hulls`], packed
+//! when the colliders change and read from storage wherever an index is a variable; only the
+//! clipped polygon and its candidate points (up to `2 * MAX_HULL_FACE_VERTICES`) are private
+//! arrays, and hull–plane reduces the hull's vertices streaming, so a hull of any vertex count
+//! needs no more. Sphere– and capsule–hull (GJK, EPA) stay on the host
+//! ([`gpu_pair`](super::gpu_pair)).
+
+use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{MATCH_DISTANCE, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact};
+use super::{
+    MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact,
+};
+use crate::collision::contact::hull::{BoxPolyhedron, Polyhedron};
 use crate::collision::contact::wgsl_constants;
 use crate::collision::manifold::REDUCE_TIE_RELATIVE;
-use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, ColliderData};
+use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
 };
+use crate::math::Vec3;
+use crate::shape::{Cuboid, Shape};
 
 /// `old_index` of a pair that did not exist last step: it starts with no impulses.
 pub const NEW_PAIR: u32 = u32::MAX;
 
-const BINDINGS: [Binding; 9] = [
+const BINDINGS: [Binding; 10] = [
     Binding::Uniform,
+    Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -74,16 +92,93 @@ pub struct NarrowphaseParams {
 }
 const _: () = assert!(size_of::<NarrowphaseParams>() == 16);
 
+/// Words of a packed polyhedron's header: its vertex, face and edge counts.
+const HULL_HEADER_WORDS: u32 = 3;
+/// Words of a packed face: normal (3), offset, first loop entry, loop length.
+const HULL_FACE_WORDS: u32 = 6;
+/// Words of a packed edge: its two vertices, then its two faces.
+const HULL_EDGE_WORDS: u32 = 4;
+
+/// The polyhedra of the hull pairs, as the kernel reads them (`contact_hull.wgsl`): one array of
+/// words, f32 values stored by their bits. First the unit box as a polyhedron (a box pair
+/// scales its vertices by the half extents), then a directory with one word per collider (the
+/// word where its hull's record starts; 0 for other shapes), then the records of the distinct
+/// hulls in collider order, equal hulls once (a world gives each body its own copy of a hull
+/// that is not centred on its principal axes). A record is the header, the vertices (3 words
+/// each), faces, edges and face loops, in [`ConvexHull`](crate::shape::ConvexHull)'s order, so that indices and feature
+/// ids are the CPU's.
+///
+/// Depends only on the colliders: pack it again when they change.
+pub fn pack_hulls(colliders: &[Collider], words: &mut Vec<u32>) {
+    words.clear();
+    let unit_box = BoxPolyhedron::new(&Cuboid {
+        half_extents: Vec3::ONE,
+    });
+    pack_polyhedron(unit_box.view(), words);
+    debug_assert_eq!(words.len(), box_record_words());
+    let directory = words.len();
+    words.resize(directory + colliders.len(), 0);
+    let mut packed: HashMap<Vec<u32>, u32> = HashMap::new();
+    let mut record = Vec::new();
+    for (slot, collider) in colliders.iter().enumerate() {
+        if let Shape::ConvexHull(hull) = &collider.shape {
+            record.clear();
+            pack_polyhedron(Polyhedron::of_hull(hull), &mut record);
+            // A table past 2^32 words (16 GiB) fails its upload with a typed error
+            // (`BufferTooLarge`) before any kernel reads the saturated offsets.
+            let next = u32::try_from(words.len()).unwrap_or(u32::MAX);
+            let start = *packed.entry(record.clone()).or_insert_with(|| {
+                words.extend_from_slice(&record);
+                next
+            });
+            words[directory + slot] = start;
+        }
+    }
+}
+
+fn pack_polyhedron(polyhedron: Polyhedron, words: &mut Vec<u32>) {
+    let (vertices, faces, face_vertices, edges) = polyhedron.parts();
+    let count = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
+    words.extend([
+        count(vertices.len()),
+        count(faces.len()),
+        count(edges.len()),
+    ]);
+    for vertex in vertices {
+        words.extend(vertex.to_array().map(f32::to_bits));
+    }
+    for face in faces {
+        words.extend(face.normal.to_array().map(f32::to_bits));
+        words.extend([face.offset.to_bits(), face.first, face.count]);
+    }
+    for edge in edges {
+        words.extend(edge.vertices);
+        words.extend(edge.faces);
+    }
+    words.extend_from_slice(face_vertices);
+}
+
+/// Words of the unit box's record: 8 vertices, 6 faces, 12 edges, 24 loop entries.
+const fn box_record_words() -> usize {
+    (HULL_HEADER_WORDS + 8 * 3 + 6 * HULL_FACE_WORDS + 12 * HULL_EDGE_WORDS + 24) as usize
+}
+
 /// The kernel's source: body and contact structs, the pair functions, the stage.
 pub fn wgsl() -> Source {
     wgsl_constants(Source::new())
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
         .constant_f32("REDUCE_TIE_RELATIVE", REDUCE_TIE_RELATIVE)
+        .constant_u32("HULL_HEADER_WORDS", HULL_HEADER_WORDS)
+        .constant_u32("HULL_FACE_WORDS", HULL_FACE_WORDS)
+        .constant_u32("HULL_EDGE_WORDS", HULL_EDGE_WORDS)
+        .constant_u32("HULL_DIRECTORY", box_record_words() as u32)
+        .constant_u32("MAX_HULL_FACE_VERTICES", MAX_HULL_FACE_VERTICES)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("contact_common.wgsl", include_str!("contact_common.wgsl"))
         .snippet("contact_round.wgsl", include_str!("contact_round.wgsl"))
         .snippet("contact_box_box.wgsl", include_str!("contact_box_box.wgsl"))
+        .snippet("contact_hull.wgsl", include_str!("contact_hull.wgsl"))
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
 }
 
@@ -98,6 +193,8 @@ pub struct GpuNarrowphaseInputs<'a> {
     pub poses: &'a GpuVec<BodyPose>,
     pub velocities: &'a GpuVec<BodyVelocity>,
     pub colliders: &'a GpuVec<ColliderData>,
+    /// The colliders' hulls, packed by [`pack_hulls`].
+    pub hulls: &'a GpuVec<u32>,
     /// Sorted keys of pairs that get no contacts (bodies joined by a joint).
     pub skipped: &'a GpuVec<u64>,
     /// Speculative distance at rest (m).
@@ -107,7 +204,7 @@ pub struct GpuNarrowphaseInputs<'a> {
 }
 
 /// What a recorded dispatch was built for: the buffers it binds and its parameters.
-type DispatchKey = ([wgpu::Buffer; 8], NarrowphaseParams);
+type DispatchKey = ([wgpu::Buffer; 9], NarrowphaseParams);
 
 /// Host copies of [`GpuNarrowphase::update_contacts`]'s inputs, kept between calls.
 struct HostBuffers {
@@ -117,10 +214,13 @@ struct HostBuffers {
     poses: GpuVec<BodyPose>,
     velocities: GpuVec<BodyVelocity>,
     colliders: GpuVec<ColliderData>,
+    hulls: GpuVec<u32>,
     skipped: GpuVec<u64>,
     contacts: GpuVec<PairContact>,
     /// `Collider::data` of the colliders, rebuilt in place each call.
     collider_data: Vec<ColliderData>,
+    /// [`pack_hulls`] of the colliders, rebuilt in place each call.
+    hull_words: Vec<u32>,
     /// The downloaded contacts, before they are copied into the caller's slice.
     downloaded: Vec<PairContact>,
 }
@@ -188,9 +288,11 @@ impl GpuNarrowphase {
                 poses: GpuVec::with_capacity(context, "narrowphase poses", 0)?,
                 velocities: GpuVec::with_capacity(context, "narrowphase velocities", 0)?,
                 colliders: GpuVec::with_capacity(context, "narrowphase colliders", 0)?,
+                hulls: GpuVec::with_capacity(context, "narrowphase hulls", 0)?,
                 skipped: GpuVec::with_capacity(context, "narrowphase skipped", 0)?,
                 contacts: GpuVec::with_capacity(context, "narrowphase contacts", 0)?,
                 collider_data: Vec::new(),
+                hull_words: Vec::new(),
                 downloaded: Vec::new(),
             }),
         };
@@ -209,6 +311,8 @@ impl GpuNarrowphase {
         host.collider_data
             .extend(inputs.colliders.iter().map(|collider| collider.data()));
         host.colliders.upload(context, &host.collider_data)?;
+        pack_hulls(inputs.colliders, &mut host.hull_words);
+        host.hulls.upload(context, &host.hull_words)?;
         host.skipped.upload(context, inputs.skipped)?;
 
         let mut encoder = context
@@ -228,6 +332,7 @@ impl GpuNarrowphase {
                 poses: &host.poses,
                 velocities: &host.velocities,
                 colliders: &host.colliders,
+                hulls: &host.hulls,
                 skipped: &host.skipped,
                 margin: inputs.margin,
                 dt: inputs.dt,
@@ -273,6 +378,7 @@ fn encode_with(
             inputs.poses.buffer().clone(),
             inputs.velocities.buffer().clone(),
             inputs.colliders.buffer().clone(),
+            inputs.hulls.buffer().clone(),
             inputs.skipped.buffer().clone(),
             contacts.buffer().clone(),
         ],
@@ -293,6 +399,7 @@ fn encode_with(
                     inputs.velocities.whole(),
                     inputs.colliders.whole(),
                     inputs.skipped.whole(),
+                    inputs.hulls.whole(),
                     contacts.whole(),
                 ],
             );

@@ -17,7 +17,7 @@
 
 pub mod gpu;
 
-pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams};
+pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams, pack_hulls};
 
 mod children;
 
@@ -83,10 +83,25 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
     update_contacts_where(keys, contacts, inputs, |_, _| true);
 }
 
+/// Longest face loop of a hull whose pairs the GPU computes: the kernel clips the incident
+/// face against the reference face's sides in a polygon of twice this many vertices.
+pub const MAX_HULL_FACE_VERTICES: u32 = 16;
+
 /// Whether the GPU narrowphase computes a pair of these shapes: spheres, capsules, boxes and
-/// planes. Pairs with a hull or a mesh stay with [`update_contacts_where`] on the host.
+/// planes among themselves, and hulls (with faces of at most [`MAX_HULL_FACE_VERTICES`]
+/// vertices) against boxes, planes and hulls, by SAT and clipping as `hull.rs`. Sphere– and
+/// capsule–hull pairs (GJK and EPA), meshes and compounds stay with [`update_contacts_where`]
+/// on the host.
 pub fn gpu_pair(a: &Shape, b: &Shape) -> bool {
-    a.kind() <= ShapeKind::Plane && b.kind() <= ShapeKind::Plane
+    let polyhedral = |shape: &Shape| match shape {
+        Shape::Cuboid(_) | Shape::Plane(_) => true,
+        Shape::ConvexHull(hull) => hull.max_face_vertices() <= MAX_HULL_FACE_VERTICES,
+        _ => false,
+    };
+    match (a.kind(), b.kind()) {
+        (ShapeKind::ConvexHull, _) | (_, ShapeKind::ConvexHull) => polyhedral(a) && polyhedral(b),
+        _ => a.kind() <= ShapeKind::Plane && b.kind() <= ShapeKind::Plane,
+    }
 }
 
 /// [`update_contacts`] for the pairs whose shapes `select` accepts; the others are left as

@@ -1,8 +1,8 @@
 // Stage 4 on the GPU, one thread per pair: the twin of `update_contacts` in mod.rs. Reads the
 // pair keys (u64 as two words, low word first: the higher body index, then the lower), the
 // bodies, last step's contacts through the old-index map, and writes this step's contacts.
-// The pair functions are in contact_round.wgsl and contact_box_box.wgsl; a new pair type is
-// one more function and one more arm of `collide_ordered`.
+// The pair functions are in contact_round.wgsl, contact_box_box.wgsl and contact_hull.wgsl; a
+// new pair type is one more function and one more arm of `collide_ordered`.
 
 struct NarrowphaseParams {
     pair_count: u32,
@@ -23,7 +23,9 @@ struct NarrowphaseParams {
 @group(0) @binding(6) var<storage, read> colliders: array<ColliderData>;
 // Sorted keys of pairs that get no contacts (jointed bodies).
 @group(0) @binding(7) var<storage, read> skipped: array<vec2<u32>>;
-@group(0) @binding(8) var<storage, read_write> contacts: array<PairContact>;
+// The colliders' polyhedra: `pack_hulls` in gpu.rs.
+@group(0) @binding(8) var<storage, read> hulls: array<u32>;
+@group(0) @binding(9) var<storage, read_write> contacts: array<PairContact>;
 
 const NEW_PAIR: u32 = 0xffffffffu;
 // No old point chosen yet.
@@ -47,7 +49,7 @@ fn update_contacts(
     let a = key.y;
     let b = key.x;
     let margin = params.margin + params.dt * closing_speed_bound(a, b);
-    collide(colliders[a], poses[a], colliders[b], poses[b], margin);
+    collide(a, b, margin);
     let pose_a = poses[a];
     for (var point = 0u; point < out.count; point++) {
         out.points[point].anchor = to_local(pose_a, out.points[point].position);
@@ -88,26 +90,40 @@ fn closing_speed_bound(a: u32, b: u32) -> f32 {
 
 // collision/contact/mod.rs `collide`: each pair function exists for kind(a) <= kind(b); the
 // other order is the same contact with the normal flipped.
-fn collide(a: ColliderData, pose_a: BodyPose, b: ColliderData, pose_b: BodyPose, margin: f32) {
+// Bodies `a` and `b`.
+fn collide(a: u32, b: u32, margin: f32) {
     out = Manifold();
-    if a.kind <= b.kind {
-        collide_ordered(a, pose_a, b, pose_b, margin);
+    if colliders[a].kind <= colliders[b].kind {
+        collide_ordered(a, b, margin);
     } else {
-        collide_ordered(b, pose_b, a, pose_a, margin);
+        collide_ordered(b, a, margin);
         out.normal = -out.normal;
     }
 }
 
-fn collide_ordered(
-    a: ColliderData,
-    pose_a: BodyPose,
-    b: ColliderData,
-    pose_b: BodyPose,
-    margin: f32,
-) {
-    // Hulls, meshes and compounds are host work (`narrowphase::gpu_pair`); without this their
-    // kinds would alias primitive pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5;
-    // sphere–compound, 0 * 4 + 6, is capsule–box's 6). `b` holds the larger kind.
+// Bodies `body_a` and `body_b`, the second of the larger kind.
+fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
+    let a = colliders[body_a];
+    let b = colliders[body_b];
+    let pose_a = poses[body_a];
+    let pose_b = poses[body_b];
+    if b.kind == SHAPE_CONVEX_HULL {
+        switch a.kind {
+            case SHAPE_CUBOID: { box_hull(a.params, pose_a, body_b, pose_b, margin); }
+            case SHAPE_PLANE: {
+                // The hull–plane function has the plane as B: swap, then flip the normal back.
+                hull_plane(body_b, pose_b, a.params, pose_a, margin);
+                out.normal = -out.normal;
+            }
+            case SHAPE_CONVEX_HULL: { hull_hull(body_a, pose_a, body_b, pose_b, margin); }
+            // Sphere– and capsule–hull are host work (`narrowphase::gpu_pair`).
+            default: {}
+        }
+        return;
+    }
+    // Meshes and compounds are host work; without this their kinds would alias primitive
+    // pairs below (sphere–mesh, 0 * 4 + 5, is capsule–capsule's 5; sphere–compound,
+    // 0 * 4 + 6, is capsule–box's 6).
     if b.kind > SHAPE_PLANE {
         return;
     }
