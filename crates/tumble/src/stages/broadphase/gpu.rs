@@ -60,13 +60,15 @@ const BOUNDS_BLOCK: u32 = WORKGROUP_SIZE * 4;
 /// Key capacity before the first growth.
 const INITIAL_CAPACITY: usize = 1024;
 
-/// How the pair-finding threads walk the trees; both give the same pairs.
+/// How the pair-finding threads walk the trees; both give the same pairs. Ropes are the
+/// default: on an H100 (`tumble bench broadphase`, traversal and key sort alone) they took
+/// 0.147 against 0.208 ms for 8192 boxes and 0.192 against 0.281 ms for 65536.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Traversal {
     /// The talk's stackless walk with 2 history bits per level and parent links.
-    #[default]
     HistoryFlags,
     /// Stackless walk along precomputed escape indices ("ropes").
+    #[default]
     Ropes,
 }
 
