@@ -102,6 +102,10 @@ fn main() -> ExitCode {
             );
             Ok(())
         }
+        Command::View(args) if args.scene == "particles" => particles::demo_config(args.scale)
+            .and_then(|config| {
+                tumble_viewer::view_particles(config, &args.options).map_err(|e| e.to_string())
+            }),
         Command::View(args) => load_scene(&args.scene, args.scale).and_then(|scene| {
             tumble_viewer::view(&args.scene, &scene, &args.options).map_err(|e| e.to_string())
         }),

@@ -18,18 +18,23 @@ pub struct ParticleRun {
     pub explain: bool,
 }
 
+/// The demo at `--scale` (1: a million particles).
+pub fn demo_config(scale: f32) -> Result<ParticleConfig, String> {
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(format!(
+            "scale must be a positive finite number, got {scale}"
+        ));
+    }
+    let count = ((PARTICLES_AT_SCALE_1 * scale as f64).round() as usize).max(1);
+    Ok(ParticleConfig::demo(count))
+}
+
 pub fn run(request: &ParticleRun) -> Result<(), String> {
     if request.explain {
         print!("{}", explain::example_tables());
         return Ok(());
     }
-    if !(request.scale.is_finite() && request.scale > 0.0) {
-        return Err(format!(
-            "scale must be a positive finite number, got {}",
-            request.scale
-        ));
-    }
-    let count = ((PARTICLES_AT_SCALE_1 * request.scale as f64).round() as usize).max(1);
+    let config = demo_config(request.scale)?;
     let device = match request.device {
         "cpu" => ParticleDevice::Cpu,
         "gpu" => ParticleDevice::Gpu(GpuContext::shared().map_err(|e| e.to_string())?),
@@ -44,8 +49,8 @@ pub fn run(request: &ParticleRun) -> Result<(), String> {
     } else {
         "gpu"
     };
-    let mut system =
-        ParticleSystem::new(ParticleConfig::demo(count), device).map_err(|e| e.to_string())?;
+    let count = config.count;
+    let mut system = ParticleSystem::new(config, device).map_err(|e| e.to_string())?;
     system.set_gpu_timing(request.profile);
     let start = Instant::now();
     for _ in 0..request.steps {

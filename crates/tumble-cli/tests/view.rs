@@ -128,3 +128,30 @@ fn png_and_frames_are_written_headless() {
         assert_eq!(names, ["shadow", "meshes", "ground"], "{passes}");
     }
 }
+
+#[test]
+fn the_particle_demo_is_drawn_headless() {
+    let dir = scratch("view-particles");
+    let png = dir.join("particles.png");
+    let args = ["view", "particles", "--scale", "0.0005", "--steps", "20"];
+    let output = tumble_without_display(
+        &[
+            &args[..],
+            &["--size", "160x90", "--png", png.to_str().unwrap()],
+        ]
+        .concat(),
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("500 particles after 20 steps"), "{stdout}");
+    let bytes = std::fs::read(&png).expect("the picture is written");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // Without --png or --frames: how to draw it instead.
+    let message = one_line_error(&tumble_without_display(&args, &[]));
+    assert!(message.contains("--png"), "{message}");
+}

@@ -61,16 +61,21 @@ impl Camera {
     /// fits inside both fields of view with a [`FRAMING_MARGIN`]. A flat pile seen from 25°
     /// above fills the picture's width, not the height of its bounding sphere.
     pub fn framing(world: &World, aspect: f32) -> Self {
+        let mut boxes = framed_boxes(world, true);
+        if boxes.is_empty() {
+            boxes = framed_boxes(world, false);
+        }
+        Self::framing_boxes(&boxes, aspect)
+    }
+
+    /// The camera of [`Self::framing`] for `boxes` (none: the origin from 10 m).
+    pub fn framing_boxes(boxes: &[Aabb], aspect: f32) -> Self {
         let mut camera = Self {
             target: Vec3::ZERO,
             distance: 10.0,
             yaw: DEFAULT_YAW,
             pitch: DEFAULT_PITCH,
         };
-        let mut boxes = framed_boxes(world, true);
-        if boxes.is_empty() {
-            boxes = framed_boxes(world, false);
-        }
         let Some(bounds) = boxes.iter().copied().reduce(|a, b| a.union(&b)) else {
             return camera;
         };

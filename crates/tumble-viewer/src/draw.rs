@@ -8,7 +8,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat4, Vec3};
 use std::sync::Arc;
 use tumble::World;
-use tumble::math::{Transform, tangent_basis};
+use tumble::math::{Aabb, Transform, tangent_basis};
 use tumble::shape::{ConvexHull, Shape, TriMesh};
 
 use crate::camera::{dynamic_bounds, finite_bounds};
@@ -209,6 +209,35 @@ impl DrawList {
     fn push(&mut self, key: MeshKey, instance: Instance, link: PoseLink) {
         self.instances.entry(key).or_default().push(instance);
         self.links.entry(key).or_default().push(link);
+    }
+
+    /// The particle demo: a sphere of `radius` per particle, coloured by its index as bodies
+    /// are, on the floor of the box `container` (its bottom face as a ground), with the
+    /// shadow map over the particles.
+    pub fn particles(positions: &[[f32; 3]], radius: f32, container: Aabb) -> Self {
+        let mut list = DrawList::default();
+        let scale = Mat4::from_scale(Vec3::splat(radius));
+        for (index, &position) in positions.iter().enumerate() {
+            let model = Mat4::from_translation(Vec3::from(position)) * scale;
+            list.push(
+                MeshKey::Sphere,
+                Instance::new(model, body_colour(index)),
+                PoseLink::NONE,
+            );
+        }
+        let center = container.center();
+        list.grounds.push(GroundQuad {
+            center: Vec3::new(center.x, container.min.y, center.z),
+            normal: Vec3::Y,
+            tangents: [Vec3::X, Vec3::Z],
+            half_size: container.half_extents().max_element().max(1.0) * 4.0,
+        });
+        let bounds = positions
+            .iter()
+            .map(|&p| Aabb::from_center_half_extents(Vec3::from(p), Vec3::splat(radius)))
+            .reduce(|a, b| a.union(&b));
+        list.shadow_bounds = bounds.map(|b| (b.center(), b.half_extents().length()));
+        list
     }
 
     pub fn build(world: &World, settings: DrawSettings) -> Self {

@@ -41,6 +41,13 @@ pub enum ViewError {
     Readback(String),
     #[error("cannot write {path}: {reason}")]
     Write { path: PathBuf, reason: String },
+    #[error(transparent)]
+    Particles(#[from] tumble::particles::ParticleError),
+    #[error(
+        "the {scene} scene is drawn headless only: give --png FILE or --frames DIR, e.g. \
+         `tumble view {scene} --scale 0.01 --steps 600 --png {scene}.png`"
+    )]
+    HeadlessOnly { scene: String },
     #[error("cannot open a window: {0}")]
     Window(String),
     #[error("cannot draw into the window: {0}")]

@@ -24,6 +24,7 @@ pub mod headless;
 pub mod input;
 pub mod mesh;
 pub mod overlay;
+mod particles;
 pub mod pick;
 pub mod quality;
 mod renderer;
@@ -42,6 +43,7 @@ use tumble::scene::Scene;
 pub use camera::Camera;
 pub use context::GpuContext;
 pub use error::ViewError;
+pub use particles::view_particles;
 pub use quality::Quality;
 pub use renderer::{LIGHT_DIRECTION, Renderer};
 

@@ -123,6 +123,40 @@ fn box_on_a_plane() {
     );
 }
 
+/// The particle demo's picture: each particle a sphere of its colour where it projects, the
+/// box's floor under them, sky where nothing is.
+#[test]
+fn particles_are_drawn_as_spheres_on_their_floor() {
+    let positions = [[0.0, 0.5, 0.0], [1.5, 0.5, 0.0], [0.0, 2.0, -1.0]];
+    let container = tumble::math::Aabb {
+        min: Vec3::new(-2.0, 0.0, -2.0),
+        max: Vec3::new(2.0, 4.0, 2.0),
+    };
+    let list = DrawList::particles(&positions, 0.5, container);
+    assert_eq!(list.instances.values().map(Vec::len).sum::<usize>(), 3);
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 6.0), Vec3::new(0.5, 1.0, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render_list(&context, &list, &camera, None)
+        .unwrap();
+    assert_background(image.pixel(0, 0), (0, 0));
+    for (index, &position) in positions.iter().enumerate() {
+        // The sphere's point nearest the camera: lit, so its hue is the particle's colour.
+        let centre = Vec3::from(position);
+        let front = centre + (camera.eye() - centre).normalize() * 0.45;
+        let at = project(&camera, front);
+        assert_hue(image.pixel(at.0, at.1), at, body_colour(index));
+    }
+    // The floor, in front of the particles and below them.
+    let at = project(&camera, Vec3::new(0.0, 0.0, 1.8));
+    let floor = image.pixel(at.0, at.1);
+    assert!(
+        floor != image.pixel(0, 0) && floor[0].abs_diff(floor[2]) < 40,
+        "grey floor at {at:?}: {floor:?}"
+    );
+}
+
 #[test]
 fn box_on_a_triangle_mesh_floor() {
     // A floor 4 m square at y = 0, two triangles facing up; no ground plane.

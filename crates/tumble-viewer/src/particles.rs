@@ -1,0 +1,91 @@
+//! `tumble view particles`: pictures of the talk's particle demo, headless. Each particle is
+//! drawn as a sphere of its radius on the floor of its box, from positions read back after
+//! the steps; on `--device gpu` the particles step on the device the pictures are drawn on.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use tumble::math::Aabb;
+use tumble::particles::{ParticleConfig, ParticleDevice, ParticleSystem};
+
+use crate::camera::Camera;
+use crate::context::GpuContext;
+use crate::draw::DrawList;
+use crate::error::ViewError;
+use crate::headless::Offscreen;
+use crate::{ImageSize, StepDevice, ViewOptions};
+
+/// Steps the particle demo of `config` on `options.device` and writes the pictures `--png`
+/// and `--frames` ask for (a window is not offered for the demo).
+pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(), ViewError> {
+    if options.png.is_none() && options.frames.is_none() {
+        return Err(ViewError::HeadlessOnly {
+            scene: "particles".into(),
+        });
+    }
+    let context = GpuContext::headless()?;
+    let device = match options.device {
+        StepDevice::Cpu => ParticleDevice::Cpu,
+        StepDevice::Gpu => ParticleDevice::Gpu(context.physics()),
+    };
+    let container = container(&config);
+    let radius = config.radius;
+    let mut system = ParticleSystem::new(config, device)?;
+    let ImageSize { width, height } = options.size;
+    let quality = options.quality.unwrap_or_default();
+    let mut offscreen = Offscreen::with_quality(&context, width, height, quality)?;
+    // The whole box is framed, so frames of a video line up while the particles spread.
+    let camera = options
+        .camera
+        .unwrap_or_else(|| Camera::framing_boxes(&[container], width as f32 / height as f32));
+    let mut picture = |system: &mut ParticleSystem, path: PathBuf| {
+        let list = DrawList::particles(&system.positions()?, radius, container);
+        offscreen
+            .render_list(&context, &list, &camera, None)?
+            .save_png(&path)
+    };
+    if let Some(dir) = &options.frames {
+        std::fs::create_dir_all(dir).map_err(|e| ViewError::Write {
+            path: dir.clone(),
+            reason: e.to_string(),
+        })?;
+        picture(&mut system, dir.join("frame_00000.png"))?;
+    }
+    for step in 1..=options.steps {
+        system.step()?;
+        if let Some(dir) = &options.frames {
+            picture(&mut system, dir.join(format!("frame_{step:05}.png")))?;
+        }
+    }
+    if let Some(path) = &options.png {
+        picture(&mut system, path.clone())?;
+    }
+    println!(
+        "wrote {}: {width}x{height}, {} particles after {} steps on {}",
+        options
+            .png
+            .iter()
+            .chain(&options.frames)
+            .map(|path| path.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" and "),
+        system.config().count,
+        options.steps,
+        system.device_name()
+    );
+    Ok(())
+}
+
+/// The demo's box: the grid of cells from its origin.
+fn container(config: &ParticleConfig) -> Aabb {
+    let min = Vec3::from(config.origin);
+    let size = Vec3::new(
+        config.grid[0] as f32,
+        config.grid[1] as f32,
+        config.grid[2] as f32,
+    ) * config.cell_size();
+    Aabb {
+        min,
+        max: min + size,
+    }
+}
