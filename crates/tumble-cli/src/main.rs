@@ -275,18 +275,17 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "solver: {solver}, {} iterations x {} sub-steps",
             config.solver_iterations, config.substeps
         );
-        println!(
-            "{} batches by {} on {device} (constraints per batch{}):",
-            stats.batch_histogram.len(),
-            batcher,
-            if solver == SolverKind::Jacobi {
-                "; the Jacobi solver ignores them"
-            } else {
-                ""
+        if solver == SolverKind::Jacobi {
+            println!("no coloring: the Jacobi solver sweeps every constraint at once");
+        } else {
+            println!(
+                "{} batches by {} on {device} (constraints per batch):",
+                stats.batch_histogram.len(),
+                batcher
+            );
+            for (batch, count) in stats.batch_histogram.iter().enumerate() {
+                println!("{batch:4} : {count}");
             }
-        );
-        for (batch, count) in stats.batch_histogram.iter().enumerate() {
-            println!("{batch:4} : {count}");
         }
     }
     if let Some(path) = &args.dump {

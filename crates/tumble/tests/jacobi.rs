@@ -322,3 +322,19 @@ fn jacobi_needs_more_iterations_than_pgs_for_the_same_tower_error() {
         "iterations Jacobi needs to come within 10% of PGS's drift at 1"
     );
 }
+
+/// The Jacobi solver needs no coloring: the step puts every constraint in one batch (PGS's
+/// tower alternates between two).
+#[test]
+fn jacobi_steps_without_coloring() {
+    for (kind, batches) in [(SolverKind::Pgs, 2), (SolverKind::Jacobi, 1)] {
+        let (mut world, _turn) = world(kind, Device::Cpu, StepConfig::default());
+        for level in 0..5 {
+            unit_box(&mut world, Vec3::new(0.0, 0.5 + level as f32, 0.0));
+        }
+        world.step();
+        let histogram = &world.stats().batch_histogram;
+        assert_eq!(histogram.len(), batches, "{kind}: {histogram:?}");
+        assert_eq!(histogram.iter().sum::<u32>(), 5, "{kind}: 5 manifolds");
+    }
+}

@@ -291,6 +291,15 @@ impl World {
         let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
         let bodies = bodies.chain(contact_bodies);
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
+            // The Jacobi solver sweeps every constraint at once: no coloring, one batch in
+            // row order (the layout below then copies the rows as they are).
+            _ if config.solver == SolverKind::Jacobi => {
+                let coloring = &mut scratch.coloring;
+                coloring.colors.clear();
+                coloring.colors.resize(bodies.count(), 0);
+                coloring.count_batches();
+                Ok(())
+            }
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
                 profiler,
                 bodies,

@@ -155,7 +155,8 @@ const BODIES_PER_TASK: usize = 1024;
 /// CPU executor: the soft step with Jacobi sweeps, [`solve`](super::solve)'s contract (bodies
 /// in with the step-start velocities and zero deltas, out with the final velocities and the
 /// step's deltas; accumulated impulses in the constraints). The batches are ignored: the
-/// constraints are swept as one array in their batched order.
+/// constraints are swept as one array in their order there (the step puts them all in one
+/// batch, in row order, and skips the coloring).
 ///
 /// # Panics
 ///
