@@ -4,6 +4,7 @@
 use crate::engine::EngineKind;
 use clap::builder::RangedU64ValueParser;
 use std::path::PathBuf;
+use tumble::stages::solver::SolverKind;
 
 /// `tumble bench <scene...> [flags]`.
 #[derive(Clone, Debug, clap::Args)]
@@ -29,6 +30,14 @@ pub struct BenchArgs {
     /// Rayon thread counts to run each case with, e.g. `1,16`. Default: 1 and all cores.
     #[arg(long, value_delimiter = ',', value_parser = parse_threads)]
     pub threads: Vec<usize>,
+    /// Tumble's solver: `pgs` (batched projected Gauss-Seidel) or `jacobi` (the comparison);
+    /// peers keep their own.
+    #[arg(long, default_value = "pgs", value_parser = parse_solver)]
+    pub solver: SolverKind,
+    /// Velocity iterations per sub-step instead of each scene's own, for every engine (Jacobi
+    /// needs more than PGS for the same error).
+    #[arg(long, value_parser = RangedU64ValueParser::<u32>::new().range(1..))]
+    pub iterations: Option<u32>,
     /// Untimed steps before the timed ones (caches, pair lists and warm starts fill up).
     #[arg(long, default_value_t = 30)]
     pub warmup: usize,
@@ -64,6 +73,8 @@ impl BenchArgs {
             bodies: Vec::new(),
             engines: vec![EngineKind::TumbleCpu, EngineKind::Rapier],
             threads: Vec::new(),
+            solver: SolverKind::Pgs,
+            iterations: None,
             warmup: 30,
             steps: 100,
             time_limit_ms: 1000.0,
@@ -96,6 +107,12 @@ fn parse_scale(text: &str) -> Result<f32, String> {
         Ok(scale) => Err(format!("a scale must be a positive number, got {scale}")),
         Err(_) => Err(format!("{text:?} is not a number (e.g. 0.1,1,10)")),
     }
+}
+
+fn parse_solver(text: &str) -> Result<SolverKind, String> {
+    text.trim()
+        .parse()
+        .map_err(|e: tumble::stages::solver::UnknownSolver| e.to_string())
 }
 
 fn parse_fraction(text: &str) -> Result<f32, String> {
@@ -176,6 +193,15 @@ mod tests {
         let defaults = parse(&["falling-boxes"]).unwrap();
         assert_eq!(defaults.engines, BenchArgs::new(&["falling-boxes"]).engines);
         assert_eq!(defaults.threads()[0], 1);
+        assert_eq!(
+            (defaults.solver, defaults.iterations),
+            (SolverKind::Pgs, None)
+        );
+        let jacobi = parse(&["stacked-boxes", "--solver", "jacobi", "--iterations", "4"]).unwrap();
+        assert_eq!(
+            (jacobi.solver, jacobi.iterations),
+            (SolverKind::Jacobi, Some(4))
+        );
     }
 
     #[test]
@@ -194,6 +220,11 @@ mod tests {
                 "--bodies",
             ),
             (&["falling-boxes", "--steps", "0"], "--steps"),
+            (
+                &["falling-boxes", "--solver", "sor"],
+                "solvers are pgs, jacobi",
+            ),
+            (&["falling-boxes", "--iterations", "0"], "--iterations"),
             (&["falling-boxes", "--time-limit-ms", "0"], "positive"),
             (&["falling-boxes", "--warmup", "many"], "--warmup"),
             (&["broadphase", "--moving", "1.5"], "0..=1"),

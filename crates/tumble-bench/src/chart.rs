@@ -242,6 +242,7 @@ mod tests {
             dt: 1.0 / 60.0,
             solver_iterations: 10,
             substeps: 1,
+            solver: None,
         };
         let results = [
             result(1000, EngineKind::TumbleCpu, 0.4),

@@ -66,6 +66,7 @@
 //! | `dt` | time step (s) |
 //! | `solver_iterations` | the scene's velocity iterations per sub-step |
 //! | `substeps` | the scene's sub-steps per step |
+//! | `solver` | Tumble's solver, `pgs` or `jacobi` (`--solver`); empty for the peers |
 //!
 //! Figures a case did not produce (skipped, not available, unsupported) are empty cells.
 

@@ -137,6 +137,8 @@ pub struct CaseResult {
     pub dt: f32,
     pub solver_iterations: u32,
     pub substeps: u32,
+    /// Tumble's solver (`--solver`); none for the peers, which keep their own.
+    pub solver: Option<tumble::stages::solver::SolverKind>,
 }
 
 /// How long a case runs.
@@ -150,6 +152,8 @@ pub struct Schedule {
 impl CaseResult {
     /// A row for a case that did not run.
     pub fn not_run(key: CaseKey, scene: &Scene, status: Status) -> Self {
+        let tumble = matches!(key.engine, EngineKind::TumbleCpu | EngineKind::TumbleGpu);
+        let solver = tumble.then_some(scene.config.solver);
         Self {
             key,
             status,
@@ -157,6 +161,7 @@ impl CaseResult {
             dt: scene.config.dt,
             solver_iterations: scene.config.solver_iterations,
             substeps: scene.config.substeps,
+            solver,
         }
     }
 }

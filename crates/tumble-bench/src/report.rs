@@ -31,6 +31,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "dt",
     "solver_iterations",
     "substeps",
+    "solver",
 ];
 
 /// The cells of a result's row, in [`CSV_COLUMNS`] order (empty where there is no figure).
@@ -71,6 +72,7 @@ pub fn csv_row(result: &CaseResult) -> Vec<String> {
         result.dt.to_string(),
         result.solver_iterations.to_string(),
         result.substeps.to_string(),
+        result.solver.map_or(String::new(), |s| s.to_string()),
     ]
 }
 
@@ -186,6 +188,7 @@ mod tests {
             dt: 1.0 / 60.0,
             solver_iterations: 10,
             substeps: 1,
+            solver: None,
         }
     }
 

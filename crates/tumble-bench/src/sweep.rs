@@ -29,6 +29,7 @@ pub fn run(args: &BenchArgs) -> Result<(), BenchError> {
     }
     let results = sweep(args, ProgressDrawTarget::stderr(), &|results| {
         if results.len() == 1 {
+            println!("tumble solver: {}", args.solver);
             println!("{}", report::table_header());
         }
         if let Some(last) = results.last() {
@@ -102,10 +103,14 @@ pub fn sweep(
     let mut stopped: HashSet<(usize, EngineKind, usize)> = HashSet::new();
     for (scene_index, (name, source, scales)) in scenes.iter().enumerate() {
         for &scale in scales {
-            let scene = match source {
+            let mut scene = match source {
                 SceneSource::Builtin(name) => builtin(name, scale)?,
                 SceneSource::File(scene) => scene.clone(),
             };
+            scene.config.solver = args.solver;
+            if let Some(iterations) = args.iterations {
+                scene.config.solver_iterations = iterations;
+            }
             let bodies = dynamic_bodies(&scene);
             for &engine in &args.engines {
                 for (threads, pool) in &pools {

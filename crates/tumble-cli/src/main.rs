@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::{BUILTIN_SCENES, RayFan, Scene, builtin};
 use tumble::stages::batching::Batcher;
+use tumble::stages::solver::SolverKind;
 
 #[derive(Parser)]
 #[command(
@@ -39,6 +40,9 @@ struct ViewArgs {
     /// Size of a built-in scene (1 = the talk's size).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     scale: f32,
+    /// The solver: `pgs` (batched projected Gauss-Seidel) or `jacobi` (for comparison).
+    #[arg(long, default_value = "pgs")]
+    solver: String,
     #[command(flatten)]
     options: tumble_viewer::ViewOptions,
 }
@@ -64,6 +68,10 @@ struct RunArgs {
     /// (the talk's kSetupBatches); both give the same batches on the CPU and the GPU.
     #[arg(long, default_value = "colors")]
     batcher: String,
+    /// The solver: `pgs` (batched projected Gauss-Seidel) or `jacobi` (every constraint of a
+    /// sweep from the same velocities, no batches; needs more iterations for the same error).
+    #[arg(long, default_value = "pgs")]
+    solver: String,
     /// Steps to run.
     #[arg(long, default_value_t = 300)]
     steps: u32,
@@ -106,9 +114,15 @@ fn main() -> ExitCode {
             .and_then(|config| {
                 tumble_viewer::view_particles(config, &args.options).map_err(|e| e.to_string())
             }),
-        Command::View(args) => load_scene(&args.scene, args.scale).and_then(|scene| {
-            tumble_viewer::view(&args.scene, &scene, &args.options).map_err(|e| e.to_string())
-        }),
+        Command::View(args) => parse_solver(&args.solver)
+            .and_then(|solver| {
+                let mut scene = load_scene(&args.scene, args.scale)?;
+                scene.config.solver = solver;
+                Ok(scene)
+            })
+            .and_then(|scene| {
+                tumble_viewer::view(&args.scene, &scene, &args.options).map_err(|e| e.to_string())
+            }),
         Command::Bench(args) => tumble_bench::run(&args).map_err(|e| e.to_string()),
     };
     match result {
@@ -130,6 +144,10 @@ fn end_quietly_on_a_closed_pipe() {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+}
+
+fn parse_solver(name: &str) -> Result<SolverKind, String> {
+    name.parse().map_err(|e| format!("--solver: {e}"))
 }
 
 fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
@@ -195,6 +213,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
         .batcher
         .parse()
         .map_err(|e| format!("--batcher: {e}"))?;
+    let solver = parse_solver(&args.solver)?;
     if let Some(threads) = args.threads {
         if threads == 0 {
             return Err("--threads must be at least 1".into());
@@ -213,6 +232,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
         .map_err(|e| e.to_string())?;
     let config = tumble::StepConfig {
         batcher,
+        solver,
         ..*world.config()
     };
     world.set_config(config).map_err(|e| e.to_string())?;
@@ -269,12 +289,20 @@ fn run(args: &RunArgs) -> Result<(), String> {
             );
         }
         println!(
-            "{} batches by {} on {device} (constraints per batch):",
-            stats.batch_histogram.len(),
-            batcher
+            "solver: {solver}, {} iterations x {} sub-steps",
+            config.solver_iterations, config.substeps
         );
-        for (batch, count) in stats.batch_histogram.iter().enumerate() {
-            println!("{batch:4} : {count}");
+        if solver == SolverKind::Jacobi {
+            println!("no coloring: the Jacobi solver sweeps every constraint at once");
+        } else {
+            println!(
+                "{} batches by {} on {device} (constraints per batch):",
+                stats.batch_histogram.len(),
+                batcher
+            );
+            for (batch, count) in stats.batch_histogram.iter().enumerate() {
+                println!("{batch:4} : {count}");
+            }
         }
     }
     if let Some(path) = &args.dump {
@@ -304,6 +332,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "kinetic_energy": world.kinetic_energy(),
             "batches": stats.batch_histogram.len(),
             "batcher": batcher.to_string(),
+            "solver": solver.to_string(),
         });
         if let Some(rays) = rays {
             summary["rays"] = rays.rays.into();
@@ -313,7 +342,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
         println!("{summary}");
     } else if !args.profile {
         println!(
-            "{}: {} bodies, {} steps on {device} ({threads} threads): {ms_per_step:.3} ms/step (median); {} pairs, {} contacts, {} batches, max penetration {:.4} m",
+            "{}: {} bodies, {} steps on {device} ({threads} threads, {solver} solver): {ms_per_step:.3} ms/step (median); {} pairs, {} contacts, {} batches, max penetration {:.4} m",
             args.scene,
             world.body_count(),
             args.steps,

@@ -65,6 +65,14 @@ fn bad_input_is_a_one_line_error_with_non_zero_exit() {
         &["run", "falling-boxes", "--batcher", "greedy"],
         "unknown batcher",
     );
+    assert_user_error(
+        &["run", "falling-boxes", "--solver", "sor"],
+        "--solver: unknown solver \"sor\"; solvers are pgs, jacobi",
+    );
+    assert_user_error(
+        &["view", "falling-boxes", "--solver", "gs", "--png", "x.png"],
+        "unknown solver",
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -283,4 +291,31 @@ fn a_closed_pipe_ends_the_output_quietly() {
             output.status
         );
     }
+}
+
+/// `--solver jacobi` runs the Jacobi solver, and the profile and the JSON say so.
+#[test]
+fn run_with_the_jacobi_solver_says_so() {
+    let output = tumble(&[
+        "run",
+        "stacked-boxes",
+        "--scale",
+        "0.02",
+        "--steps",
+        "10",
+        "--device",
+        "cpu",
+        "--solver",
+        "jacobi",
+        "--profile",
+        "--json",
+    ]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("solver: jacobi") && stdout.contains("jacobi (cpu)"),
+        "profile report: {stdout}"
+    );
+    let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+    assert_eq!(summary["solver"], "jacobi");
 }

@@ -2,6 +2,7 @@
 
 use crate::math::Vec3;
 use crate::stages::batching::Batcher;
+use crate::stages::solver::SolverKind;
 
 /// How the world steps. The first four fields come from the scene file; the rest are the
 /// solver's tunables, with defaults that suit metre-sized bodies at 60 Hz.
@@ -47,6 +48,10 @@ pub struct StepConfig {
     /// both batchers give the same batches on the CPU and the GPU. Default
     /// [`Batcher::Colors`].
     pub batcher: Batcher,
+    /// How the solver sweeps the constraints: batched projected Gauss-Seidel, or Jacobi for
+    /// comparison (it needs more iterations for the same error, see
+    /// [`jacobi`](crate::stages::solver::jacobi)). Default [`SolverKind::Pgs`].
+    pub solver: SolverKind,
 }
 
 impl Default for StepConfig {
@@ -66,6 +71,7 @@ impl Default for StepConfig {
             aabb_margin: 0.1,
             sleeping: true,
             batcher: Batcher::Colors,
+            solver: SolverKind::Pgs,
         }
     }
 }

@@ -18,7 +18,8 @@ use crate::stages::narrowphase::{
 };
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
-use crate::stages::solver::{Batched, SolverBody, SolverSettings};
+use crate::stages::solver::jacobi_gpu::GpuJacobi;
+use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
 /// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
 /// talk's batcher makes one batch a round), the colors batcher as many.
@@ -68,6 +69,11 @@ const SOLVER: StageSpans = StageSpans {
     kernel: &["solver", "kernels"],
     wait: &["solver", "submit and wait"],
     download: &["solver", "copy to cpu"],
+};
+/// The Jacobi solver's kernels get their own line, so the profile says which solver ran.
+const JACOBI_SOLVER: StageSpans = StageSpans {
+    kernel: &["solver", "jacobi kernels"],
+    ..SOLVER
 };
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
@@ -142,6 +148,8 @@ pub(crate) struct GpuStages {
     /// Batching rounds encoded before the colors are first read back (grows when too few).
     batching_rounds: usize,
     solver: GpuSolver,
+    /// Built at the first Jacobi step.
+    jacobi: Option<GpuJacobi>,
     /// The batches kept on the device when rows, batching and solver all run here.
     batched: GpuBatched,
     /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
@@ -196,6 +204,7 @@ impl GpuStages {
             batching: GpuBatching::new(&context)?,
             batching_rounds: FIRST_BATCHING_ROUNDS,
             solver: GpuSolver::new(&context)?,
+            jacobi: None,
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
@@ -515,10 +524,12 @@ impl GpuStages {
     }
 
     /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract, contacts and
-    /// joints (the drag included) in the same batches.
+    /// joints (the drag included) in the same batches; or, for [`SolverKind::Jacobi`],
+    /// [`jacobi::solve`](crate::stages::solver::jacobi::solve)'s.
     pub fn solve(
         &mut self,
         profiler: &mut Profiler,
+        kind: SolverKind,
         bodies: &mut [SolverBody],
         batched: &mut Batched,
         settings: SolverSettings,
@@ -532,6 +543,18 @@ impl GpuStages {
         self.batched_joints.upload(context, batched.joints)?;
         self.joint_batch_offsets
             .upload(context, batched.joint_offsets)?;
+        let jacobi = match kind {
+            SolverKind::Pgs => None,
+            SolverKind::Jacobi => {
+                let jacobi = jacobi_solver(&mut self.jacobi, context)?;
+                jacobi.prepare(
+                    bodies,
+                    batched.contacts.iter().map(|c| (c.body_a, c.body_b)),
+                    batched.joints.iter().map(|j| (j.body_a, j.body_b)),
+                )?;
+                Some(jacobi)
+            }
+        };
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
         let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
@@ -544,8 +567,18 @@ impl GpuStages {
             host_joint_offsets: batched.joint_offsets,
             has_overflow: batched.has_overflow,
         };
-        run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
-            solver.encode(pass, device_bodies, &device_batched, settings, restitution);
+        let spans = if jacobi.is_some() {
+            &JACOBI_SOLVER
+        } else {
+            &SOLVER
+        };
+        run_pass(context, &mut self.profiler, profiler, spans, |pass| {
+            match jacobi {
+                Some(jacobi) => {
+                    jacobi.encode(pass, device_bodies, &device_batched, settings, restitution)
+                }
+                None => solver.encode(pass, device_bodies, &device_batched, settings, restitution),
+            };
             Ok(())
         })?;
         // Impulses come back for warm starting and, for joints, the host's break test.
@@ -573,12 +606,15 @@ impl GpuStages {
     /// is the constraint at batched place i; `offsets` the batch offsets), solved as
     /// [`Self::solve`] does together with the host's `joints` (in batch order, batch b at
     /// `joint_offsets[b]..joint_offsets[b + 1]`), and only impulses come back: the contacts'
-    /// into `impulses`, in batch order, the joints' into `joints`.
+    /// into `impulses`, in batch order, the joints' into `joints`. `contact_bodies` are the
+    /// bodies (A, B) of the gathered contacts, in batch order: the Jacobi solver's adjacency.
     #[allow(clippy::too_many_arguments)]
     pub fn solve_batched(
         &mut self,
         profiler: &mut Profiler,
+        kind: SolverKind,
         bodies: &mut [SolverBody],
+        contact_bodies: impl Iterator<Item = (u32, u32)> + Clone,
         order: &[u32],
         offsets: &[u32],
         joints: &mut [JointConstraint],
@@ -594,12 +630,26 @@ impl GpuStages {
         self.batch_offsets.upload(context, offsets)?;
         self.joint_batch_offsets.upload(context, joint_offsets)?;
         self.batched.upload(context, order, joints)?;
+        let jacobi = match kind {
+            SolverKind::Pgs => None,
+            SolverKind::Jacobi => {
+                let jacobi = jacobi_solver(&mut self.jacobi, context)?;
+                let joint_bodies = joints.iter().map(|j| (j.body_a, j.body_b));
+                jacobi.prepare(bodies, contact_bodies, joint_bodies)?;
+                Some(jacobi)
+            }
+        };
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
         let (batched, rows) = (&mut self.batched, &self.rows);
         let (device_offsets, device_joint_offsets) =
             (&self.batch_offsets, &self.joint_batch_offsets);
-        run_pass(context, &mut self.profiler, profiler, &SOLVER, |pass| {
+        let spans = if jacobi.is_some() {
+            &JACOBI_SOLVER
+        } else {
+            &SOLVER
+        };
+        run_pass(context, &mut self.profiler, profiler, spans, |pass| {
             batched.encode_gather(context, pass, &rows.constraints);
             let device_batched = DeviceBatched {
                 contacts: &batched.constraints,
@@ -610,7 +660,12 @@ impl GpuStages {
                 host_joint_offsets: joint_offsets,
                 has_overflow,
             };
-            solver.encode(pass, device_bodies, &device_batched, settings, restitution);
+            match jacobi {
+                Some(jacobi) => {
+                    jacobi.encode(pass, device_bodies, &device_batched, settings, restitution)
+                }
+                None => solver.encode(pass, device_bodies, &device_batched, settings, restitution),
+            };
             batched.encode_read_impulses(pass);
             Ok(())
         })?;
@@ -631,6 +686,17 @@ impl GpuStages {
         self.solved_this_step = true;
         Ok(())
     }
+}
+
+/// The Jacobi solver, built at its first use.
+fn jacobi_solver<'a>(
+    jacobi: &'a mut Option<GpuJacobi>,
+    context: &GpuContext,
+) -> Result<&'a mut GpuJacobi, GpuError> {
+    if jacobi.is_none() {
+        *jacobi = Some(GpuJacobi::new(context)?);
+    }
+    Ok(jacobi.as_mut().expect("built just above"))
 }
 
 /// Encodes one stage's kernels into a measured pass, submits and waits: the host's encoding

@@ -14,7 +14,8 @@ use crate::stages::constraints::{
     world_inverse_inertia,
 };
 use crate::stages::solver::batched::BatchedImpulses;
-use crate::stages::solver::{Batched, SolverBody, SolverSettings};
+use crate::stages::solver::jacobi::{self, JacobiScratch};
+use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
 
 /// Per-step working arrays, owned by the world so that a step allocates nothing once the
@@ -43,6 +44,7 @@ pub(crate) struct StepScratch {
     batched_joints: Vec<JointConstraint>,
     joint_offsets: Vec<u32>,
     solver_bodies: Vec<SolverBody>,
+    jacobi: JacobiScratch,
 }
 
 impl World {
@@ -289,6 +291,15 @@ impl World {
         let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
         let bodies = bodies.chain(contact_bodies);
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
+            // The Jacobi solver sweeps every constraint at once: no coloring, one batch in
+            // row order (the layout below then copies the rows as they are).
+            _ if config.solver == SolverKind::Jacobi => {
+                let coloring = &mut scratch.coloring;
+                coloring.colors.clear();
+                coloring.colors.resize(bodies.count(), 0);
+                coloring.count_batches();
+                Ok(())
+            }
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
                 profiler,
                 bodies,
@@ -371,9 +382,16 @@ impl World {
         let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) if chained => {
                 let restitution = scratch.row_summaries.iter().any(|r| r.restitution);
+                let rows = &scratch.row_summaries;
+                let contact_bodies = scratch
+                    .batch_order
+                    .iter()
+                    .map(|&row| rows[row as usize].bodies);
                 gpu.solve_batched(
                     profiler,
+                    config.solver,
                     &mut scratch.solver_bodies,
+                    contact_bodies,
                     &scratch.batch_order,
                     &scratch.contact_offsets,
                     batched.joints,
@@ -384,13 +402,28 @@ impl World {
                     &mut scratch.batched_impulses,
                 )
             }
-            (Executor::Gpu, Some(gpu)) => {
-                gpu.solve(profiler, &mut scratch.solver_bodies, &mut batched, settings)
-            }
+            (Executor::Gpu, Some(gpu)) => gpu.solve(
+                profiler,
+                config.solver,
+                &mut scratch.solver_bodies,
+                &mut batched,
+                settings,
+            ),
             _ => {
-                profiler.scope("cpu", || {
-                    solver::solve(&mut scratch.solver_bodies, &mut batched, settings)
-                });
+                match config.solver {
+                    SolverKind::Pgs => profiler.scope("cpu", || {
+                        solver::solve(&mut scratch.solver_bodies, &mut batched, settings)
+                    }),
+                    // Its own line, so the profile says which solver ran.
+                    SolverKind::Jacobi => profiler.scope("jacobi (cpu)", || {
+                        jacobi::solve(
+                            &mut scratch.solver_bodies,
+                            &mut batched,
+                            settings,
+                            &mut scratch.jacobi,
+                        )
+                    }),
+                }
                 Ok(())
             }
         };

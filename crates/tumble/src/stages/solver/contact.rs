@@ -36,30 +36,41 @@ fn apply(
 
 pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    warm_start_pair(c, &mut a, &mut b);
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
+
+/// [`warm_start`] on the bodies `a` and `b` of `c`, wherever they come from (the Jacobi sweep
+/// passes copies).
+pub(super) fn warm_start_pair(c: &ContactConstraint, a: &mut SolverBody, b: &mut SolverBody) {
     let masses = InverseMasses {
         a: c.inverse_mass_a,
         b: c.inverse_mass_b,
     };
     let tangents = c.tangents();
-    for point in &mut c.points[..c.point_count as usize] {
-        apply(
-            &point.normal,
-            c.normal,
-            point.normal.impulse,
-            masses,
-            &mut a,
-            &mut b,
-        );
+    for point in &c.points[..c.point_count as usize] {
+        apply(&point.normal, c.normal, point.normal.impulse, masses, a, b);
         for (row, direction) in point.tangent.iter().zip(tangents) {
-            apply(row, direction, row.impulse, masses, &mut a, &mut b);
+            apply(row, direction, row.impulse, masses, a, b);
         }
     }
-    access.store(c.body_a, &a);
-    access.store(c.body_b, &b);
 }
 
 pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep: Sweep) {
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    solve_contact_pair(c, sweep, &mut a, &mut b);
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
+
+/// [`solve_contact`] on the bodies `a` and `b` of `c`.
+pub(super) fn solve_contact_pair(
+    c: &mut ContactConstraint,
+    sweep: Sweep,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
     let n = c.normal;
     let masses = InverseMasses {
         a: c.inverse_mass_a,
@@ -72,20 +83,20 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep
         // Current separation from the bodies' motion during the step (the Jacobian stays fixed),
         // or the one kept from the last sweep when the bodies have not moved since.
         if sweep.moved {
-            let moved = displacement(&a, point.anchor_a) - displacement(&b, point.anchor_b);
+            let moved = displacement(a, point.anchor_a) - displacement(b, point.anchor_b);
             point.separation = n.dot(moved) + point.adjusted_separation;
         }
         let separation = point.separation;
         let (bias, mass_scale, impulse_scale) = bias_terms(separation, c.softness, sweep);
         // Non-penetration: normal velocity ≥ −bias, accumulated impulse ≥ 0.
         let row = &point.normal;
-        let velocity = row_velocity(row, n, &a, &b);
+        let velocity = row_velocity(row, n, a, b);
         let impulse = -row.mass * mass_scale * (velocity + bias) - impulse_scale * row.impulse;
         let total = (row.impulse + impulse).max(0.0);
         let delta = total - row.impulse;
         point.normal.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(&point.normal, n, delta, masses, &mut a, &mut b);
+        apply(&point.normal, n, delta, masses, a, b);
     }
     // Friction: both tangent rows from the same velocities, then the impulse clamped to the
     // friction circle |λ_t| ≤ μ λ_n (clamping each row alone would allow √2 μ λ_n diagonally).
@@ -93,8 +104,8 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep
     let [t1, t2] = c.tangents();
     for point in &mut c.points[..count] {
         let [row1, row2] = &mut point.tangent;
-        let want1 = row1.impulse - row_velocity(row1, t1, &a, &b) * row1.mass;
-        let want2 = row2.impulse - row_velocity(row2, t2, &a, &b) * row2.mass;
+        let want1 = row1.impulse - row_velocity(row1, t1, a, b) * row1.mass;
+        let want2 = row2.impulse - row_velocity(row2, t2, a, b) * row2.mass;
         let limit = friction * point.normal.impulse;
         let length_squared = want1 * want1 + want2 * want2;
         let scale = if length_squared > limit * limit {
@@ -103,13 +114,11 @@ pub(super) fn solve_contact(access: BodyAccess, c: &mut ContactConstraint, sweep
             1.0
         };
         let (total1, total2) = (want1 * scale, want2 * scale);
-        apply(row1, t1, total1 - row1.impulse, masses, &mut a, &mut b);
-        apply(row2, t2, total2 - row2.impulse, masses, &mut a, &mut b);
+        apply(row1, t1, total1 - row1.impulse, masses, a, b);
+        apply(row2, t2, total2 - row2.impulse, masses, a, b);
         row1.impulse = total1;
         row2.impulse = total2;
     }
-    access.store(c.body_a, &a);
-    access.store(c.body_b, &b);
 }
 
 pub(super) fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, threshold: f32) {
@@ -117,6 +126,21 @@ pub(super) fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, t
         return;
     }
     let (mut a, mut b) = (access.load(c.body_a), access.load(c.body_b));
+    restitution_pair(c, threshold, &mut a, &mut b);
+    access.store(c.body_a, &a);
+    access.store(c.body_b, &b);
+}
+
+/// [`apply_restitution`] on the bodies `a` and `b` of `c` (a no-op when `c` does not bounce).
+pub(super) fn restitution_pair(
+    c: &mut ContactConstraint,
+    threshold: f32,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
+    if c.restitution == 0.0 {
+        return;
+    }
     let n = c.normal;
     let masses = InverseMasses {
         a: c.inverse_mass_a,
@@ -128,14 +152,12 @@ pub(super) fn apply_restitution(access: BodyAccess, c: &mut ContactConstraint, t
             continue;
         }
         let row = &point.normal;
-        let velocity = row_velocity(row, n, &a, &b);
+        let velocity = row_velocity(row, n, a, b);
         let total =
             (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
         let delta = total - row.impulse;
         point.normal.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(&point.normal, n, delta, masses, &mut a, &mut b);
+        apply(&point.normal, n, delta, masses, a, b);
     }
-    access.store(c.body_a, &a);
-    access.store(c.body_b, &b);
 }

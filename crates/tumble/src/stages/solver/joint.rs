@@ -51,20 +51,38 @@ fn apply_angular(
 
 pub(super) fn warm_start(access: BodyAccess, j: &mut JointConstraint, h: f32) {
     let (mut a, mut b) = (access.load(j.body_a), access.load(j.body_b));
-    let (arm_a, arm_b, rows) = current(j, &a, &b, h);
-    apply_point(j, arm_a, arm_b, j.point_impulse, &mut a, &mut b);
-    for (row, &impulse) in rows.iter().zip(&j.angular_impulse) {
-        if row.kind != RowKind::Unused {
-            apply_angular(j, row.direction, impulse, &mut a, &mut b);
-        }
-    }
+    warm_start_pair(j, h, &mut a, &mut b);
     access.store(j.body_a, &a);
     access.store(j.body_b, &b);
 }
 
+/// [`warm_start`] on the bodies `a` and `b` of `j`, wherever they come from (the Jacobi sweep
+/// passes copies).
+pub(super) fn warm_start_pair(j: &JointConstraint, h: f32, a: &mut SolverBody, b: &mut SolverBody) {
+    let (arm_a, arm_b, rows) = current(j, a, b, h);
+    apply_point(j, arm_a, arm_b, j.point_impulse, a, b);
+    for (row, &impulse) in rows.iter().zip(&j.angular_impulse) {
+        if row.kind != RowKind::Unused {
+            apply_angular(j, row.direction, impulse, a, b);
+        }
+    }
+}
+
 pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint, sweep: Sweep) {
     let (mut a, mut b) = (access.load(j.body_a), access.load(j.body_b));
-    let (arm_a, arm_b, rows) = current(j, &a, &b, sweep.h);
+    solve_joint_pair(j, sweep, &mut a, &mut b);
+    access.store(j.body_a, &a);
+    access.store(j.body_b, &b);
+}
+
+/// [`solve_joint`] on the bodies `a` and `b` of `j`.
+pub(super) fn solve_joint_pair(
+    j: &mut JointConstraint,
+    sweep: Sweep,
+    a: &mut SolverBody,
+    b: &mut SolverBody,
+) {
+    let (arm_a, arm_b, rows) = current(j, a, b, sweep.h);
 
     // Point part: the anchors move together; the gap between them is removed softly.
     let gap = (b.delta_position - a.delta_position) + (arm_b - arm_a) + j.center_offset;
@@ -98,7 +116,7 @@ pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint, sweep: Sw
             impulse = total - j.point_impulse;
         }
         j.point_impulse += impulse;
-        apply_point(j, arm_a, arm_b, impulse, &mut a, &mut b);
+        apply_point(j, arm_a, arm_b, impulse, a, b);
     }
 
     for (slot, row) in rows.iter().enumerate() {
@@ -138,8 +156,6 @@ pub(super) fn solve_joint(access: BodyAccess, j: &mut JointConstraint, sweep: Sw
         };
         let delta = total - *accumulated;
         *accumulated = total;
-        apply_angular(j, d, delta, &mut a, &mut b);
+        apply_angular(j, d, delta, a, b);
     }
-    access.store(j.body_a, &a);
-    access.store(j.body_b, &b);
 }

@@ -25,10 +25,15 @@
 //!
 //! Guarantees: a batch's constraints touch disjoint dynamic bodies (stage 6), so solving them in
 //! parallel gives bitwise the same result as solving them in order, for any thread count.
+//!
+//! [`SolverKind::Jacobi`] runs the same soft step with Jacobi sweeps instead ([`jacobi`]): for
+//! comparison, as DESIGN.md's stage 7 asks.
 
 pub mod batched;
 mod contact;
 pub mod gpu;
+pub mod jacobi;
+pub mod jacobi_gpu;
 mod joint;
 
 use crate::math::{Quat, Vec3};
@@ -63,6 +68,52 @@ impl SolverBody {
         _pad1: 0.0,
         delta_rotation: Quat::IDENTITY,
     };
+}
+
+/// How the sweeps of the soft step visit the constraints.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SolverKind {
+    /// Projected Gauss-Seidel over the colored batches: each constraint sees the impulses of
+    /// the batches before it in the same sweep.
+    #[default]
+    Pgs,
+    /// Projected Jacobi ([`jacobi`]): every constraint of a sweep sees the velocities of the
+    /// sweep's start and the relaxed changes are summed per body at its end. No batches, two
+    /// GPU dispatches a sweep, and more iterations for the same error.
+    Jacobi,
+}
+
+impl SolverKind {
+    pub const ALL: [SolverKind; 2] = [SolverKind::Pgs, SolverKind::Jacobi];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Pgs => "pgs",
+            SolverKind::Jacobi => "jacobi",
+        }
+    }
+}
+
+impl std::fmt::Display for SolverKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A solver name that is none of [`SolverKind::ALL`].
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("unknown solver {0:?}; solvers are pgs, jacobi")]
+pub struct UnknownSolver(pub String);
+
+impl std::str::FromStr for SolverKind {
+    type Err = UnknownSolver;
+
+    fn from_str(name: &str) -> Result<Self, Self::Err> {
+        SolverKind::ALL
+            .into_iter()
+            .find(|kind| kind.name() == name)
+            .ok_or_else(|| UnknownSolver(name.to_owned()))
+    }
 }
 
 /// Solver settings for one step.

@@ -77,10 +77,20 @@ fn apply(row: Row, direction: vec3<f32>, impulse: f32, mass_a: f32, mass_b: f32,
 // (1 KB each time), which made each dispatch on an H100 take about 100 µs instead of a few.
 fn warm_start_contact(index: u32) {
     let c = &contacts[index];
+    let pair = warm_start_contact_pair(index,
+        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
+    store_body((*c).body_a, pair[0]);
+    store_body((*c).body_b, pair[1]);
+}
+
+// The row functions take the two bodies and return them moved, wherever they come from: the
+// PGS sweeps load and store them in `bodies`, the Jacobi sweeps (jacobi.wgsl) keep copies.
+fn warm_start_contact_pair(index: u32, start: BodyPair) -> BodyPair {
+    let c = &contacts[index];
     let n = (*c).normal;
     let mass_a = (*c).inverse_mass_a;
     let mass_b = (*c).inverse_mass_b;
-    var pair = BodyPair(load_body((*c).body_a), load_body((*c).body_b));
+    var pair = start;
     for (var i = 0u; i < (*c).point_count; i++) {
         let point = (*c).points[i];
         pair = apply(point.normal, n, point.normal.impulse, mass_a, mass_b, pair);
@@ -89,8 +99,7 @@ fn warm_start_contact(index: u32) {
         pair = apply(point.tangent[1], (*c).tangent2, point.tangent[1].impulse, mass_a, mass_b,
             pair);
     }
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    return pair;
 }
 
 // Bias, mass scale and impulse scale of a row with separation `error` (bias_terms on the CPU).
@@ -107,12 +116,20 @@ fn bias_terms(error: f32, softness: Softness) -> vec3<f32> {
 
 fn solve_contact(index: u32) {
     let c = &contacts[index];
+    let pair = solve_contact_pair(index,
+        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
+    store_body((*c).body_a, pair[0]);
+    store_body((*c).body_b, pair[1]);
+}
+
+fn solve_contact_pair(index: u32, start: BodyPair) -> BodyPair {
+    let c = &contacts[index];
     let n = (*c).normal;
     let mass_a = (*c).inverse_mass_a;
     let mass_b = (*c).inverse_mass_b;
     let softness = (*c).softness;
     let count = (*c).point_count;
-    var pair = BodyPair(load_body((*c).body_a), load_body((*c).body_b));
+    var pair = start;
     for (var i = 0u; i < count; i++) {
         let point = &(*c).points[i];
         var separation = (*point).separation;
@@ -157,20 +174,30 @@ fn solve_contact(index: u32) {
         (*point).tangent[0].impulse = total1;
         (*point).tangent[1].impulse = total2;
     }
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    return pair;
 }
 
 fn restitution_contact(index: u32) {
     let c = &contacts[index];
+    if (*c).restitution == 0.0 {
+        return;
+    }
+    let pair = restitution_contact_pair(index,
+        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
+    store_body((*c).body_a, pair[0]);
+    store_body((*c).body_b, pair[1]);
+}
+
+fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
+    let c = &contacts[index];
     let restitution = (*c).restitution;
     if restitution == 0.0 {
-        return;
+        return start;
     }
     let n = (*c).normal;
     let mass_a = (*c).inverse_mass_a;
     let mass_b = (*c).inverse_mass_b;
-    var pair = BodyPair(load_body((*c).body_a), load_body((*c).body_b));
+    var pair = start;
     for (var i = 0u; i < (*c).point_count; i++) {
         let point = &(*c).points[i];
         let approach = (*point).approach_velocity;
@@ -186,8 +213,7 @@ fn restitution_contact(index: u32) {
         (*point).max_normal_impulse = max(max_impulse, total);
         pair = apply(row, n, delta, mass_a, mass_b, pair);
     }
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    return pair;
 }
 
 const WALK: u32 = 1u;

@@ -235,9 +235,18 @@ fn warm_start_row(index: u32, slot: u32, row: AngularRow, masses: JointMasses,
 
 fn warm_start_joint(index: u32) {
     let j = &joints[index];
+    let pair = warm_start_joint_pair(index,
+        BodyPair(load_body((*j).body_a), load_body((*j).body_b)));
+    store_body((*j).body_a, pair[0]);
+    store_body((*j).body_b, pair[1]);
+}
+
+// warm_start_joint on the two bodies `start`, returned moved (see solve_contact_pair).
+fn warm_start_joint_pair(index: u32, start: BodyPair) -> BodyPair {
+    let j = &joints[index];
     let frame = (*j).frame;
     let masses = joint_masses(index);
-    var pair = BodyPair(load_body((*j).body_a), load_body((*j).body_b));
+    var pair = start;
     let pose = joint_pose(frame, (*j).rotation_a, (*j).rotation_b, pair);
     let rows = angular_rows(frame, pose.q_a, pose.q_b);
     pair = apply_point(masses, pose, (*j).point_impulse, pair);
@@ -246,8 +255,7 @@ fn warm_start_joint(index: u32) {
     pair = warm_start_row(index, 2u, rows[2], masses, pair);
     pair = warm_start_row(index, 3u, rows[3], masses, pair);
     pair = warm_start_row(index, 4u, rows[4], masses, pair);
-    store_body((*j).body_a, pair[0]);
-    store_body((*j).body_b, pair[1]);
+    return pair;
 }
 
 // One angular row of joint `index`, in slot `slot` (joint.rs solve_joint's row loop).
@@ -287,9 +295,16 @@ fn solve_row(index: u32, slot: u32, row: AngularRow, masses: JointMasses,
 
 fn solve_joint(index: u32) {
     let j = &joints[index];
+    let pair = solve_joint_pair(index, BodyPair(load_body((*j).body_a), load_body((*j).body_b)));
+    store_body((*j).body_a, pair[0]);
+    store_body((*j).body_b, pair[1]);
+}
+
+fn solve_joint_pair(index: u32, start: BodyPair) -> BodyPair {
+    let j = &joints[index];
     let frame = (*j).frame;
     let masses = joint_masses(index);
-    var pair = BodyPair(load_body((*j).body_a), load_body((*j).body_b));
+    var pair = start;
     let pose = joint_pose(frame, (*j).rotation_a, (*j).rotation_b, pair);
     let rows = angular_rows(frame, pose.q_a, pose.q_b);
     let a = pair[0];
@@ -342,6 +357,5 @@ fn solve_joint(index: u32) {
     pair = solve_row(index, 2u, rows[2], masses, pair);
     pair = solve_row(index, 3u, rows[3], masses, pair);
     pair = solve_row(index, 4u, rows[4], masses, pair);
-    store_body((*j).body_a, pair[0]);
-    store_body((*j).body_b, pair[1]);
+    return pair;
 }
