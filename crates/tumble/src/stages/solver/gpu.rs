@@ -206,11 +206,68 @@ pub struct DeviceBatched<'a> {
 /// arrays for [`run`](Self::run).
 pub struct GpuSolver {
     encoder: SolverEncoder,
+    arrays: HostArrays,
+}
+
+/// Device copies of a host solve's arrays, for the `run` of a GPU solver: upload, encode the
+/// step, download.
+pub(crate) struct HostArrays {
     bodies: GpuVec<SolverBody>,
     contacts: GpuVec<ContactConstraint>,
     contact_offsets: GpuVec<u32>,
     joints: GpuVec<JointConstraint>,
     joint_offsets: GpuVec<u32>,
+}
+
+impl HostArrays {
+    pub(crate) fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
+            contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
+            contact_offsets: GpuVec::with_capacity(context, "solver contact batch offsets", 0)?,
+            joints: GpuVec::with_capacity(context, "solver joints", 0)?,
+            joint_offsets: GpuVec::with_capacity(context, "solver joint batch offsets", 0)?,
+        })
+    }
+
+    /// Uploads `bodies` and `batched`, submits one pass of `encode` (the device arrays and
+    /// whether any contact bounces) and downloads the bodies and impulses back into them.
+    pub(crate) fn run(
+        &mut self,
+        context: &GpuContext,
+        label: &str,
+        bodies: &mut [SolverBody],
+        batched: &mut Batched,
+        encode: impl FnOnce(&mut wgpu::ComputePass<'_>, &GpuVec<SolverBody>, &DeviceBatched, bool),
+    ) -> Result<(), GpuError> {
+        self.bodies.upload(context, bodies)?;
+        self.contacts.upload(context, batched.contacts)?;
+        self.contact_offsets
+            .upload(context, batched.contact_offsets)?;
+        self.joints.upload(context, batched.joints)?;
+        self.joint_offsets.upload(context, batched.joint_offsets)?;
+        let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
+        let device = DeviceBatched {
+            contacts: &self.contacts,
+            contact_offsets: &self.contact_offsets,
+            joints: &self.joints,
+            joint_offsets: &self.joint_offsets,
+            host_contact_offsets: batched.contact_offsets,
+            host_joint_offsets: batched.joint_offsets,
+            has_overflow: batched.has_overflow,
+        };
+        context.submit_pass(label, |pass| {
+            encode(pass, &self.bodies, &device, restitution)
+        });
+        bodies.copy_from_slice(&self.bodies.download(context)?);
+        batched
+            .contacts
+            .copy_from_slice(&self.contacts.download(context)?);
+        batched
+            .joints
+            .copy_from_slice(&self.joints.download(context)?);
+        Ok(())
+    }
 }
 
 /// Kernels and bind groups: what encodes a step.
@@ -263,11 +320,7 @@ impl GpuSolver {
                 bound: None,
                 dispatches: Vec::new(),
             },
-            bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
-            contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
-            contact_offsets: GpuVec::with_capacity(context, "solver contact batch offsets", 0)?,
-            joints: GpuVec::with_capacity(context, "solver joints", 0)?,
-            joint_offsets: GpuVec::with_capacity(context, "solver joint batch offsets", 0)?,
+            arrays: HostArrays::new(context)?,
         })
     }
 
@@ -296,33 +349,16 @@ impl GpuSolver {
         settings: SolverSettings,
     ) -> Result<(), GpuError> {
         let context = self.encoder.context.clone();
-        self.bodies.upload(&context, bodies)?;
-        self.contacts.upload(&context, batched.contacts)?;
-        self.contact_offsets
-            .upload(&context, batched.contact_offsets)?;
-        self.joints.upload(&context, batched.joints)?;
-        self.joint_offsets.upload(&context, batched.joint_offsets)?;
-        let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
-        let device = DeviceBatched {
-            contacts: &self.contacts,
-            contact_offsets: &self.contact_offsets,
-            joints: &self.joints,
-            joint_offsets: &self.joint_offsets,
-            host_contact_offsets: batched.contact_offsets,
-            host_joint_offsets: batched.joint_offsets,
-            has_overflow: batched.has_overflow,
-        };
         let encoder = &mut self.encoder;
-        context.submit_pass("solver", |pass| {
-            encoder.encode(pass, &self.bodies, &device, settings, restitution)
-        });
-        let downloaded = self.bodies.download(&context)?;
-        bodies.copy_from_slice(&downloaded);
-        let downloaded = self.contacts.download(&context)?;
-        batched.contacts.copy_from_slice(&downloaded);
-        let downloaded = self.joints.download(&context)?;
-        batched.joints.copy_from_slice(&downloaded);
-        Ok(())
+        self.arrays.run(
+            &context,
+            "solver",
+            bodies,
+            batched,
+            |pass, bodies, device, restitution| {
+                encoder.encode(pass, bodies, device, settings, restitution);
+            },
+        )
     }
 }
 

@@ -15,7 +15,7 @@
 //! deterministic, since each thread writes its own slots and each body sums its slots in a
 //! fixed order.
 
-use super::gpu::{DeviceBatched, SolverParams};
+use super::gpu::{DeviceBatched, HostArrays, SolverParams};
 use super::jacobi::{Adjacency, VelocityDelta};
 use super::{Batched, SolverBody, SolverSettings};
 use crate::gpu::buffer::GpuVec;
@@ -23,7 +23,6 @@ use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
-use crate::stages::constraints::{ContactConstraint, JointConstraint};
 
 const JACOBI_WGSL: &str = include_str!("jacobi.wgsl");
 /// The PGS solver's six (parameters, bodies, contacts, contact offsets, joints, joint
@@ -85,11 +84,7 @@ struct JointKernels {
 /// its own arrays for [`run`](Self::run).
 pub struct GpuJacobi {
     encoder: JacobiEncoder,
-    bodies: GpuVec<SolverBody>,
-    contacts: GpuVec<ContactConstraint>,
-    contact_offsets: GpuVec<u32>,
-    joints: GpuVec<JointConstraint>,
-    joint_offsets: GpuVec<u32>,
+    arrays: HostArrays,
 }
 
 /// Kernels, adjacency, delta slots and bind groups: what encodes a step.
@@ -140,11 +135,7 @@ impl GpuJacobi {
         };
         Ok(Self {
             encoder,
-            bodies: GpuVec::with_capacity(context, "jacobi bodies", 0)?,
-            contacts: GpuVec::with_capacity(context, "jacobi contacts", 0)?,
-            contact_offsets: GpuVec::with_capacity(context, "jacobi contact offsets", 0)?,
-            joints: GpuVec::with_capacity(context, "jacobi joints", 0)?,
-            joint_offsets: GpuVec::with_capacity(context, "jacobi joint offsets", 0)?,
+            arrays: HostArrays::new(context)?,
         })
     }
 
@@ -194,34 +185,16 @@ impl GpuJacobi {
             batched.contacts.iter().map(|c| (c.body_a, c.body_b)),
             batched.joints.iter().map(|j| (j.body_a, j.body_b)),
         )?;
-        self.bodies.upload(&context, bodies)?;
-        self.contacts.upload(&context, batched.contacts)?;
-        self.contact_offsets
-            .upload(&context, batched.contact_offsets)?;
-        self.joints.upload(&context, batched.joints)?;
-        self.joint_offsets.upload(&context, batched.joint_offsets)?;
-        let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
-        let device = DeviceBatched {
-            contacts: &self.contacts,
-            contact_offsets: &self.contact_offsets,
-            joints: &self.joints,
-            joint_offsets: &self.joint_offsets,
-            host_contact_offsets: batched.contact_offsets,
-            host_joint_offsets: batched.joint_offsets,
-            has_overflow: batched.has_overflow,
-        };
         let encoder = &mut self.encoder;
-        context.submit_pass("jacobi solver", |pass| {
-            encoder.encode(pass, &self.bodies, &device, settings, restitution)
-        });
-        bodies.copy_from_slice(&self.bodies.download(&context)?);
-        batched
-            .contacts
-            .copy_from_slice(&self.contacts.download(&context)?);
-        batched
-            .joints
-            .copy_from_slice(&self.joints.download(&context)?);
-        Ok(())
+        self.arrays.run(
+            &context,
+            "jacobi solver",
+            bodies,
+            batched,
+            |pass, bodies, device, restitution| {
+                encoder.encode(pass, bodies, device, settings, restitution);
+            },
+        )
     }
 }
 
