@@ -232,21 +232,7 @@ impl Offscreen {
     /// Waits for the picture's copy and copies the picture out.
     fn read_back(&mut self, device: &wgpu::Device) -> Result<Image, ViewError> {
         let slice = self.readback.slice(..);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |result| {
-            // The receiver lives until after the poll below; a failed send cannot happen.
-            let _ = sender.send(result);
-        });
-        device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: Some(std::time::Duration::from_secs(60)),
-            })
-            .map_err(|e| ViewError::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| ViewError::Readback(e.to_string()))?
-            .map_err(|e| ViewError::Readback(e.to_string()))?;
+        map_and_wait(device, &slice)?;
         let mut rgba = Vec::with_capacity(4 * self.width as usize * self.height as usize);
         {
             let mapped = slice
@@ -263,4 +249,26 @@ impl Offscreen {
             rgba,
         })
     }
+}
+
+/// Maps `slice` for reading and waits for the device until it is mapped (or 60 s).
+pub(crate) fn map_and_wait(
+    device: &wgpu::Device,
+    slice: &wgpu::BufferSlice,
+) -> Result<(), ViewError> {
+    let (sender, receiver) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |result| {
+        // The receiver lives until after the poll below; a failed send cannot happen.
+        let _ = sender.send(result);
+    });
+    device
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: Some(std::time::Duration::from_secs(60)),
+        })
+        .map_err(|e| ViewError::Readback(e.to_string()))?;
+    receiver
+        .recv()
+        .map_err(|e| ViewError::Readback(e.to_string()))?
+        .map_err(|e| ViewError::Readback(e.to_string()))
 }

@@ -4,6 +4,7 @@
 //! without timestamp queries (llvmpipe on GL) there is no timer at all.
 
 use crate::error::ViewError;
+use crate::headless::map_and_wait;
 
 /// Passes one frame can have: pose, shadow, depth pre-pass, meshes, ground, overlay.
 const MAX_PASSES: u32 = 8;
@@ -111,21 +112,7 @@ impl PassTimer {
             return Ok(Vec::new());
         }
         let slice = self.readback.slice(..16 * self.names.len() as u64);
-        let (sender, receiver) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |result| {
-            // The receiver lives until after the poll below; a failed send cannot happen.
-            let _ = sender.send(result);
-        });
-        device
-            .poll(wgpu::PollType::Wait {
-                submission_index: None,
-                timeout: Some(std::time::Duration::from_secs(60)),
-            })
-            .map_err(|e| ViewError::Readback(e.to_string()))?;
-        receiver
-            .recv()
-            .map_err(|e| ViewError::Readback(e.to_string()))?
-            .map_err(|e| ViewError::Readback(e.to_string()))?;
+        map_and_wait(device, &slice)?;
         let times = {
             let mapped = slice
                 .get_mapped_range()
