@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Runs the test binaries of scripts/build-device-tests.sh on the GPU machine (one call of the
+# `device` tool, carrying .gl and .devbin) and says which failed.
+set -uo pipefail
+if compgen -G ".gl/*.deb" > /dev/null; then
+  for f in .gl/*.deb; do dpkg -x "$f" / > /dev/null; done
+  ldconfig
+fi
+export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json WGPU_BACKEND=vulkan
+failed=0
+for test in .devbin/tests/*; do
+  output=$("$test" --test-threads 1 2>&1)
+  echo "== $(basename "$test"): $(echo "$output" | grep '^test result' | tail -1)"
+  if ! echo "$output" | grep -q '^test result: ok'; then
+    echo "$output" | grep -E -A2 'panicked' | cut -c1-300 | head -20
+    failed=1
+  fi
+done
+exit $failed
