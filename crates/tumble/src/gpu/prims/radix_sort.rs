@@ -170,6 +170,11 @@ impl RadixSort {
     }
 
     /// A sort that always takes `path` (for tests and benchmarks of each path).
+    ///
+    /// # Panics
+    ///
+    /// When encoding on a context the path does not run on ([`SortPath::runs_on`]): a
+    /// caller's mistake, as asking for subgroups the adapter lacks.
     pub fn on(path: SortPath) -> Self {
         Self {
             path: Some(path),
