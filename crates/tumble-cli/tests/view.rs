@@ -154,4 +154,11 @@ fn the_particle_demo_is_drawn_headless() {
     // Without --png or --frames: how to draw it instead.
     let message = one_line_error(&tumble_without_display(&args, &[]));
     assert!(message.contains("--png"), "{message}");
+    // Options that only mean something for a rigid-body world are refused by name.
+    let png = png.to_str().unwrap();
+    for flag in [&["--batches"][..], &["--overlay", "profile"]] {
+        let refused = [&args[..], &["--png", png], flag].concat();
+        let message = one_line_error(&tumble_without_display(&refused, &[]));
+        assert!(message.contains(flag[0]), "{message}");
+    }
 }

@@ -48,6 +48,8 @@ pub enum ViewError {
          `tumble view {scene} --scale 0.01 --steps 600 --png {scene}.png`"
     )]
     HeadlessOnly { scene: String },
+    #[error("{flag} draws what a rigid-body world has; the particle demo has none of it")]
+    NotForParticles { flag: &'static str },
     #[error("cannot open a window: {0}")]
     Window(String),
     #[error("cannot draw into the window: {0}")]

@@ -13,6 +13,7 @@ use crate::context::GpuContext;
 use crate::draw::DrawList;
 use crate::error::ViewError;
 use crate::headless::Offscreen;
+use crate::overlay::OverlayKind;
 use crate::{ImageSize, StepDevice, ViewOptions};
 
 /// Steps the particle demo of `config` on `options.device` and writes the pictures `--png`
@@ -22,6 +23,14 @@ pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(
         return Err(ViewError::HeadlessOnly {
             scene: "particles".into(),
         });
+    }
+    // Overlays and batch colours come from a rigid-body world; the demo has neither.
+    let unsupported = [
+        (options.overlay != OverlayKind::Off, "--overlay"),
+        (options.batches, "--batches"),
+    ];
+    if let Some(&(_, flag)) = unsupported.iter().find(|(given, _)| *given) {
+        return Err(ViewError::NotForParticles { flag });
     }
     let context = GpuContext::headless()?;
     let device = match options.device {
