@@ -56,3 +56,19 @@ fn many_tile_scan_matches_cpu() {
     // 274 tiles, the last holding one element, with long look-back walks.
     check(273 * SCAN_TILE as usize + 1, ScanKind::Inclusive, 8);
 }
+
+#[test]
+fn partial_last_tiles_match_cpu() {
+    // The subgroup path once went wrong on NVIDIA only when the last tile was partial (its
+    // look-back subgroup then holds positions past the end): every such shape, after one and
+    // after many tiles. Lavapipe did not show it; run this file on the GPU machine too
+    // (scripts/build-device-tests.sh).
+    let tile = SCAN_TILE as usize;
+    for tiles in [1, 2, 17] {
+        for rest in [1, 32, 255, 480, 481, tile - 1] {
+            let count = tiles * tile + rest;
+            check(count, ScanKind::Exclusive, count as u64);
+            check(count, ScanKind::Inclusive, count as u64 + 1);
+        }
+    }
+}

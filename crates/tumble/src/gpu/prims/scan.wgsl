@@ -2,8 +2,8 @@
 // look-back (Merrill & Garland, "Single-pass Parallel Prefix Scan with Decoupled Look-back",
 // 2016) and decoupled fallback (Smith, Levien & Owens, "Decoupled Fallback", 2025).
 // Injected: ITEMS_PER_THREAD, POLLS. `gpu::prims::scan` zeroes `status` before each scan.
-// The thread sums and the look-back come in two halves, `scan_baseline.wgsl` (any adapter)
-// and `scan_subgroups.wgsl` (adapters with subgroups).
+// The tile's scan and the look-back come in two halves, `scan_baseline.wgsl` (any adapter)
+// and `scan_subgroups.wgsl` (adapters with subgroups), each with its entry point.
 //
 // A tile is TILE = WORKGROUP_SIZE × ITEMS_PER_THREAD consecutive elements; workgroup k scans
 // tile k. Each workgroup
@@ -11,6 +11,9 @@
 //   2. walks back over earlier tiles, adding AGGREGATEs until it meets a PREFIX (the sum of
 //      everything up to and including that tile), and publishes its own PREFIX;
 //   3. scans its tile starting from the sum of all earlier tiles and writes it.
+// The baseline stages the tile in workgroup memory so that a thread scans consecutive
+// elements; the subgroup half keeps it in registers, a row of `width` consecutive elements
+// per subgroup operation.
 //
 // Fallback: a tile that has not published after POLLS polls is summed from the input by the
 // waiting workgroup itself. Nothing ever waits unboundedly, which matters on Mesa's CPU
@@ -48,10 +51,6 @@ const FLAG_AGGREGATE: u32 = 1u;
 const FLAG_PREFIX: u32 = 2u;
 const HALF_MASK: u32 = 0xffffu;
 
-// The tile, kept from load to write-out: thread t's run of ITEMS_PER_THREAD consecutive
-// elements starts at word t × ITEMS_PER_THREAD; an odd ITEMS_PER_THREAD puts the 32 runs a
-// subgroup reads at once in 32 different banks.
-var<workgroup> exchange: array<u32, TILE>;
 // The scan of the thread sums, the look-back's status and the fallback's sum.
 var<workgroup> partial: array<u32, WORKGROUP_SIZE>;
 
@@ -84,83 +83,73 @@ fn poll_status(tile: u32) -> vec2<u32> {
     return seen;
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn scan(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let tile = flat_workgroup(workgroup, groups);
-    if tile >= params.tile_count {
-        return;
-    }
-    let start = tile * TILE;
-    load_tile(start, ids.local);
-    workgroupBarrier();
-    // Each thread sums its run of ITEMS_PER_THREAD consecutive elements...
-    let first = thread_position(ids) * ITEMS_PER_THREAD;
-    var own = 0u;
-    for (var item = 0u; item < ITEMS_PER_THREAD; item++) {
-        own += exchange[first + item];
-    }
-    // ...the thread sums are scanned over the tile...
-    let scanned = tile_scan(ids, own);
-    var running = scanned.x;
-    // ...the sum of all earlier tiles is found...
-    running += look_back(ids, tile, scanned.y);
-    // ...and each thread rewrites its run from its exclusive prefix.
-    let inclusive = params.inclusive != 0u;
-    for (var item = 0u; item < ITEMS_PER_THREAD; item++) {
-        let value = exchange[first + item];
-        exchange[first + item] = select(running, running + value, inclusive);
-        running += value;
-    }
-    workgroupBarrier();
-    for (var item = 0u; item < ITEMS_PER_THREAD; item++) {
-        let slot = item * WORKGROUP_SIZE + ids.local;
-        let index = start + slot;
-        if index < params.count {
-            destination[index] = exchange[slot];
-        }
-    }
-}
-
 // Element `slot` of the tile starting at `start`, 0 past the end of the input.
 fn tile_item(start: u32, slot: u32) -> u32 {
     let index = start + slot;
     return select(0u, source[min(index, params.count - 1u)], index < params.count);
 }
 
-// Copies the tile starting at `start` into `exchange`, coalesced: invocation i reads i,
-// i + WORKGROUP_SIZE, ... Written out rather than looped: drivers do not unroll naga's loops,
-// and a loop whose load feeds a store keeps one load in flight per thread (on an H100 the
-// whole scan took 1.7× as long that way).
-const_assert ITEMS_PER_THREAD == 15u;
-fn load_tile(start: u32, local: u32) {
-    let item0 = tile_item(start, 0u * WORKGROUP_SIZE + local);
-    let item1 = tile_item(start, 1u * WORKGROUP_SIZE + local);
-    let item2 = tile_item(start, 2u * WORKGROUP_SIZE + local);
-    let item3 = tile_item(start, 3u * WORKGROUP_SIZE + local);
-    let item4 = tile_item(start, 4u * WORKGROUP_SIZE + local);
-    let item5 = tile_item(start, 5u * WORKGROUP_SIZE + local);
-    let item6 = tile_item(start, 6u * WORKGROUP_SIZE + local);
-    let item7 = tile_item(start, 7u * WORKGROUP_SIZE + local);
-    let item8 = tile_item(start, 8u * WORKGROUP_SIZE + local);
-    let item9 = tile_item(start, 9u * WORKGROUP_SIZE + local);
-    let item10 = tile_item(start, 10u * WORKGROUP_SIZE + local);
-    let item11 = tile_item(start, 11u * WORKGROUP_SIZE + local);
-    let item12 = tile_item(start, 12u * WORKGROUP_SIZE + local);
-    let item13 = tile_item(start, 13u * WORKGROUP_SIZE + local);
-    let item14 = tile_item(start, 14u * WORKGROUP_SIZE + local);
-    exchange[0u * WORKGROUP_SIZE + local] = item0;
-    exchange[1u * WORKGROUP_SIZE + local] = item1;
-    exchange[2u * WORKGROUP_SIZE + local] = item2;
-    exchange[3u * WORKGROUP_SIZE + local] = item3;
-    exchange[4u * WORKGROUP_SIZE + local] = item4;
-    exchange[5u * WORKGROUP_SIZE + local] = item5;
-    exchange[6u * WORKGROUP_SIZE + local] = item6;
-    exchange[7u * WORKGROUP_SIZE + local] = item7;
-    exchange[8u * WORKGROUP_SIZE + local] = item8;
-    exchange[9u * WORKGROUP_SIZE + local] = item9;
-    exchange[10u * WORKGROUP_SIZE + local] = item10;
-    exchange[11u * WORKGROUP_SIZE + local] = item11;
-    exchange[12u * WORKGROUP_SIZE + local] = item12;
-    exchange[13u * WORKGROUP_SIZE + local] = item13;
-    exchange[14u * WORKGROUP_SIZE + local] = item14;
+// The sum of tile `tile`'s input, to every thread (the fallback); call from uniform control
+// flow.
+fn reduce_tile(tile: u32, local: u32) -> u32 {
+    var sum = 0u;
+    for (var item = 0u; item < ITEMS_PER_THREAD; item++) {
+        let index = tile * TILE + item * WORKGROUP_SIZE + local;
+        if index < params.count {
+            sum += source[index];
+        }
+    }
+    partial[local] = sum;
+    workgroupBarrier();
+    for (var stride = WORKGROUP_SIZE / 2u; stride > 0u; stride >>= 1u) {
+        if local < stride {
+            partial[local] += partial[local + stride];
+        }
+        workgroupBarrier();
+    }
+    let total = partial[0];
+    workgroupBarrier();
+    return total;
 }
+
+// The sum of all tiles before `tile` (uniform), to every thread; publishes the tile's PREFIX.
+// Call from uniform control flow. Invocation 0 polls one tile at a time: the baseline's
+// look-back, and the subgroup half's for a partial last tile.
+fn serial_look_back(local: u32, tile: u32, aggregate: u32) -> u32 {
+    if tile == 0u {
+        if local == 0u {
+            publish(tile, FLAG_PREFIX, aggregate);
+        }
+        return 0u;
+    }
+    if local == 0u {
+        publish(tile, FLAG_AGGREGATE, aggregate);
+    }
+    var prefix = 0u;
+    var previous = tile - 1u;
+    loop {
+        if local == 0u {
+            let seen = poll_status(previous);
+            partial[0] = seen.x;
+            partial[1] = seen.y;
+        }
+        var flag = workgroupUniformLoad(&partial[0]);
+        var sum = partial[1];
+        workgroupBarrier();
+        if flag == 0u {
+            sum = reduce_tile(previous, local);
+            // Tile 0's sum is its PREFIX: the walk must stop there.
+            flag = select(FLAG_AGGREGATE, FLAG_PREFIX, previous == 0u);
+        }
+        prefix += sum;
+        if flag == FLAG_PREFIX {
+            break;
+        }
+        previous -= 1u;
+    }
+    if local == 0u {
+        publish(tile, FLAG_PREFIX, prefix + aggregate);
+    }
+    return prefix;
+}
+
