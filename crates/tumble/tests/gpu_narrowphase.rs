@@ -9,7 +9,10 @@
 //! multiply and an add and gives division, square root and the builtins a few ulps of slack.
 //! Measured on lavapipe and llvmpipe over 100 000 random pairs, the largest difference was
 //! 1e-6 m, one ulp of coordinates near 10 m; the bound leaves a hundred times that for
-//! drivers that round differently and is still far below any geometric feature.
+//! drivers that round differently and is still far below any geometric feature. One
+//! exception, from the geometry rather than the code: the normal of a sphere or capsule is the
+//! direction between two core points, and when the cores nearly meet (a deep overlap) an ulp
+//! of their coordinates turns the direction by ulp / gap; see [`round_tolerances`].
 
 mod gpu_common;
 
@@ -23,7 +26,7 @@ use tumble::stages::narrowphase::{
     GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseInputs, PairContact, pack_hulls,
     update_contacts,
 };
-use tumble::stages::pairs::pair_key;
+use tumble::stages::pairs::{pair_bodies, pair_key};
 
 const TOLERANCE: f32 = 1e-4;
 const MARGIN: f32 = 0.02;
@@ -193,15 +196,49 @@ fn give_impulses(random: &mut Random, contacts: &mut [PairContact]) {
     }
 }
 
-fn assert_close(what: &str, pair: usize, cpu: Vec3, gpu: Vec3) {
+fn assert_close(what: &str, pair: usize, cpu: Vec3, gpu: Vec3, tolerance: f32) {
     assert!(
-        (cpu - gpu).abs().max_element() <= TOLERANCE,
-        "pair {pair}: {what} {cpu} (CPU) vs {gpu} (GPU)"
+        (cpu - gpu).abs().max_element() <= tolerance,
+        "pair {pair}: {what} {cpu} (CPU) vs {gpu} (GPU), tolerance {tolerance}"
     );
 }
 
-/// Same count, ids and impulses (exactly), the rest within TOLERANCE.
-fn assert_parity(cpu: &[PairContact], gpu: &[PairContact]) {
+/// Rounding of coordinates that a core point of a sphere or capsule carries, in ulps of the
+/// largest coordinate: the pose's rotation and translation, the segment's closest point.
+const CORE_ULPS: f32 = 4.0;
+/// The largest coordinate of the random worlds (m): poses within 10 m, plus a reach.
+const COORDINATE_SCALE: f32 = 16.0;
+
+/// (normal, point) tolerances of a pair. Face normals come from the shapes' axes, and agree
+/// within TOLERANCE. A sphere's or capsule's normal is the direction between two core points
+/// `gap` apart, each known to `CORE_ULPS` ulps of the coordinates, so it is known only to
+/// about that error over `gap`; its points lie a radius from the core along it. On the H100 a
+/// capsule pair with a 2.2 mm gap differed by 2e-4 in the normal, within this bound (3.5e-3)
+/// and beyond TOLERANCE; lavapipe rounds as the CPU does there.
+fn round_tolerances(world: &World, key: u64, manifold: &Manifold) -> (f32, f32) {
+    let radius = |body: u32| match world.colliders[body as usize].shape {
+        Shape::Sphere(sphere) => sphere.radius,
+        Shape::Capsule(capsule) => capsule.radius,
+        _ => 0.0,
+    };
+    let (a, b) = pair_bodies(key);
+    let rounding = radius(a) + radius(b);
+    if rounding == 0.0 {
+        return (TOLERANCE, TOLERANCE);
+    }
+    let deepest = manifold
+        .points()
+        .iter()
+        .map(|point| point.separation)
+        .fold(f32::INFINITY, f32::min);
+    let gap = (deepest + rounding).max(f32::MIN_POSITIVE);
+    let normal = TOLERANCE.max(CORE_ULPS * f32::EPSILON * COORDINATE_SCALE / gap);
+    (normal, TOLERANCE.max(normal * rounding))
+}
+
+/// Same count, ids and impulses (exactly), the rest within TOLERANCE (or, for spheres and
+/// capsules, [`round_tolerances`]).
+fn assert_parity(world: &World, cpu: &[PairContact], gpu: &[PairContact]) {
     assert_eq!(cpu.len(), gpu.len());
     for (pair, (cpu, gpu)) in cpu.iter().zip(gpu).enumerate() {
         let (m_cpu, m_gpu): (&Manifold, &Manifold) = (&cpu.manifold, &gpu.manifold);
@@ -212,11 +249,12 @@ fn assert_parity(cpu: &[PairContact], gpu: &[PairContact]) {
         if m_cpu.count == 0 {
             continue;
         }
-        assert_close("normal", pair, m_cpu.normal, m_gpu.normal);
+        let (normal, point) = round_tolerances(world, world.keys[pair], m_cpu);
+        assert_close("normal", pair, m_cpu.normal, m_gpu.normal, normal);
         for (p_cpu, p_gpu) in m_cpu.points().iter().zip(m_gpu.points()) {
             assert_eq!(p_cpu.id, p_gpu.id, "pair {pair}: {m_cpu:?} vs {m_gpu:?}");
-            assert_close("position", pair, p_cpu.position, p_gpu.position);
-            assert_close("anchor", pair, p_cpu.anchor, p_gpu.anchor);
+            assert_close("position", pair, p_cpu.position, p_gpu.position, point);
+            assert_close("anchor", pair, p_cpu.anchor, p_gpu.anchor, point);
             assert!(
                 (p_cpu.separation - p_gpu.separation).abs() <= TOLERANCE,
                 "pair {pair}: separation {} vs {}",
@@ -349,7 +387,7 @@ fn compare_with_cpu(
         .collect();
     update_contacts(&world.keys, &mut cpu, &world.inputs());
     let gpu = gpu_step(context, narrowphase, &world, &old_index, &old_contacts);
-    assert_parity(&cpu, &gpu);
+    assert_parity(&world, &cpu, &gpu);
     if world.keys.len() >= 1000 {
         // Deterministic: a second run is bitwise the same.
         let again = gpu_step(context, narrowphase, &world, &old_index, &old_contacts);
@@ -479,7 +517,7 @@ fn run_steps(context: &GpuContext, frames: &[World]) -> Vec<Vec<PairContact>> {
         narrowphase
             .update_contacts(context, &world.keys, &mut gpu, &world.inputs())
             .unwrap();
-        assert_parity(&cpu, &gpu);
+        assert_parity(world, &cpu, &gpu);
         steps.push(cpu.clone());
         for contacts in [&mut cpu, &mut gpu] {
             for (pair, contact) in contacts.iter_mut().enumerate() {
@@ -781,7 +819,7 @@ fn device_resident_steps_match_the_cpu() {
                 .unwrap();
         }
         context.queue.submit([encoder.finish()]);
-        assert_parity(&cpu, &new.download(&context).unwrap());
+        assert_parity(&world, &cpu, &new.download(&context).unwrap());
     }
     // Impulses made it through four steps of matching.
     assert!(cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count() > 100);
