@@ -16,6 +16,7 @@ use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{
     NarrowphaseInputs, PairContact, gpu_pair, pack_hulls, update_contacts_where,
 };
+use crate::stages::pairs::gpu::GpuPairDiff;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
@@ -74,6 +75,14 @@ const SOLVER: StageSpans = StageSpans {
 const JACOBI_SOLVER: StageSpans = StageSpans {
     kernel: &["solver", "jacobi kernels"],
     ..SOLVER
+};
+/// Stages 1–4 in one submission ([`GpuStages::collide`]).
+const COLLISION: StageSpans = StageSpans {
+    upload: &["collision", "copy to gpu"],
+    encode: &["collision", "encode"],
+    kernel: &["collision", "kernels"],
+    wait: &["collision", "submit and wait"],
+    download: &["collision", "copy to cpu"],
 };
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
@@ -159,6 +168,10 @@ pub(crate) struct GpuStages {
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,
     joint_batch_offsets: GpuVec<u32>,
+    /// [`Self::collide`]: last step's pair keys (its contacts go in `old_contacts`) and their
+    /// diff with this step's.
+    old_keys: GpuVec<u64>,
+    pair_diff: GpuPairDiff,
     /// The narrowphase's inputs and output on the device.
     keys: GpuVec<u64>,
     old_index: GpuVec<u32>,
@@ -211,6 +224,8 @@ impl GpuStages {
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
             batched_joints: GpuVec::with_capacity(&context, "batched joints", 0)?,
             joint_batch_offsets: GpuVec::with_capacity(&context, "joint batch offsets", 0)?,
+            old_keys: GpuVec::with_capacity(&context, "old pair keys", 0)?,
+            pair_diff: GpuPairDiff::new(&context)?,
             keys: GpuVec::with_capacity(&context, "pair keys", 0)?,
             old_index: GpuVec::with_capacity(&context, "old pair index", 0)?,
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
@@ -336,6 +351,93 @@ impl GpuStages {
         self.broadphase.download_keys_into(context, keys)?;
         record_copy(profiler, BROADPHASE.download, elapsed_ms(start));
         Ok(())
+    }
+
+    /// Stages 1 to 4 in one submission: AABBs, broadphase, the pair diff against last step's
+    /// pairs (the talk's persistent pairs, [`GpuPairDiff`]) and the narrowphase, with nothing
+    /// read back between them. `old_keys` and `old_contacts` are the pair cache after last
+    /// step (its contacts carry the solver's impulses, which live on the host); `keys` gets
+    /// this step's sorted pair keys and `contacts` their contacts, warm-started through the
+    /// diff, as [`find_pairs`](Self::find_pairs) then [`update_contacts`](Self::update_contacts)
+    /// would give them. Pairs the GPU narrowphase has no kernel for ([`gpu_pair`]) come back
+    /// with last step's contact: the caller computes them. The pair count is read back once;
+    /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
+    /// again (from the same inputs).
+    #[allow(clippy::too_many_arguments)]
+    pub fn collide(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &BodyInputs,
+        is_static: &[bool],
+        (old_keys, old_contacts): (&[u64], &[PairContact]),
+        skipped: &[u64],
+        (margin, dt): (f32, f32),
+        keys: &mut Vec<u64>,
+        contacts: &mut Vec<PairContact>,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
+        self.broadphase.set_bodies(context, is_static)?;
+        self.old_keys.upload(context, old_keys)?;
+        self.old_contacts.upload(context, old_contacts)?;
+        self.skipped.upload(context, skipped)?;
+        record_copy(profiler, COLLISION.upload, elapsed_ms(start));
+        loop {
+            let device = &self.bodies;
+            let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
+            let (broadphase, diff) = (&mut self.broadphase, &mut self.pair_diff);
+            let (narrowphase, output) = (&mut self.narrowphase, &mut self.contacts);
+            let (old_keys, old_contacts, skipped) =
+                (&self.old_keys, &self.old_contacts, &self.skipped);
+            run_pass(context, &mut self.profiler, profiler, &COLLISION, |pass| {
+                aabb.encode(
+                    context,
+                    pass,
+                    &device.poses,
+                    &device.velocities,
+                    &device.colliders,
+                    margin,
+                    dt,
+                    aabbs,
+                )?;
+                broadphase.encode(context, pass, aabbs)?;
+                // The broadphase's keys are padded with u64::MAX past the count, which both
+                // the diff and the narrowphase pass over: the count stays on the device.
+                diff.encode(context, pass, old_keys, broadphase.keys())?;
+                let inputs = GpuNarrowphaseInputs {
+                    keys: broadphase.keys(),
+                    old_index: diff.old_index(),
+                    old_contacts,
+                    poses: &device.poses,
+                    velocities: &device.velocities,
+                    colliders: &device.colliders,
+                    hulls: &device.hulls,
+                    skipped,
+                    margin,
+                    dt,
+                };
+                narrowphase.encode(context, pass, &inputs, output)
+            })?;
+            if !self.broadphase.check_capacity(context)? {
+                break;
+            }
+        }
+        let start = Instant::now();
+        self.broadphase.download_keys_into(context, keys)?;
+        // Only the counted contacts come back; the rows read them, and the keys, on the device.
+        self.contacts.resize(context, keys.len())?;
+        self.contacts.download_into(context, contacts)?;
+        self.keys.upload(context, keys)?;
+        record_copy(profiler, COLLISION.download, elapsed_ms(start));
+        self.pair_contacts_fresh = false;
+        Ok(())
+    }
+
+    /// After [`Self::collide`]: the host's pair cache now holds exactly the keys and contacts
+    /// it returned, every one computed on the GPU, so the rows may read them on the device.
+    pub fn pair_cache_is_collide_output(&mut self) {
+        self.pair_contacts_fresh = true;
     }
 
     /// Stage 4 on the GPU: [`update_contacts`](crate::stages::narrowphase::update_contacts)'s
@@ -846,5 +948,103 @@ mod tests {
         assert!(!from_host.is_empty());
         let bytes = |rows: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(rows).to_vec();
         assert_eq!(bytes(&from_device), bytes(&from_host));
+    }
+
+    /// Stages 1 to 4 in one submission give the pairs and contacts that the stages one by one
+    /// give, bit for bit, warm starts included (through the GPU pair diff rather than the
+    /// host's cache), and lose no pair when the broadphase's buffers start too small.
+    #[test]
+    fn one_submission_collision_equals_the_stages_one_by_one() {
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for index in 0..48 {
+            let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(Vec3::new(x as f32, 0.5 + 1.1 * y as f32, z as f32 * 1.02))
+                        .rotation(Quat::from_rotation_y(0.3 * index as f32)),
+                )
+                .unwrap();
+        }
+        for _ in 0..30 {
+            world.step();
+        }
+        // Last step's pair cache, with the solver's impulses; the bodies have moved since.
+        let (old_keys, old_contacts) = (world.pairs.keys().to_vec(), world.pairs.values().to_vec());
+        assert!(old_contacts.iter().any(|c| c.impulses[0].normal > 0.0));
+        let config = *world.config();
+        let is_static: Vec<bool> = world.masses.iter().map(|m| m.inverse_mass == 0.0).collect();
+        let bodies = BodyInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            colliders: &world.colliders,
+        };
+        let mut profiler = Profiler::new("test");
+
+        let mut one = GpuStages::new(context.clone()).unwrap();
+        one.broadphase.set_capacity(&context, 4).unwrap();
+        one.begin_step();
+        let (mut keys, mut contacts) = (Vec::new(), Vec::new());
+        one.collide(
+            &mut profiler,
+            &bodies,
+            &is_static,
+            (&old_keys, &old_contacts),
+            &world.jointed_pairs,
+            (config.contact_margin, config.dt),
+            &mut keys,
+            &mut contacts,
+        )
+        .unwrap();
+        assert!(one.broadphase.capacity() >= keys.len() && keys.len() > 48);
+
+        let mut stages = GpuStages::new(context).unwrap();
+        stages.begin_step();
+        stages
+            .compute_aabbs(
+                &mut profiler,
+                &bodies,
+                config.contact_margin,
+                config.dt,
+                None,
+            )
+            .unwrap();
+        let mut stage_keys = Vec::new();
+        stages
+            .find_pairs(&mut profiler, None, &is_static, &mut stage_keys)
+            .unwrap();
+        let mut cache = world.pairs.clone();
+        cache.update(&stage_keys);
+        let inputs = NarrowphaseInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            colliders: &world.colliders,
+            margin: config.contact_margin,
+            dt: config.dt,
+            skipped: &world.jointed_pairs,
+            keep_resting: None,
+        };
+        let (cache_keys, cache_contacts) = cache.keys_and_values_mut();
+        stages
+            .update_contacts(&mut profiler, cache_keys, cache_contacts, &inputs)
+            .unwrap();
+
+        assert_eq!(keys, stage_keys);
+        assert_ne!(keys, old_keys, "the pairs changed since last step");
+        let bytes = |contacts: &[PairContact]| bytemuck::cast_slice::<_, u8>(contacts).to_vec();
+        assert_eq!(bytes(&contacts), bytes(cache.values()));
+        assert!(
+            contacts.iter().any(|c| c.impulses[0].normal > 0.0),
+            "warm started"
+        );
     }
 }

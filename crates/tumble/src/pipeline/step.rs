@@ -26,6 +26,8 @@ pub(crate) struct StepScratch {
     /// Which bodies a GPU broadphase puts in its static tree.
     is_static: Vec<bool>,
     pair_keys: Vec<u64>,
+    /// The contacts of `pair_keys` as one GPU submission computed them.
+    collided: Vec<narrowphase::PairContact>,
     /// Every manifold slot's key and contact (pairs, then children), for GPU rows.
     slot_keys: Vec<u64>,
     slot_contacts: Vec<narrowphase::PairContact>,
@@ -52,113 +54,14 @@ impl World {
     pub(crate) fn step_stages(&mut self) -> Result<(), GpuError> {
         let config = self.config;
         let dt = config.dt;
-        let scratch = &mut self.scratch;
-        let profiler = &mut self.profiler;
-        let aabb_on_gpu = self.devices.get(Stage::Aabb) == Executor::Gpu;
-        let broadphase_on_gpu = self.devices.get(Stage::Broadphase) == Executor::Gpu;
         if let Some(gpu) = &mut self.gpu {
             gpu.begin_step();
         }
-
-        // 1. World AABBs, grown by the speculative contact margin and swept over the step.
-        profiler.begin("aabb");
-        match &mut self.gpu {
-            Some(gpu) if aabb_on_gpu => {
-                let bodies = BodyInputs {
-                    poses: &self.poses,
-                    velocities: &self.velocities,
-                    colliders: &self.colliders,
-                };
-                // A GPU broadphase reads them where they are.
-                let download = (!broadphase_on_gpu).then_some(&mut scratch.aabbs);
-                let result =
-                    gpu.compute_aabbs(profiler, &bodies, config.contact_margin, dt, download);
-                profiler.end();
-                result?;
-            }
-            _ => {
-                aabb::compute_aabbs(
-                    &self.poses,
-                    &self.velocities,
-                    &self.colliders,
-                    config.contact_margin,
-                    dt,
-                    &mut scratch.aabbs,
-                );
-                profiler.end();
-            }
+        if self.collides_in_one_submission() {
+            self.collide_in_one_submission()?;
+        } else {
+            self.collide_stage_by_stage()?;
         }
-
-        // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
-        profiler.begin("broadphase");
-        match &mut self.gpu {
-            Some(gpu) if broadphase_on_gpu => {
-                // Static to the broadphase: static, asleep or removed (their pairs go below).
-                scratch.is_static.clear();
-                scratch
-                    .is_static
-                    .extend(self.masses.iter().map(|mass| mass.inverse_mass == 0.0));
-                let host_aabbs = (!aabb_on_gpu).then_some(&scratch.aabbs[..]);
-                let result = gpu.find_pairs(
-                    profiler,
-                    host_aabbs,
-                    &scratch.is_static,
-                    &mut scratch.pair_keys,
-                );
-                if result.is_err() {
-                    profiler.end();
-                }
-                result?;
-                let slots = &self.slots;
-                let live = |body: u32| slots[body as usize].is_live();
-                scratch.pair_keys.retain(|&key| {
-                    let (a, b) = crate::stages::pairs::pair_bodies(key);
-                    live(a) && live(b)
-                });
-            }
-            _ => {
-                profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
-                profiler.scope("find pairs", || {
-                    self.broadphase.find_pairs(&mut scratch.pair_keys)
-                });
-            }
-        }
-        // Sleeping bodies' pairs are in no tree's result: keep them with theirs.
-        if !self.resting_pairs.is_empty() {
-            merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
-        }
-        profiler.end();
-
-        // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.
-        profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
-
-        // 4. Narrowphase: fresh manifolds, impulses carried over from matching points.
-        profiler.begin("narrowphase");
-        let (keys, contacts) = self.pairs.keys_and_values_mut();
-        let inputs = narrowphase::NarrowphaseInputs {
-            poses: &self.poses,
-            velocities: &self.velocities,
-            colliders: &self.colliders,
-            margin: config.contact_margin,
-            dt,
-            skipped: &self.jointed_pairs,
-            keep_resting: (!self.refresh_resting).then_some(&self.masses[..]),
-        };
-        self.refresh_resting = false;
-        let narrowphase = match (self.devices.get(Stage::Narrowphase), &mut self.gpu) {
-            (Executor::Gpu, Some(gpu)) => gpu.update_contacts(profiler, keys, contacts, &inputs),
-            _ => {
-                narrowphase::update_contacts(keys, contacts, &inputs);
-                Ok(())
-            }
-        };
-        if narrowphase.is_ok() {
-            // Pairs with a mesh or a compound: one child manifold per touching triangle or
-            // child pair (on the CPU: the GPU narrowphase has neither yet).
-            narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
-        }
-        profiler.end();
-        narrowphase?;
 
         // Islands touched by an awake body, or joined to one, wake before their rows are built.
         if self.islands.sleeping_count() > 0 {
@@ -483,6 +386,207 @@ impl World {
             self.profiler.end();
         }
         self.stats.sleeping = self.islands.sleeping_count();
+        Ok(())
+    }
+
+    /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
+    /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
+    /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
+    fn collides_in_one_submission(&self) -> bool {
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        self.gpu.is_some()
+            && on_gpu(Stage::Aabb)
+            && on_gpu(Stage::Broadphase)
+            && on_gpu(Stage::Narrowphase)
+            && self.resting_pairs.is_empty()
+            && self.islands.sleeping_count() == 0
+            && self.slots.iter().all(|slot| slot.is_live())
+    }
+
+    /// Stages 1 to 4 in one GPU submission; the pair cache then takes the GPU's keys and
+    /// contacts, and the host computes the pairs the GPU has no kernel for.
+    fn collide_in_one_submission(&mut self) -> Result<(), GpuError> {
+        let config = self.config;
+        let scratch = &mut self.scratch;
+        let profiler = &mut self.profiler;
+        let gpu = self
+            .gpu
+            .as_mut()
+            .expect("checked by collides_in_one_submission");
+        scratch.is_static.clear();
+        scratch
+            .is_static
+            .extend(self.masses.iter().map(|mass| mass.inverse_mass == 0.0));
+        let bodies = BodyInputs {
+            poses: &self.poses,
+            velocities: &self.velocities,
+            colliders: &self.colliders,
+        };
+        profiler.begin("collision");
+        let collided = gpu.collide(
+            profiler,
+            &bodies,
+            &scratch.is_static,
+            (self.pairs.keys(), self.pairs.values()),
+            &self.jointed_pairs,
+            (config.contact_margin, config.dt),
+            &mut scratch.pair_keys,
+            &mut scratch.collided,
+        );
+        if collided.is_err() {
+            profiler.end();
+        }
+        collided?;
+        profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
+        let colliders = &self.colliders;
+        let on_gpu = |key: u64| {
+            let (a, b) = crate::stages::pairs::pair_bodies(key);
+            narrowphase::gpu_pair(&colliders[a as usize].shape, &colliders[b as usize].shape)
+        };
+        let (keys, contacts) = self.pairs.keys_and_values_mut();
+        let mut host_pairs = 0;
+        for ((contact, collided), &key) in contacts.iter_mut().zip(&scratch.collided).zip(keys) {
+            if on_gpu(key) {
+                *contact = *collided;
+            } else {
+                host_pairs += 1;
+            }
+        }
+        let inputs = narrowphase::NarrowphaseInputs {
+            poses: &self.poses,
+            velocities: &self.velocities,
+            colliders: &self.colliders,
+            margin: config.contact_margin,
+            dt: config.dt,
+            skipped: &self.jointed_pairs,
+            keep_resting: (!self.refresh_resting).then_some(&self.masses[..]),
+        };
+        self.refresh_resting = false;
+        if host_pairs == 0 {
+            gpu.pair_cache_is_collide_output();
+        } else {
+            profiler.scope("cpu pairs", || {
+                narrowphase::update_contacts_where(keys, contacts, &inputs, |a, b| {
+                    !narrowphase::gpu_pair(a, b)
+                })
+            });
+        }
+        // Pairs with a mesh or a compound: one child manifold per touching triangle or child
+        // pair, on the CPU.
+        narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
+        profiler.end();
+        Ok(())
+    }
+
+    /// Stages 1 to 4, each on its own executor.
+    fn collide_stage_by_stage(&mut self) -> Result<(), GpuError> {
+        let config = self.config;
+        let dt = config.dt;
+        let scratch = &mut self.scratch;
+        let profiler = &mut self.profiler;
+        let aabb_on_gpu = self.devices.get(Stage::Aabb) == Executor::Gpu;
+        let broadphase_on_gpu = self.devices.get(Stage::Broadphase) == Executor::Gpu;
+
+        // 1. World AABBs, grown by the speculative contact margin and swept over the step.
+        profiler.begin("aabb");
+        match &mut self.gpu {
+            Some(gpu) if aabb_on_gpu => {
+                let bodies = BodyInputs {
+                    poses: &self.poses,
+                    velocities: &self.velocities,
+                    colliders: &self.colliders,
+                };
+                // A GPU broadphase reads them where they are.
+                let download = (!broadphase_on_gpu).then_some(&mut scratch.aabbs);
+                let result =
+                    gpu.compute_aabbs(profiler, &bodies, config.contact_margin, dt, download);
+                profiler.end();
+                result?;
+            }
+            _ => {
+                aabb::compute_aabbs(
+                    &self.poses,
+                    &self.velocities,
+                    &self.colliders,
+                    config.contact_margin,
+                    dt,
+                    &mut scratch.aabbs,
+                );
+                profiler.end();
+            }
+        }
+
+        // 2. Broadphase: refit the moving tree, then moving×moving and moving×static pairs.
+        profiler.begin("broadphase");
+        match &mut self.gpu {
+            Some(gpu) if broadphase_on_gpu => {
+                // Static to the broadphase: static, asleep or removed (their pairs go below).
+                scratch.is_static.clear();
+                scratch
+                    .is_static
+                    .extend(self.masses.iter().map(|mass| mass.inverse_mass == 0.0));
+                let host_aabbs = (!aabb_on_gpu).then_some(&scratch.aabbs[..]);
+                let result = gpu.find_pairs(
+                    profiler,
+                    host_aabbs,
+                    &scratch.is_static,
+                    &mut scratch.pair_keys,
+                );
+                if result.is_err() {
+                    profiler.end();
+                }
+                result?;
+                let slots = &self.slots;
+                let live = |body: u32| slots[body as usize].is_live();
+                scratch.pair_keys.retain(|&key| {
+                    let (a, b) = crate::stages::pairs::pair_bodies(key);
+                    live(a) && live(b)
+                });
+            }
+            _ => {
+                profiler.scope("update", || self.broadphase.update(&scratch.aabbs));
+                profiler.scope("find pairs", || {
+                    self.broadphase.find_pairs(&mut scratch.pair_keys)
+                });
+            }
+        }
+        // Sleeping bodies' pairs are in no tree's result: keep them with theirs.
+        if !self.resting_pairs.is_empty() {
+            merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
+        }
+        profiler.end();
+
+        // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.
+        profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
+
+        // 4. Narrowphase: fresh manifolds, impulses carried over from matching points.
+        profiler.begin("narrowphase");
+        let (keys, contacts) = self.pairs.keys_and_values_mut();
+        let inputs = narrowphase::NarrowphaseInputs {
+            poses: &self.poses,
+            velocities: &self.velocities,
+            colliders: &self.colliders,
+            margin: config.contact_margin,
+            dt,
+            skipped: &self.jointed_pairs,
+            keep_resting: (!self.refresh_resting).then_some(&self.masses[..]),
+        };
+        self.refresh_resting = false;
+        let narrowphase = match (self.devices.get(Stage::Narrowphase), &mut self.gpu) {
+            (Executor::Gpu, Some(gpu)) => gpu.update_contacts(profiler, keys, contacts, &inputs),
+            _ => {
+                narrowphase::update_contacts(keys, contacts, &inputs);
+                Ok(())
+            }
+        };
+        if narrowphase.is_ok() {
+            // Pairs with a mesh or a compound: one child manifold per touching triangle or
+            // child pair (on the CPU: the GPU narrowphase has neither yet).
+            narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
+        }
+        profiler.end();
+        narrowphase?;
+
         Ok(())
     }
 

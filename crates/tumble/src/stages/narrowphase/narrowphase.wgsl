@@ -42,7 +42,8 @@ fn update_contacts(
         return;
     }
     let key = keys[index];
-    if is_skipped(key) {
+    // Padding past the GPU broadphase's pair count (its keys come in their whole buffer).
+    if all(key == vec2<u32>(0xffffffffu, 0xffffffffu)) || is_skipped(key) {
         contacts[index] = PairContact();
         return;
     }
