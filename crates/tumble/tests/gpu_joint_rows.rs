@@ -17,6 +17,7 @@ use tumble::stages::constraints::{
     Drag, JointConstraint, STATIC_BODY, build_joint_constraints, drag_constraint, joint_slots,
     world_inverse_inertia,
 };
+use tumble::stages::solver::SolverKind;
 use tumble::{BodyHandle, JointDesc, JointHandle, JointKind as Kind, StepConfig, World};
 
 fn uniform(random: &mut Random, low: f32, high: f32) -> f32 {
@@ -380,12 +381,26 @@ fn the_profile_shows_the_joint_rows_kernel() {
 /// the solve, ran through the host (the device's warm starts are then the host's). World
 /// `chained` keeps the rows on the device at every step; `switching` sends them through the
 /// host at every third step (the batching on the CPU: the GPU solver then solves the rows
-/// uploaded from the host and writes no impulse back to the device's joints).
+/// uploaded from the host and writes no impulse back to the device's joints). Both solvers:
+/// the Jacobi one reads the gathered joints too.
 #[test]
 fn device_joints_follow_changes_and_devices_bitwise() {
     let _turn = context();
+    for solver in [SolverKind::Pgs, SolverKind::Jacobi] {
+        follow_changes_and_devices(solver);
+    }
+}
+
+fn follow_changes_and_devices(solver: SolverKind) {
     let mut chained = ragdolls(&CHAINED);
     let mut switching = ragdolls(&CHAINED);
+    for world in [&mut chained, &mut switching] {
+        let config = StepConfig {
+            solver,
+            ..*world.config()
+        };
+        world.set_config(config).unwrap();
+    }
     let bodies: Vec<BodyHandle> = chained.bodies().collect();
     let joints: Vec<JointHandle> = chained.joints().map(|(joint, _)| joint).collect();
     let through_host = {
@@ -433,7 +448,7 @@ fn device_joints_follow_changes_and_devices_bitwise() {
             assert_eq!(
                 chained.pose(body).unwrap(),
                 switching.pose(body).unwrap(),
-                "step {step}: {body:?}"
+                "{solver:?}, step {step}: {body:?}"
             );
         }
         let impulses = |world: &World| {
@@ -449,7 +464,11 @@ fn device_joints_follow_changes_and_devices_bitwise() {
                 .map(f32::to_bits)
                 .collect::<Vec<u32>>()
         };
-        assert_eq!(impulses(&chained), impulses(&switching), "step {step}");
+        assert_eq!(
+            impulses(&chained),
+            impulses(&switching),
+            "{solver:?}, step {step}"
+        );
     }
     assert_eq!(
         chained.joints().count(),
