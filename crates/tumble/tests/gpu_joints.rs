@@ -375,10 +375,10 @@ fn body_bits(world: &World, body: BodyHandle) -> [u32; 10] {
     bits
 }
 
-/// Rows, batching and solver all on the GPU keep the contact rows on the device and send the
-/// joint rows (built on the host) down beside them, solved in the same batched dispatches,
-/// with only impulses read back: the same step, bit for bit, as with the batching on the CPU,
-/// where every row goes through the host. Six ragdolls fall into a pile, the top one dragged
+/// Rows, batching and solver all on the GPU keep the contact and joint rows on the device
+/// (the joints' warm starts too), solved in the same batched dispatches, with only impulses
+/// read back: the same step, bit for bit, as with the batching on the CPU, where every row
+/// goes through the host. Six ragdolls fall into a pile, the top one dragged
 /// by its pelvis, so contacts, joints and the drag share batches and carry their impulses
 /// from step to step.
 #[test]

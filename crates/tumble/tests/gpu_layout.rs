@@ -447,9 +447,10 @@ fn solver_structs_match_rust() {
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::pipeline::config::Softness;
     use tumble::stages::constraints::{
-        ConstraintPoint, ContactConstraint, JointConstraint, JointFrame, Row,
+        ConstraintPoint, ContactConstraint, JointConstraint, JointFrame, JointSlot, Row,
     };
     use tumble::stages::solver::SolverBody;
+    use tumble::stages::solver::batched::BatchedJointImpulses;
     use tumble::stages::solver::gpu::{SolverParams, wgsl};
     // AngularRow, JointPose and JointMasses are the joint kernels' locals.
     check_with_gpu_only(
@@ -574,6 +575,14 @@ fn solver_structs_match_rust() {
                 inverse_inertia_b,
                 _pad
             }),
+            rust_layout!(JointSlot {
+                frame,
+                body_a,
+                body_b,
+                live,
+                _pad
+            }),
+            rust_layout!(BatchedJointImpulses { point, angular }),
         ],
         &["AngularRow", "JointPose", "JointMasses"],
     );
@@ -601,6 +610,38 @@ fn batched_impulses_match_rust() {
             "ContactConstraint",
             "JointFrame",
             "JointConstraint",
+            "JointSlot",
+        ],
+    );
+}
+
+/// The joint rows' parameter block. The source also holds the body and constraint structs,
+/// whose layouts the body and solver tests check.
+#[test]
+fn joint_row_parameters_match_rust() {
+    use tumble::stages::constraints::joint_gpu::{JointRowParams, wgsl};
+    check_with_gpu_only(
+        wgsl(),
+        vec![rust_layout!(JointRowParams {
+            softness,
+            slot_count,
+            max_point_impulse,
+            _pad0,
+            _pad1
+        })],
+        &[
+            "BodyPose",
+            "BodyVelocity",
+            "BodyMass",
+            "ColliderData",
+            "Softness",
+            "Row",
+            "ConstraintPoint",
+            "ContactConstraint",
+            "JointFrame",
+            "JointConstraint",
+            "JointSlot",
+            "BatchedJointImpulses",
         ],
     );
 }

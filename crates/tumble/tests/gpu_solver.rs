@@ -159,14 +159,7 @@ fn problem(
                 impulse: Vec3::new(0.05, 0.1, 0.0),
             };
             let softness = Softness::new(5.0, 0.7, h);
-            joint_constraints.push(drag_constraint(
-                &drag,
-                &poses,
-                &masses,
-                &inverse_inertia,
-                softness,
-                h,
-            ));
+            joint_constraints.push(drag_constraint(&drag, &poses, &masses, softness, h));
         }
     }
     let inputs = RowInputs {

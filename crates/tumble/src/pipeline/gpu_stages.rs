@@ -1,16 +1,19 @@
 use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
+use crate::dynamics::joint::Joint;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::math::Aabb;
+use crate::pipeline::config::Softness;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::batching::gpu::GpuBatching;
 use crate::stages::batching::{Batcher, Coloring, MAX_ROUNDS};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
+use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::{
@@ -57,6 +60,9 @@ const CONSTRAINTS: StageSpans = StageSpans {
     wait: &["constraints", "submit and wait"],
     download: &["constraints", "copy to cpu"],
 };
+/// The joint rows' kernel: its own pass in the constraints' submission, so the profile shows
+/// it beside the contact rows' kernels.
+const JOINT_ROWS_KERNEL: SpanPath = &["constraints", "joint kernel"];
 const BATCHING: StageSpans = StageSpans {
     upload: &["batching", "copy to gpu"],
     encode: &["batching", "encode"],
@@ -104,6 +110,19 @@ pub(crate) enum RowSlots<'a> {
     Narrowphase,
 }
 
+/// The joint rows of a GPU stage 5 ([`GpuStages::build_constraints`]).
+pub(crate) struct JointRowInputs<'a> {
+    /// The world's joint array: the device keeps a copy, uploaded when the joints change.
+    pub joints: &'a [Option<Joint>],
+    /// The slots whose rows are solved this step, in row order: those of
+    /// [`joint_slots`](crate::stages::constraints::joint_slots), then the drag's (the slot past
+    /// the joints').
+    pub slots: &'a [u32],
+    /// The drag's row, built on the host.
+    pub drag: Option<&'a JointConstraint>,
+    pub softness: Softness,
+}
+
 /// A GPU step's poses where they are, on the device, for a renderer on the same device to draw
 /// from without a readback. The integrator runs on the host, so no device buffer holds the
 /// poses after the step; two buffers that the step leaves there give them: body slot `i`
@@ -149,6 +168,7 @@ pub(crate) struct GpuStages {
     broadphase: GpuBroadphase,
     narrowphase: GpuNarrowphase,
     rows: GpuRows,
+    joint_rows: GpuJointRows,
     /// The rows' inputs on the device: every manifold slot's key and contact, the masses.
     row_keys: GpuVec<u64>,
     row_contacts: GpuVec<PairContact>,
@@ -190,7 +210,6 @@ pub(crate) struct GpuStages {
     downloaded_bodies: Vec<SolverBody>,
     downloaded_constraints: Vec<ContactConstraint>,
     downloaded_joints: Vec<JointConstraint>,
-    downloaded_joint_impulses: Vec<BatchedJointImpulses>,
 }
 
 impl GpuStages {
@@ -211,6 +230,7 @@ impl GpuStages {
             broadphase: GpuBroadphase::new(&context)?,
             narrowphase: GpuNarrowphase::new(&context),
             rows: GpuRows::new(&context)?,
+            joint_rows: GpuJointRows::new(&context)?,
             row_keys: GpuVec::with_capacity(&context, "row keys", 0)?,
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
             masses: GpuVec::with_capacity(&context, "masses", 0)?,
@@ -239,7 +259,6 @@ impl GpuStages {
             downloaded_bodies: Vec::new(),
             downloaded_constraints: Vec::new(),
             downloaded_joints: Vec::new(),
-            downloaded_joint_impulses: Vec::new(),
             context,
         })
     }
@@ -252,6 +271,17 @@ impl GpuStages {
     /// Bodies were added or removed: upload the colliders again before the next GPU stage.
     pub fn colliders_changed(&mut self) {
         self.bodies.colliders_stale = true;
+    }
+
+    /// Joints were added, removed, restored or broke: the joint rows upload them again.
+    pub fn joints_changed(&mut self) {
+        self.joint_rows.joints_changed();
+    }
+
+    /// The host's joint impulses changed otherwise than through [`Self::solve_batched`] (a
+    /// solve elsewhere): the joint rows upload them again.
+    pub fn joint_impulses_changed(&mut self) {
+        self.joint_rows.impulses_changed();
     }
 
     /// A new step: the host's poses and velocities are newer than the device's.
@@ -519,16 +549,19 @@ impl GpuStages {
 }
 
 impl GpuStages {
-    /// Stage 5 on the GPU for contacts:
+    /// Stage 5 on the GPU:
     /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract over the
-    /// manifold `slots`. With no `out` the constraints stay on the device for
-    /// [`Self::solve_batched`].
+    /// manifold `slots`, and
+    /// [`build_joint_constraints`](crate::stages::constraints::build_joint_constraints)'s for
+    /// `joints` (the drag's row beside them). With no `out` the rows stay on the device for
+    /// [`Self::solve_batched`]; else the contacts' and the listed joints' come back.
     pub fn build_constraints(
         &mut self,
         profiler: &mut Profiler,
         slots: RowSlots,
         inputs: &RowInputs,
-        out: Option<&mut Vec<ContactConstraint>>,
+        joints: &JointRowInputs,
+        out: Option<(&mut Vec<ContactConstraint>, &mut Vec<JointConstraint>)>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
@@ -553,6 +586,15 @@ impl GpuStages {
             colliders: inputs.colliders,
         };
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
+        // No joint row to solve (none, or all asleep): no joint kernel.
+        let build_joints = !joints.slots.is_empty();
+        if build_joints {
+            self.joint_rows.sync(context, joints.joints)?;
+            if let Some(drag) = joints.drag {
+                self.joint_rows
+                    .write_row(context, self.joint_rows.extra_slot(), drag);
+            }
+        }
         record_copy(profiler, CONSTRAINTS.upload, elapsed_ms(start));
         let (keys, contacts) = if from_narrowphase {
             (&self.keys, &self.contacts)
@@ -569,17 +611,35 @@ impl GpuStages {
             softness: inputs.softness,
             static_softness: inputs.static_softness,
         };
-        let rows = &mut self.rows;
-        run_pass(
+        let joint_inputs = GpuJointInputs {
+            poses: &self.bodies.poses,
+            masses: &self.masses,
+            softness: joints.softness,
+        };
+        let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
+        run_passes(
             context,
             &mut self.profiler,
             profiler,
             &CONSTRAINTS,
-            |pass| rows.encode(context, pass, &device_inputs),
+            |encoder, timer| {
+                encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
+                    rows.encode(context, pass, &device_inputs)
+                })?;
+                if build_joints {
+                    encode_pass(encoder, timer, JOINT_ROWS_KERNEL, |pass| {
+                        joint_rows.encode_build(context, pass, &joint_inputs);
+                        Ok(())
+                    })?;
+                }
+                Ok(())
+            },
         )?;
-        if let Some(out) = out {
+        if let Some((contacts, joint_constraints)) = out {
             let start = Instant::now();
-            self.rows.read_back(context, out)?;
+            self.rows.read_back(context, contacts)?;
+            self.joint_rows
+                .read_back(context, joints.slots, joint_constraints)?;
             record_copy(profiler, CONSTRAINTS.download, elapsed_ms(start));
         }
         Ok(())
@@ -703,13 +763,13 @@ impl GpuStages {
 }
 
 impl GpuStages {
-    /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts that
+    /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts and joints that
     /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
-    /// is the constraint at batched place i; `offsets` the batch offsets), solved as
-    /// [`Self::solve`] does together with the host's `joints` (in batch order, batch b at
-    /// `joint_offsets[b]..joint_offsets[b + 1]`), and only impulses come back: the contacts'
-    /// into `impulses`, in batch order, the joints' into `joints`. `contact_bodies` are the
-    /// bodies (A, B) of the gathered contacts, in batch order: the Jacobi solver's adjacency.
+    /// is the contact constraint at batched place i, `joint_order[i]` the slot of the joint
+    /// row there; `offsets` and `joint_offsets` the batch offsets), solved as [`Self::solve`]
+    /// does, and only impulses come back, in batch order: the contacts' into `impulses`, the
+    /// joints' into `joint_impulses`. `contact_bodies` and `joint_bodies` are the bodies (A, B)
+    /// of the gathered rows, in batch order: the Jacobi solver's adjacency.
     #[allow(clippy::too_many_arguments)]
     pub fn solve_batched(
         &mut self,
@@ -719,24 +779,64 @@ impl GpuStages {
         contact_bodies: impl Iterator<Item = (u32, u32)> + Clone,
         order: &[u32],
         offsets: &[u32],
-        joints: &mut [JointConstraint],
+        joint_bodies: impl Iterator<Item = (u32, u32)> + Clone,
+        joint_order: &[u32],
         joint_offsets: &[u32],
         has_overflow: bool,
         settings: SolverSettings,
         restitution: bool,
         impulses: &mut Vec<BatchedImpulses>,
+        joint_impulses: &mut Vec<BatchedJointImpulses>,
+    ) -> Result<(), GpuError> {
+        let solved = self.solve_batched_rows(
+            profiler,
+            kind,
+            bodies,
+            contact_bodies,
+            (order, offsets),
+            joint_bodies,
+            (joint_order, joint_offsets),
+            has_overflow,
+            settings,
+            restitution,
+            impulses,
+            joint_impulses,
+        );
+        if solved.is_err() {
+            // The solve may have written some joints' impulses to their slots, which the
+            // host's joints never got.
+            self.joint_rows.impulses_changed();
+        }
+        solved
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn solve_batched_rows(
+        &mut self,
+        profiler: &mut Profiler,
+        kind: SolverKind,
+        bodies: &mut [SolverBody],
+        contact_bodies: impl Iterator<Item = (u32, u32)> + Clone,
+        (order, offsets): (&[u32], &[u32]),
+        joint_bodies: impl Iterator<Item = (u32, u32)> + Clone,
+        (joint_order, joint_offsets): (&[u32], &[u32]),
+        has_overflow: bool,
+        settings: SolverSettings,
+        restitution: bool,
+        impulses: &mut Vec<BatchedImpulses>,
+        joint_impulses: &mut Vec<BatchedJointImpulses>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
         self.solver_bodies.upload(context, bodies)?;
         self.batch_offsets.upload(context, offsets)?;
         self.joint_batch_offsets.upload(context, joint_offsets)?;
-        self.batched.upload(context, order, joints)?;
+        self.batched.upload(context, order, joint_order.len())?;
+        self.joint_rows.upload_order(context, joint_order)?;
         let jacobi = match kind {
             SolverKind::Pgs => None,
             SolverKind::Jacobi => {
                 let jacobi = jacobi_solver(&mut self.jacobi, context)?;
-                let joint_bodies = joints.iter().map(|j| (j.body_a, j.body_b));
                 jacobi.prepare(bodies, contact_bodies, joint_bodies)?;
                 Some(jacobi)
             }
@@ -744,6 +844,7 @@ impl GpuStages {
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
         let (batched, rows) = (&mut self.batched, &self.rows);
+        let joint_rows = &mut self.joint_rows;
         let (device_offsets, device_joint_offsets) =
             (&self.batch_offsets, &self.joint_batch_offsets);
         let spans = if jacobi.is_some() {
@@ -752,11 +853,21 @@ impl GpuStages {
             &SOLVER
         };
         run_pass(context, &mut self.profiler, profiler, spans, |pass| {
-            batched.encode_gather(context, pass, &rows.constraints);
+            if !joint_order.is_empty() {
+                joint_rows.encode_gather(context, pass);
+            }
+            let joint_rows = &*joint_rows;
+            batched.encode_gather(
+                context,
+                pass,
+                &rows.constraints,
+                &joint_rows.batched,
+                &joint_rows.impulses,
+            );
             let device_batched = DeviceBatched {
                 contacts: &batched.constraints,
                 contact_offsets: device_offsets,
-                joints: &batched.joints,
+                joints: &joint_rows.batched,
                 joint_offsets: device_joint_offsets,
                 host_contact_offsets: offsets,
                 host_joint_offsets: joint_offsets,
@@ -776,14 +887,9 @@ impl GpuStages {
             .download_into(context, &mut self.downloaded_bodies)?;
         bodies.copy_from_slice(&self.downloaded_bodies);
         self.batched.impulses.download_into(context, impulses)?;
-        if !joints.is_empty() {
-            self.batched
-                .joint_impulses
-                .download_into(context, &mut self.downloaded_joint_impulses)?;
-            for (joint, solved) in joints.iter_mut().zip(&self.downloaded_joint_impulses) {
-                solved.store(joint);
-            }
-        }
+        self.batched
+            .joint_impulses
+            .download_into(context, joint_impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.solved_this_step = true;
         Ok(())
@@ -810,19 +916,41 @@ fn run_pass(
     spans: &StageSpans,
     encode: impl FnOnce(&mut wgpu::ComputePass<'_>) -> Result<(), GpuError>,
 ) -> Result<(), GpuError> {
+    run_passes(context, gpu_profiler, profiler, spans, |encoder, timer| {
+        encode_pass(encoder, timer, spans.kernel, encode)
+    })
+}
+
+/// Encodes one measured pass (its GPU time recorded at `kernel`) into `encoder`.
+fn encode_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    gpu_profiler: &mut GpuProfiler,
+    kernel: SpanPath,
+    encode: impl FnOnce(&mut wgpu::ComputePass<'_>) -> Result<(), GpuError>,
+) -> Result<(), GpuError> {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(kernel[0]),
+        timestamp_writes: gpu_profiler.pass_timestamps(kernel),
+    });
+    encode(&mut pass)
+}
+
+/// [`run_pass`] for a stage whose kernels are timed on several lines: `encode` encodes its
+/// passes ([`encode_pass`]) into one submission.
+fn run_passes(
+    context: &GpuContext,
+    gpu_profiler: &mut GpuProfiler,
+    profiler: &mut Profiler,
+    spans: &StageSpans,
+    encode: impl FnOnce(&mut wgpu::CommandEncoder, &mut GpuProfiler) -> Result<(), GpuError>,
+) -> Result<(), GpuError> {
     let start = Instant::now();
     let mut encoder = context
         .device
         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some(spans.kernel[0]),
         });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some(spans.kernel[0]),
-            timestamp_writes: gpu_profiler.pass_timestamps(spans.kernel),
-        });
-        encode(&mut pass)?;
-    }
+    encode(&mut encoder, gpu_profiler)?;
     gpu_profiler.resolve(&mut encoder);
     let commands = encoder.finish();
     profiler.record(spans.encode, SpanKind::Cpu, elapsed_ms(start));
@@ -932,19 +1060,32 @@ mod tests {
             static_softness: Softness::new(60.0, 10.0, 1.0 / 480.0),
         };
         let (mut from_device, mut from_host) = (Vec::new(), Vec::new());
+        let no_joints = JointRowInputs {
+            joints: &[],
+            slots: &[],
+            drag: None,
+            softness: row_inputs.softness,
+        };
         gpu.build_constraints(
             &mut profiler,
             RowSlots::Narrowphase,
             &row_inputs,
-            Some(&mut from_device),
+            &no_joints,
+            Some((&mut from_device, &mut Vec::new())),
         )
         .unwrap();
         let slots = RowSlots::Host {
             keys: &keys,
             contacts: &contacts,
         };
-        gpu.build_constraints(&mut profiler, slots, &row_inputs, Some(&mut from_host))
-            .unwrap();
+        gpu.build_constraints(
+            &mut profiler,
+            slots,
+            &row_inputs,
+            &no_joints,
+            Some((&mut from_host, &mut Vec::new())),
+        )
+        .unwrap();
         assert!(!from_host.is_empty());
         let bytes = |rows: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(rows).to_vec();
         assert_eq!(bytes(&from_device), bytes(&from_host));

@@ -1,19 +1,20 @@
 //! The step, stage by stage, in the order of DESIGN.md. Read top to bottom.
 
+use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::context::GpuError;
-use crate::math::{Aabb, Mat3};
+use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::{BodyInputs, RowSlots};
+use crate::pipeline::gpu_stages::{BodyInputs, JointRowInputs, RowSlots};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::{
-    ContactConstraint, DRAG_JOINT, JointConstraint, RowInputs, build_constraints,
-    build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint,
+    ContactConstraint, DRAG_JOINT, Drag, JointConstraint, RowInputs, build_constraints,
+    build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint, joint_slots,
     world_inverse_inertia,
 };
-use crate::stages::solver::batched::BatchedImpulses;
+use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses};
 use crate::stages::solver::jacobi::{self, JacobiScratch};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
@@ -34,6 +35,15 @@ pub(crate) struct StepScratch {
     inverse_inertia: Vec<Mat3>,
     contacts: Vec<ContactConstraint>,
     joints: Vec<JointConstraint>,
+    /// With the rows on the GPU, the joint rows the device builds: each one's joint slot (the
+    /// drag's is the slot past the joints') and bodies, in row order ([`joint_slots`]).
+    joint_row_slots: Vec<u32>,
+    joint_row_bodies: Vec<(u32, u32)>,
+    /// With rows, batching and solver all on the GPU the joint rows stay there too: their
+    /// slots and bodies in batch order, the impulses read back.
+    batched_joint_slots: Vec<u32>,
+    batched_joint_bodies: Vec<(u32, u32)>,
+    batched_joint_impulses: Vec<BatchedJointImpulses>,
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     row_summaries: Vec<RowSummary>,
@@ -72,7 +82,7 @@ impl World {
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
 
-        // 5. Constraint rows: joints (always built here), then contacts. Stiffness is capped by the sub-step rate
+        // 5. Constraint rows: joints, then contacts. Stiffness is capped by the sub-step rate
         //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
         profiler.begin("constraints");
         let h = dt / config.substeps as f32;
@@ -84,7 +94,17 @@ impl World {
             config.joint_damping_ratio,
             h,
         );
-        world_inverse_inertia(&self.poses, &self.masses, &mut scratch.inverse_inertia);
+        // Rows, batching and solver all on the GPU: the rows stay on the device from build to
+        // solve.
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        let rows_on_gpu = self.gpu.is_some() && on_gpu(Stage::Constraints);
+        let chained = rows_on_gpu && on_gpu(Stage::Batching) && on_gpu(Stage::Solver);
+        // The GPU rows compute the inertias they need themselves.
+        if rows_on_gpu {
+            scratch.inverse_inertia.clear();
+        } else {
+            world_inverse_inertia(&self.poses, &self.masses, &mut scratch.inverse_inertia);
+        }
         let inputs = RowInputs {
             poses: &self.poses,
             velocities: &self.velocities,
@@ -94,39 +114,30 @@ impl World {
             softness,
             static_softness,
         };
-        build_joint_constraints(
-            &self.joints,
-            &self.poses,
-            &self.masses,
-            &scratch.inverse_inertia,
-            joint_softness,
-            &mut scratch.joints,
-        );
-        // The drag (picking) joins the joints, so the batching and solver treat it as one.
-        if let Some(drag) = &self.drag
-            && self.masses[drag.body as usize].inverse_mass > 0.0
-        {
-            let softness = Softness::new(DRAG_HERTZ, DRAG_DAMPING_RATIO, h);
-            scratch.joints.push(drag_constraint(
-                drag,
-                &self.poses,
-                &self.masses,
-                &scratch.inverse_inertia,
-                softness,
-                h,
-            ));
-        }
-        // Rows, batching and solver all on the GPU: the contact rows stay on the device from
-        // build to solve (the joint rows, built here, go down beside them).
-        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
-        let chained = self.gpu.is_some()
-            && on_gpu(Stage::Constraints)
-            && on_gpu(Stage::Batching)
-            && on_gpu(Stage::Solver);
+        // The drag (picking) joins the joints, so the batching and solver treat it as one. It
+        // is built here on every path: one row.
+        let drag = self
+            .drag
+            .filter(|drag| self.masses[drag.body as usize].inverse_mass > 0.0)
+            .map(|drag| {
+                let softness = Softness::new(DRAG_HERTZ, DRAG_DAMPING_RATIO, h);
+                drag_constraint(&drag, &self.poses, &self.masses, softness, h)
+            });
+        scratch.joints.clear();
+        scratch.joint_row_slots.clear();
+        scratch.joint_row_bodies.clear();
         scratch.contacts.clear();
         scratch.row_summaries.clear();
         match (self.devices.get(Stage::Constraints), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) => {
+                for (slot, bodies) in joint_slots(&self.joints, &self.masses) {
+                    scratch.joint_row_slots.push(slot);
+                    scratch.joint_row_bodies.push(bodies);
+                }
+                if let Some(drag) = &drag {
+                    scratch.joint_row_slots.push(self.joints.len() as u32);
+                    scratch.joint_row_bodies.push((drag.body_a, drag.body_b));
+                }
                 let slots = if self.children.is_empty() && gpu.pair_contacts_on_device() {
                     // The GPU narrowphase's output is the pair cache: no copy, no upload.
                     RowSlots::Narrowphase
@@ -147,11 +158,18 @@ impl World {
                         contacts: &scratch.slot_contacts,
                     }
                 };
+                let joint_inputs = JointRowInputs {
+                    joints: &self.joints,
+                    slots: &scratch.joint_row_slots,
+                    drag: drag.as_ref(),
+                    softness: joint_softness,
+                };
                 let built = gpu.build_constraints(
                     profiler,
                     slots,
                     &inputs,
-                    (!chained).then_some(&mut scratch.contacts),
+                    &joint_inputs,
+                    (!chained).then_some((&mut scratch.contacts, &mut scratch.joints)),
                 );
                 if built.is_err() {
                     profiler.end();
@@ -172,13 +190,24 @@ impl World {
                         }));
                 }
             }
-            _ => build_constraints(
-                self.pairs.keys(),
-                self.pairs.values(),
-                &self.children,
-                &inputs,
-                &mut scratch.contacts,
-            ),
+            _ => {
+                build_joint_constraints(
+                    &self.joints,
+                    &self.poses,
+                    &self.masses,
+                    &scratch.inverse_inertia,
+                    joint_softness,
+                    &mut scratch.joints,
+                );
+                scratch.joints.extend(drag);
+                build_constraints(
+                    self.pairs.keys(),
+                    self.pairs.values(),
+                    &self.children,
+                    &inputs,
+                    &mut scratch.contacts,
+                );
+            }
         }
         profiler.end();
 
@@ -191,8 +220,17 @@ impl World {
         } else {
             &mut contact_bodies
         };
-        let bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
-        let bodies = bodies.chain(contact_bodies);
+        // Joints first, in row order; the rows that stayed on the device are known by their
+        // bodies.
+        let mut row_joint_bodies = scratch.joint_row_bodies.iter().copied();
+        let mut joint_bodies = scratch.joints.iter().map(|j| (j.body_a, j.body_b));
+        let (joint_count, joint_bodies): (usize, &mut dyn Iterator<Item = (u32, u32)>) = if chained
+        {
+            (scratch.joint_row_bodies.len(), &mut row_joint_bodies)
+        } else {
+            (scratch.joints.len(), &mut joint_bodies)
+        };
+        let bodies = joint_bodies.chain(contact_bodies);
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
             // The Jacobi solver sweeps every constraint at once: no coloring, one batch in
             // row order (the layout below then copies the rows as they are).
@@ -207,7 +245,7 @@ impl World {
                 profiler,
                 bodies,
                 self.poses.len(),
-                scratch.joints.len(),
+                joint_count,
                 config.batcher,
                 &mut scratch.coloring,
             ),
@@ -215,7 +253,7 @@ impl World {
                 color_constraints(
                     bodies,
                     self.poses.len(),
-                    scratch.joints.len(),
+                    joint_count,
                     config.batcher,
                     &mut scratch.coloring,
                 );
@@ -226,15 +264,34 @@ impl World {
             profiler.end();
         }
         colored?;
-        let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(scratch.joints.len());
+        let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(joint_count);
         let coloring = &scratch.coloring;
-        group_by_batch(
-            &scratch.joints,
-            joint_colors,
-            coloring,
-            &mut scratch.batched_joints,
-            &mut scratch.joint_offsets,
-        );
+        if chained {
+            // The device gathers the joint rows into this order, by slot.
+            group_by_batch(
+                &scratch.joint_row_slots,
+                joint_colors,
+                coloring,
+                &mut scratch.batched_joint_slots,
+                &mut scratch.joint_offsets,
+            );
+            group_by_batch(
+                &scratch.joint_row_bodies,
+                joint_colors,
+                coloring,
+                &mut scratch.batched_joint_bodies,
+                &mut scratch.joint_offsets,
+            );
+            scratch.batched_joints.clear();
+        } else {
+            group_by_batch(
+                &scratch.joints,
+                joint_colors,
+                coloring,
+                &mut scratch.batched_joints,
+                &mut scratch.joint_offsets,
+            );
+        }
         // Which batch each pair's manifold went to, for the viewer's colored batches.
         self.pair_batches.clear();
         self.pair_batches
@@ -297,12 +354,14 @@ impl World {
                     contact_bodies,
                     &scratch.batch_order,
                     &scratch.contact_offsets,
-                    batched.joints,
+                    scratch.batched_joint_bodies.iter().copied(),
+                    &scratch.batched_joint_slots,
                     batched.joint_offsets,
                     scratch.coloring.has_overflow,
                     settings,
                     restitution,
                     &mut scratch.batched_impulses,
+                    &mut scratch.batched_joint_impulses,
                 )
             }
             (Executor::Gpu, Some(gpu)) => gpu.solve(
@@ -334,7 +393,7 @@ impl World {
             profiler.end();
         }
         solved?;
-        if chained {
+        let joint_broke = if chained {
             store_batched_impulses(
                 &scratch.batched_impulses,
                 &scratch.batch_order,
@@ -342,22 +401,35 @@ impl World {
                 self.pairs.values_mut(),
                 self.children.values_mut(),
             );
+            // The rows' slots name the joints; the drag's is the one past them.
+            let drag_slot = self.joints.len() as u32;
+            let solved = scratch.batched_joint_impulses.iter();
+            let solved = solved
+                .zip(&scratch.batched_joint_slots)
+                .map(|(impulse, &slot)| {
+                    let joint = if slot == drag_slot { DRAG_JOINT } else { slot };
+                    (joint, impulse.point, impulse.angular)
+                });
+            store_joint_impulses(solved, &mut self.joints, self.drag.as_mut())
         } else {
             store_contact_impulses(
                 &scratch.batched_contacts,
                 self.pairs.values_mut(),
                 self.children.values_mut(),
             );
-        }
-        let joint_broke = store_joint_impulses(&scratch.batched_joints, &mut self.joints);
-        if let Some(drag) = self.drag.as_mut()
-            && let Some(solved) = scratch
+            let solved = scratch
                 .batched_joints
                 .iter()
-                .find(|j| j.joint == DRAG_JOINT)
-        {
-            drag.impulse = solved.point_impulse;
-        }
+                .map(|j| (j.joint, j.point_impulse, j.angular_impulse));
+            let broke = store_joint_impulses(solved, &mut self.joints, self.drag.as_mut());
+            // Solved here, not by the device's joint rows: their warm start is stale.
+            if let Some(gpu) = &mut self.gpu
+                && !scratch.batched_joints.is_empty()
+            {
+                gpu.joint_impulses_changed();
+            }
+            broke
+        };
         profiler.end();
 
         // 8. Integrate: the step's motion into the poses.
@@ -378,7 +450,7 @@ impl World {
         };
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
-            self.update_jointed_pairs();
+            self.joints_changed();
         }
         if config.sleeping {
             self.profiler.begin("sleep");
@@ -752,30 +824,30 @@ fn store_batched_impulses(
     }
 }
 
-/// Solved impulses back into the joints; a joint whose impulse passed its threshold breaks.
-/// Returns whether one broke.
+/// Solved impulses, as (joint index, point impulse, angular impulses), back into the joints
+/// and the drag ([`DRAG_JOINT`]); a joint whose impulse passed its threshold breaks. Returns
+/// whether one broke.
 fn store_joint_impulses(
-    constraints: &[JointConstraint],
+    solved: impl Iterator<Item = (u32, Vec3, [f32; MAX_ANGULAR_ROWS])>,
     joints: &mut [Option<crate::dynamics::joint::Joint>],
+    mut drag: Option<&mut Drag>,
 ) -> bool {
     let mut any_broke = false;
-    for constraint in constraints {
-        // The drag (`DRAG_JOINT`) is no joint of the world: it has no slot here.
-        let Some(joint) = joints
-            .get_mut(constraint.joint as usize)
-            .and_then(Option::as_mut)
-        else {
+    for (index, point_impulse, angular_impulse) in solved {
+        if index == DRAG_JOINT {
+            if let Some(drag) = drag.as_deref_mut() {
+                drag.impulse = point_impulse;
+            }
+            continue;
+        }
+        let Some(joint) = joints.get_mut(index as usize).and_then(Option::as_mut) else {
             continue;
         };
-        joint.point_impulse = constraint.point_impulse;
-        joint.angular_impulse = constraint.angular_impulse;
+        joint.point_impulse = point_impulse;
+        joint.angular_impulse = angular_impulse;
         if let Some(threshold) = joint.break_impulse {
-            let total = constraint.point_impulse.length()
-                + constraint
-                    .angular_impulse
-                    .iter()
-                    .map(|i| i.abs())
-                    .sum::<f32>();
+            let total =
+                point_impulse.length() + angular_impulse.iter().map(|i| i.abs()).sum::<f32>();
             joint.broken = total > threshold;
             any_broke |= joint.broken;
         }
@@ -818,7 +890,8 @@ fn collect_stats(
             .chain(scratch.row_summaries.iter().map(|r| r.point_count as usize))
             .sum(),
         max_penetration,
-        joints: scratch.joints.len(),
+        // The rows that stayed on the device are known by their slots.
+        joints: scratch.joints.len().max(scratch.joint_row_slots.len()),
         sleeping: 0,
         batch_histogram: Vec::new(),
     }

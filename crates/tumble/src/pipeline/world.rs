@@ -472,7 +472,7 @@ impl World {
                 (self.joints.len() - 1) as u32
             }
         };
-        self.update_jointed_pairs();
+        self.joints_changed();
         Ok(JointHandle {
             index,
             generation: self.joint_generations[index as usize],
@@ -499,7 +499,7 @@ impl World {
         if let Some(joint) = self.joints[index].as_mut() {
             joint.restore(state);
         }
-        self.update_jointed_pairs();
+        self.joints_changed();
         Ok(())
     }
 
@@ -547,10 +547,19 @@ impl World {
         self.joint_generations[index as usize] =
             self.joint_generations[index as usize].wrapping_add(1);
         self.free_joints.push(index);
-        self.update_jointed_pairs();
+        self.joints_changed();
     }
 
-    pub(crate) fn update_jointed_pairs(&mut self) {
+    /// Joints were added, removed, restored or broke: the pairs they keep from colliding
+    /// change, and GPU joint rows upload them again.
+    pub(crate) fn joints_changed(&mut self) {
+        self.update_jointed_pairs();
+        if let Some(gpu) = &mut self.gpu {
+            gpu.joints_changed();
+        }
+    }
+
+    fn update_jointed_pairs(&mut self) {
         self.jointed_pairs.clear();
         self.jointed_pairs.extend(
             self.joints

@@ -138,10 +138,13 @@ pub fn world_inverse_inertia(poses: &[BodyPose], masses: &[BodyMass], out: &mut 
     out.par_iter_mut()
         .zip(poses.par_iter().zip(masses.par_iter()))
         .with_min_len(1024)
-        .for_each(|(inertia, (pose, mass))| {
-            let r = Mat3::from_quat(pose.rotation);
-            *inertia = r * Mat3::from_diagonal(mass.inverse_inertia) * r.transpose();
-        });
+        .for_each(|(inertia, (pose, mass))| *inertia = body_inverse_inertia(pose, mass));
+}
+
+/// One body's world-frame inverse inertia, R diag(I⁻¹) Rᵀ (zero for a static body).
+pub fn body_inverse_inertia(pose: &BodyPose, mass: &BodyMass) -> Mat3 {
+    let r = Mat3::from_quat(pose.rotation);
+    r * Mat3::from_diagonal(mass.inverse_inertia) * r.transpose()
 }
 
 /// CPU executor: rows of every manifold with points, pairs in pair order and then children in

@@ -1,9 +1,8 @@
 //! GPU executor of the contact rows: [`build_constraints`](super::build_constraints)'s contract
-//! for contacts (joint rows are built on the host, a few numbers per joint, and reach the GPU
-//! solver with the contacts), with the kernels of `rows.wgsl`: flag the slots that get
-//! a constraint, scan the flags into places (the CPU's order), build each constraint at its
-//! place. Three dispatch groups; the constraint count stays on the device (the scan's last
-//! entry) until a caller reads it.
+//! for contacts (the joint rows have theirs, [`joint_gpu`](super::joint_gpu)), with the kernels
+//! of `rows.wgsl`: flag the slots that get a constraint, scan the flags into places (the CPU's
+//! order), build each constraint at its place. Three dispatch groups; the constraint count
+//! stays on the device (the scan's last entry) until a caller reads it.
 
 use bytemuck::{Pod, Zeroable};
 

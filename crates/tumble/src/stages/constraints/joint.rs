@@ -27,7 +27,7 @@ use crate::dynamics::body::{BodyMass, BodyPose};
 use crate::dynamics::joint::{Joint, JointKind, MAX_ANGULAR_ROWS};
 use crate::math::{Mat3, Quat, Vec3, tangent_basis};
 use crate::pipeline::config::Softness;
-use crate::stages::constraints::STATIC_BODY;
+use crate::stages::constraints::{STATIC_BODY, body_inverse_inertia};
 
 /// What an angular row enforces.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -177,7 +177,42 @@ pub struct JointConstraint {
 }
 const _: () = assert!(size_of::<JointConstraint>() == 320);
 
-/// WGSL twins of [`JointFrame`] and [`JointConstraint`].
+/// One slot of the world's joint array as the GPU rows read it: the joint in its bodies'
+/// frames and its two bodies, or a slot whose joint is gone or broken (`live` 0). The device
+/// keeps one per slot, uploaded only when the joints change; the rows are built from them and
+/// the step's poses and masses. 144 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct JointSlot {
+    pub frame: JointFrame,
+    /// The joint's bodies as the world numbers them (a side without mass becomes
+    /// [`STATIC_BODY`] in the row, not here).
+    pub body_a: u32,
+    pub body_b: u32,
+    /// 1 for a live, unbroken joint; 0 for a free or broken slot, which gets no row.
+    pub live: u32,
+    pub _pad: u32,
+}
+const _: () = assert!(size_of::<JointSlot>() == 144);
+
+impl From<&Option<Joint>> for JointSlot {
+    fn from(joint: &Option<Joint>) -> Self {
+        match joint {
+            Some(joint) if !joint.broken => Self {
+                frame: JointFrame::from(joint),
+                body_a: joint.body_a,
+                body_b: joint.body_b,
+                live: 1,
+                _pad: 0,
+            },
+            _ => Self::default(),
+        }
+    }
+}
+
+/// WGSL twins of [`JointFrame`], [`JointConstraint`] and [`JointSlot`], and of the solver's
+/// [`BatchedJointImpulses`](crate::stages::solver::batched::BatchedJointImpulses), which the
+/// rows read their warm start from.
 pub const JOINT_CONSTRAINT_WGSL: &str = include_str!("joint_constraint.wgsl");
 
 /// The `joint` index of the drag constraint (it is no joint of the world).
@@ -200,12 +235,12 @@ pub struct Drag {
 
 /// The drag as a point joint whose body A is the static world with the target as its anchor;
 /// `softness` (softer than the joints') lets the point trail a moving target instead of
-/// jumping onto it.
+/// jumping onto it. Built on the host on every path (one row; on the GPU it is written beside
+/// the joint rows the device builds).
 pub fn drag_constraint(
     drag: &Drag,
     poses: &[BodyPose],
     masses: &[BodyMass],
-    inverse_inertia: &[Mat3],
     softness: Softness,
     h: f32,
 ) -> JointConstraint {
@@ -228,7 +263,7 @@ pub fn drag_constraint(
         inverse_mass_a: 0.0,
         inverse_mass_b: masses[body].inverse_mass,
         inverse_inertia_a: Mat3::ZERO,
-        inverse_inertia_b: inverse_inertia[body],
+        inverse_inertia_b: body_inverse_inertia(&poses[body], &masses[body]),
         frame,
         rotation_a: Quat::IDENTITY,
         rotation_b: poses[body].rotation,
@@ -242,7 +277,28 @@ pub fn drag_constraint(
     }
 }
 
-/// Builds the constraint of every live, unbroken joint (`None` is a free joint slot).
+/// The joints that get a constraint this step, in the order of the rows: every live, unbroken
+/// joint (`None` is a free joint slot) with a body that moves. Each comes as its slot in
+/// `joints` and its bodies as the constraint names them ([`STATIC_BODY`] for a side without
+/// mass). Both executors' rows follow this list, and the batching reads the bodies from it.
+pub fn joint_slots<'a>(
+    joints: &'a [Option<Joint>],
+    masses: &'a [BodyMass],
+) -> impl Iterator<Item = (u32, (u32, u32))> + 'a {
+    joints.iter().enumerate().filter_map(|(index, joint)| {
+        let joint = joint.as_ref().filter(|joint| !joint.broken)?;
+        let moves = |body: u32| masses[body as usize].inverse_mass > 0.0;
+        // Both bodies asleep (or one asleep on the static world): nothing to solve; the joint
+        // keeps its impulses for when they wake.
+        if !moves(joint.body_a) && !moves(joint.body_b) {
+            return None;
+        }
+        let side = |body: u32| if moves(body) { body } else { STATIC_BODY };
+        Some((index as u32, (side(joint.body_a), side(joint.body_b))))
+    })
+}
+
+/// Builds the constraint of every joint of [`joint_slots`], in its order.
 pub fn build_joint_constraints(
     joints: &[Option<Joint>],
     poses: &[BodyPose],
@@ -252,34 +308,21 @@ pub fn build_joint_constraints(
     out: &mut Vec<JointConstraint>,
 ) {
     out.clear();
-    for (index, joint) in joints.iter().enumerate() {
-        let Some(joint) = joint.filter(|joint| !joint.broken) else {
-            continue;
+    for (index, (body_a, body_b)) in joint_slots(joints, masses) {
+        let Some(joint) = &joints[index as usize] else {
+            unreachable!("joint_slots lists live joints")
         };
         let (ia, ib) = (joint.body_a as usize, joint.body_b as usize);
         let (mass_a, mass_b) = (masses[ia].inverse_mass, masses[ib].inverse_mass);
-        if mass_a == 0.0 && mass_b == 0.0 {
-            // Both bodies asleep (or one asleep on the static world): nothing to solve; the
-            // joint keeps its impulses for when they wake.
-            continue;
-        }
         out.push(JointConstraint {
-            body_a: if mass_a > 0.0 {
-                joint.body_a
-            } else {
-                STATIC_BODY
-            },
-            body_b: if mass_b > 0.0 {
-                joint.body_b
-            } else {
-                STATIC_BODY
-            },
-            joint: index as u32,
+            body_a,
+            body_b,
+            joint: index,
             inverse_mass_a: mass_a,
             inverse_mass_b: mass_b,
             inverse_inertia_a: inverse_inertia[ia],
             inverse_inertia_b: inverse_inertia[ib],
-            frame: JointFrame::from(&joint),
+            frame: JointFrame::from(joint),
             rotation_a: poses[ia].rotation,
             rotation_b: poses[ib].rotation,
             center_offset: poses[ib].position - poses[ia].position,

@@ -1,5 +1,6 @@
-// Joint rows as both executors solve them: the twins of JointFrame and JointConstraint
-// (stages/constraints/joint.rs), whose docs give each field's meaning and unit.
+// Joint rows as both executors solve them: the twins of JointFrame, JointConstraint and
+// JointSlot (stages/constraints/joint.rs), whose docs give each field's meaning and unit, and
+// of BatchedJointImpulses (stages/solver/batched.rs).
 // tests/gpu_layout.rs checks that the layouts agree. Needs contact_constraint.wgsl (Softness).
 
 // JointFrame::kind (JOINT_* in Rust).
@@ -7,6 +8,8 @@ const JOINT_POINT: u32 = 0u;
 const JOINT_HINGE: u32 = 1u;
 const JOINT_CONE_TWIST: u32 = 2u;
 const JOINT_FIXED: u32 = 3u;
+// JointConstraint::joint of the drag, which is no joint of the world (DRAG_JOINT in Rust).
+const DRAG_JOINT: u32 = 0xffffffffu;
 // JointFrame::flags (HAS_* in Rust).
 const HAS_LIMITS: u32 = 1u;
 const HAS_MOTOR: u32 = 2u;
@@ -47,4 +50,21 @@ struct JointConstraint {
     inverse_inertia_a: array<f32, 9>,
     inverse_inertia_b: array<f32, 9>,
     _pad: array<f32, 2>,
+}
+
+// A slot of the world's joint array (JointSlot in Rust): live 0 is a free or broken slot.
+struct JointSlot {
+    frame: JointFrame,
+    body_a: u32,
+    body_b: u32,
+    live: u32,
+    _pad: u32,
+}
+
+// A joint's accumulated impulses (JointConstraint::point_impulse and angular_impulse): what
+// the solver reads back after a solve, and what the GPU rows keep per slot for the next
+// step's warm start.
+struct BatchedJointImpulses {
+    point: vec3<f32>,
+    angular: array<f32, 5>,
 }

@@ -7,11 +7,11 @@
 //! [`group_by_batch`](crate::stages::batching::group_by_batch) the CPU step uses), so both
 //! paths solve the same array bit for bit.
 //!
-//! Joint rows are built on the host, which lays them out in batch order itself (the same
-//! `group_by_batch` call as on every path) and uploads them: a gather on the device would
-//! move the same bytes. After the solve only their impulses come back
-//! ([`BatchedJointImpulses`], 32 bytes a joint instead of 320), for the next step's warm
-//! start, the host's break test and the drag.
+//! Joint rows are built on the device too and gathered into batch order there
+//! ([`GpuJointRows`](crate::stages::constraints::joint_gpu::GpuJointRows)); the solver sweeps
+//! that array. After the solve only their impulses come back ([`BatchedJointImpulses`], 32
+//! bytes a joint instead of 320), for the host's joints (break test, queries) and the drag, and
+//! they are also written to each joint's slot on the device, the next step's warm start.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -27,14 +27,16 @@ use crate::stages::constraints::{
 };
 
 const WGSL: &str = include_str!("batched.wgsl");
-/// Counts, order, rows, batched constraints, their impulses, batched joints, their impulses.
-const BINDINGS: [Binding; 7] = [
+/// Counts, order, rows, batched constraints, their impulses, batched joints, their impulses,
+/// the joints' impulses by slot.
+const BINDINGS: [Binding; 8] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageRead,
+    Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
 
@@ -48,7 +50,7 @@ pub struct BatchedImpulses {
     pub tangent2: [f32; 4],
 }
 
-/// Mirrors `BatchedJointImpulses` in `batched.wgsl`: one batched joint's accumulated impulses.
+/// Mirrors `BatchedJointImpulses` in `joint_constraint.wgsl`: one joint's accumulated impulses.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct BatchedJointImpulses {
@@ -59,14 +61,6 @@ pub struct BatchedJointImpulses {
 }
 const _: () = assert!(size_of::<BatchedJointImpulses>() == 32);
 
-impl BatchedJointImpulses {
-    /// Writes the impulses into the joint they were read from.
-    pub fn store(&self, joint: &mut JointConstraint) {
-        joint.point_impulse = self.point;
-        joint.angular_impulse = self.angular;
-    }
-}
-
 pub fn wgsl() -> Source {
     Source::new()
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
@@ -75,7 +69,7 @@ pub fn wgsl() -> Source {
 }
 
 /// The buffers the cached dispatches bind, and the capacities they cover (constraints, joints).
-type Key = ([wgpu::Buffer; 7], usize, usize);
+type Key = ([wgpu::Buffer; 8], usize, usize);
 
 pub struct GpuBatched {
     /// Two words: the constraint count and the joint count.
@@ -84,8 +78,7 @@ pub struct GpuBatched {
     /// The constraints in batch order: what the solver sweeps.
     pub constraints: GpuVec<ContactConstraint>,
     pub impulses: GpuVec<BatchedImpulses>,
-    /// The joints in batch order (uploaded by the host), as the solver sweeps them.
-    pub joints: GpuVec<JointConstraint>,
+    /// The impulses of the joints in batch order, as the solver left them.
     pub joint_impulses: GpuVec<BatchedJointImpulses>,
     gather: Kernel,
     read_impulses: Kernel,
@@ -102,7 +95,6 @@ impl GpuBatched {
             order: GpuVec::with_capacity(context, "batch order", 0)?,
             constraints: GpuVec::with_capacity(context, "batched constraints", 0)?,
             impulses: GpuVec::with_capacity(context, "batched impulses", 0)?,
-            joints: GpuVec::with_capacity(context, "batched joints", 0)?,
             joint_impulses: GpuVec::with_capacity(context, "batched joint impulses", 0)?,
             gather: kernel("gather"),
             read_impulses: kernel("read_impulses"),
@@ -111,31 +103,34 @@ impl GpuBatched {
         })
     }
 
-    /// Sends the batch order (`order[i]` = the constraint at batched place i) and the joints
-    /// in batch order, and sizes the outputs for them.
+    /// Sends the batch order (`order[i]` = the constraint at batched place i) and the number
+    /// of joints in batch order, and sizes the outputs for them.
     pub fn upload(
         &mut self,
         context: &GpuContext,
         order: &[u32],
-        joints: &[JointConstraint],
+        joint_count: usize,
     ) -> Result<(), GpuError> {
         let count = u32::try_from(order.len()).expect("constraint count fits in u32");
-        let joint_count = u32::try_from(joints.len()).expect("joint count fits in u32");
-        self.count.upload(context, &[count, joint_count])?;
+        let joints = u32::try_from(joint_count).expect("joint count fits in u32");
+        self.count.upload(context, &[count, joints])?;
         self.order.upload(context, order)?;
         self.constraints.resize(context, order.len())?;
         self.impulses.resize(context, order.len())?;
-        self.joints.upload(context, joints)?;
-        self.joint_impulses.resize(context, joints.len())?;
+        self.joint_impulses.resize(context, joint_count)?;
         Ok(())
     }
 
     /// Encodes the gather of `rows` (the rows' constraints) into [`Self::constraints`].
+    /// `joints` are the joints in batch order that the solver will sweep, `slot_impulses` the
+    /// joint rows' warm start by slot ([`Self::encode_read_impulses`] writes both).
     pub fn encode_gather(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         rows: &GpuVec<ContactConstraint>,
+        joints: &GpuVec<JointConstraint>,
+        slot_impulses: &GpuVec<BatchedJointImpulses>,
     ) {
         let key: Key = (
             [
@@ -144,11 +139,12 @@ impl GpuBatched {
                 rows.buffer().clone(),
                 self.constraints.buffer().clone(),
                 self.impulses.buffer().clone(),
-                self.joints.buffer().clone(),
+                joints.buffer().clone(),
                 self.joint_impulses.buffer().clone(),
+                slot_impulses.buffer().clone(),
             ],
             self.order.capacity(),
-            self.joints.capacity(),
+            joints.capacity(),
         );
         if self
             .cached
@@ -163,8 +159,9 @@ impl GpuBatched {
                     rows.whole(),
                     self.constraints.whole(),
                     self.impulses.whole(),
-                    self.joints.whole(),
+                    joints.whole(),
                     self.joint_impulses.whole(),
+                    slot_impulses.whole(),
                 ],
             );
             let groups = workgroups_for(key.1, WORKGROUP_SIZE);

@@ -3,7 +3,8 @@
 // sends the order: a counting sort of the colors, group_by_batch's twin), and after the solve
 // `read_impulses` copies each batched constraint's accumulated impulses into a small record,
 // and `read_joint_impulses` each joint's, so the host reads 48 bytes a contact constraint and
-// 32 a joint for its warm start and break test instead of the whole constraints.
+// 32 a joint for its warm start and break test instead of the whole constraints; the joints'
+// also go to their slots, where the next step's GPU joint rows read their warm start.
 
 // Per batched constraint: the accumulated impulse of each point (x, y, z, w = points 0..3)
 // along the normal and the two tangents. Unused points are 0.
@@ -11,13 +12,6 @@ struct BatchedImpulses {
     normal: vec4<f32>,
     tangent1: vec4<f32>,
     tangent2: vec4<f32>,
-}
-
-// Per batched joint: the accumulated impulses of its point part and of its angular rows
-// (JointConstraint::point_impulse and angular_impulse).
-struct BatchedJointImpulses {
-    point: vec3<f32>,
-    angular: array<f32, 5>,
 }
 
 // Word 0: the number of contact constraints, word 1: the number of joints (in a buffer, so
@@ -31,6 +25,8 @@ struct BatchedJointImpulses {
 // The joints in batch order, as the solver left them.
 @group(0) @binding(5) var<storage, read> joints: array<JointConstraint>;
 @group(0) @binding(6) var<storage, read_write> joint_impulses: array<BatchedJointImpulses>;
+// The GPU joint rows' warm start, by joint slot (stages/constraints/joint_gpu.rs).
+@group(0) @binding(7) var<storage, read_write> slot_impulses: array<BatchedJointImpulses>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn gather(
@@ -79,4 +75,10 @@ fn read_joint_impulses(
     let j = &joints[index];
     joint_impulses[index].point = (*j).point_impulse;
     joint_impulses[index].angular = (*j).angular_impulse;
+    // And to the joint's slot, for the next step's rows (the drag's warm start is the host's).
+    let slot = (*j).joint;
+    if slot != DRAG_JOINT {
+        slot_impulses[slot].point = (*j).point_impulse;
+        slot_impulses[slot].angular = (*j).angular_impulse;
+    }
 }
