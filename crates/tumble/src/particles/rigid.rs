@@ -477,6 +477,8 @@ pub struct RigidSystem {
     config: ParticleConfig,
     /// Body-frame offsets with the body's index in `w` (for [`positions`](Self::positions)).
     offsets: Vec<[f32; 4]>,
+    /// Each body's mass and body-frame inertia (for [`kinetic_energy`](Self::kinetic_energy)).
+    masses: Vec<(f64, [[f64; 3]; 3])>,
     executor: Executor,
     profiler: Profiler,
 }
@@ -490,6 +492,11 @@ enum Executor {
 impl RigidSystem {
     pub fn new(config: &RigidConfig, device: ParticleDevice) -> Result<Self, ParticleError> {
         let flat = config.flatten()?;
+        let masses = config
+            .bodies
+            .iter()
+            .map(|&(shape, _)| (config.shapes[shape].mass, config.shapes[shape].inertia))
+            .collect();
         let executor = match device {
             ParticleDevice::Cpu => Executor::Cpu(Box::new(rigid_cpu::CpuRigid::new(&flat))),
             ParticleDevice::Gpu(context) => {
@@ -499,6 +506,7 @@ impl RigidSystem {
         Ok(Self {
             config: flat.particles,
             offsets: flat.offsets,
+            masses,
             executor,
             profiler: Profiler::new("rigid particles step"),
         })
@@ -566,6 +574,38 @@ impl RigidSystem {
                 [0, 1, 2].map(|axis| body.position[axis] + arm[axis])
             })
             .collect())
+    }
+
+    pub fn body_count(&self) -> usize {
+        self.masses.len()
+    }
+
+    /// Σ ½ m v² + ½ ωᵀ I ω (J), I the inertia turned into the world.
+    pub fn kinetic_energy(&mut self) -> Result<f64, ParticleError> {
+        let bodies = self.bodies()?;
+        Ok(bodies
+            .iter()
+            .zip(&self.masses)
+            .map(|(body, (mass, inertia))| {
+                let velocity = body.linear_velocity.map(f64::from);
+                let q = body.orientation;
+                let angular = [
+                    body.angular_velocity[0],
+                    body.angular_velocity[1],
+                    body.angular_velocity[2],
+                ];
+                // ω in the body frame, where the inertia is known.
+                let local = rotate([-q[0], -q[1], -q[2], q[3]], angular).map(f64::from);
+                let spin: f64 = (0..3)
+                    .map(|row| local[row] * (0..3).map(|c| inertia[row][c] * local[c]).sum::<f64>())
+                    .sum();
+                0.5 * mass
+                    * (0..3)
+                        .map(|axis| velocity[axis] * velocity[axis])
+                        .sum::<f64>()
+                    + 0.5 * spin
+            })
+            .sum())
     }
 
     /// Timings of the steps so far.
