@@ -17,11 +17,11 @@ fn mass_errors(solid: &Solid, radius: f32, density: f64, mass: f64, inertia: [f6
     let particle_mass = density * diameter.powi(3);
     let shape = voxelize(solid, radius, particle_mass as f32).expect("voxelize");
     let mut error = ((shape.mass - mass) / mass).abs();
-    for axis in 0..3 {
-        error = error.max(((shape.inertia[axis][axis] - inertia[axis]) / inertia[axis]).abs());
+    for (axis, &expected) in inertia.iter().enumerate() {
+        error = error.max(((shape.inertia[axis][axis] - expected) / expected).abs());
         for other in 0..3 {
             if other != axis {
-                error = error.max((shape.inertia[axis][other] / inertia[axis]).abs());
+                error = error.max((shape.inertia[axis][other] / expected).abs());
             }
         }
     }

@@ -355,7 +355,7 @@ impl RigidConfig {
                 shape: *shape,
                 shapes: self.shapes.len(),
             })?;
-            if shape.offsets.is_empty() || !(shape.mass > 0.0) {
+            if shape.offsets.is_empty() || !(shape.mass.is_finite() && shape.mass > 0.0) {
                 return Err(ParticleError::EmptyBody);
             }
             let state = [

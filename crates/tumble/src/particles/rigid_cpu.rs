@@ -29,11 +29,11 @@ pub(super) fn world_particle(body: &RigidBody, offset: [f32; 4]) -> Particle {
 /// is damped by `shear` (N).
 pub(super) fn wall_friction(params: &ParticleParams, position: Vector, velocity: Vector) -> Vector {
     let mut force = [0.0; 3];
-    for axis in 0..3 {
+    for (axis, &coordinate) in position.iter().enumerate() {
         let low = params.origin[axis] + params.radius;
         let high =
             params.origin[axis] + params.grid[axis] as f32 * params.cell_size - params.radius;
-        if position[axis] < low || position[axis] > high {
+        if coordinate < low || coordinate > high {
             for other in 0..3 {
                 if other != axis {
                     force[other] -= params.shear * velocity[other];
