@@ -105,7 +105,16 @@ fn view_demo(
         .camera
         .unwrap_or_else(|| Camera::framing_boxes(&[container], width as f32 / height as f32));
     let mut picture = |system: &mut Demo, path: PathBuf| {
-        let list = DrawList::particles(&system.positions()?, radius, container);
+        let positions = system.positions()?;
+        let list = match system {
+            Demo::Particles(_) => DrawList::particles(&positions, radius, container),
+            // A body's particles in its colour.
+            Demo::Rigid(rigid) => {
+                let bodies = rigid.particle_bodies();
+                let colour_of = |index: usize| bodies[index] as usize;
+                DrawList::particles_coloured(&positions, colour_of, radius, container)
+            }
+        };
         offscreen
             .render_list(&context, &list, &camera, None)?
             .save_png(&path)

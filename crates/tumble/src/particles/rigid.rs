@@ -576,6 +576,11 @@ impl RigidSystem {
             .collect())
     }
 
+    /// Each particle's body index, in body order (as [`positions`](Self::positions)).
+    pub fn particle_bodies(&self) -> Vec<u32> {
+        self.offsets.iter().map(|offset| offset[3] as u32).collect()
+    }
+
     pub fn body_count(&self) -> usize {
         self.masses.len()
     }
