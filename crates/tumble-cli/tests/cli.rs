@@ -353,4 +353,5 @@ fn bunnies_run_at_a_tiny_scale_on_both_devices() {
     }
     assert_user_error(&["run", "bunnies", "--scale", "0"], "scale");
     assert_user_error(&["run", "bunnies", "--scale", "-1"], "scale");
+    assert_user_error(&["run", "bunnies", "--scale", "1e9"], "bodies");
 }

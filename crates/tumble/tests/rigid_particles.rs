@@ -301,6 +301,17 @@ fn bad_input_is_a_typed_error() {
         voxelize(&solid, 0.1, 0.0),
         Err(ParticleError::Mass(_))
     ));
+    let huge = Solid::Box {
+        half_extents: [1e6; 3],
+    };
+    assert!(matches!(
+        voxelize(&huge, 1e-3, 1.0),
+        Err(ParticleError::VoxelLattice { .. })
+    ));
+    assert!(matches!(
+        RigidConfig::bunny_pile(usize::MAX),
+        Err(ParticleError::TooManyBodies { .. })
+    ));
     let good = RigidConfig::bunny_pile(1).unwrap();
     let mut empty = good.clone();
     empty.shapes[0].offsets.clear();

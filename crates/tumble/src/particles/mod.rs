@@ -337,6 +337,8 @@ pub enum ParticleError {
     },
     #[error("body {0}'s state must be finite with a unit orientation quaternion")]
     BodyState(usize),
+    #[error("voxelizing this shape at this radius visits {points} lattice points, more than {max}")]
+    VoxelLattice { points: usize, max: usize },
     #[error("{count} bodies is more than the {max} a system can hold")]
     TooManyBodies { count: usize, max: usize },
     #[error(transparent)]

@@ -130,6 +130,9 @@ pub struct VoxelShape {
     pub inertia: [[f64; 3]; 3],
 }
 
+/// Most lattice points a voxelization visits (its bounds over the diameter, cubed).
+pub const MAX_VOXELS: usize = 100_000_000;
+
 /// Fills `solid` with particles of `radius` on a cubic lattice one diameter apart (a voxel
 /// per particle, kept where its centre is inside), each of `particle_mass`.
 pub fn voxelize(
@@ -150,10 +153,11 @@ pub fn voxelize(
     // next lattice point out lies outside the bounds (nothing inside is missed).
     let counts: [usize; 3] =
         [0, 1, 2].map(|axis| ((high[axis] - low[axis]) / spacing).round().max(1.0) as usize);
-    if counts.iter().map(|&c| c as f64).product::<f64>() > 1e8 {
-        return Err(ParticleError::TooManyParticles {
-            count: counts.iter().product(),
-            max: 100_000_000,
+    let lattice = counts.iter().fold(1usize, |all, &c| all.saturating_mul(c));
+    if lattice > MAX_VOXELS {
+        return Err(ParticleError::VoxelLattice {
+            points: lattice,
+            max: MAX_VOXELS,
         });
     }
     let mut points = Vec::new();
@@ -266,8 +270,10 @@ pub struct RigidParams {
 /// bodies), the shapes and, for each body, its shape and start state.
 #[derive(Clone, Debug)]
 pub struct RigidConfig {
-    /// Radius, mass per particle, grid, box, time step, gravity and contact coefficients.
-    /// `shear` also damps a particle's tangential velocity against a wall (friction).
+    /// Radius, mass per particle, grid, box, time step, gravity, contact coefficients and
+    /// the sort. `shear` also damps a particle's tangential velocity against a wall
+    /// (friction); `count` is set from the bodies; `search` is not read: bodies always search
+    /// the 27 cells (the forces of a particle's pairs are summed where it is, in order).
     pub particles: ParticleConfig,
     pub shapes: Vec<VoxelShape>,
     /// (shape index, start state) per body.
@@ -288,6 +294,13 @@ impl RigidConfig {
         let radius = BUNNY_PARTICLE_RADIUS;
         let shape = voxelize(&Solid::bunny(BUNNY_LENGTH), radius, 1.0)?;
         let count = count.max(1);
+        // Checked before anything is allocated for them.
+        if count > MAX_BODIES {
+            return Err(ParticleError::TooManyBodies {
+                count,
+                max: MAX_BODIES,
+            });
+        }
         // Any turn of a bunny fits in a cube this wide: its farthest particle, both ways.
         let reach = shape
             .offsets
@@ -347,7 +360,18 @@ impl RigidConfig {
                 max: MAX_BODIES,
             });
         }
-        let mut offsets = Vec::new();
+        // The total first, so that a scene too large is refused before its arrays are made.
+        let total = self.bodies.iter().fold(0usize, |total, &(shape, _)| {
+            let particles = self.shapes.get(shape).map_or(0, |s| s.offsets.len());
+            total.saturating_add(particles)
+        });
+        if total > super::MAX_PARTICLES {
+            return Err(ParticleError::TooManyParticles {
+                count: total,
+                max: super::MAX_PARTICLES,
+            });
+        }
+        let mut offsets = Vec::with_capacity(total);
         let mut info = Vec::with_capacity(self.bodies.len());
         for (index, (shape, body)) in self.bodies.iter().enumerate() {
             let shape = self.shapes.get(*shape).ok_or(ParticleError::ShapeIndex {
@@ -390,12 +414,6 @@ impl RigidConfig {
                     .iter()
                     .map(|o| [o[0], o[1], o[2], index as f32]),
             );
-            if offsets.len() > super::MAX_PARTICLES {
-                return Err(ParticleError::TooManyParticles {
-                    count: offsets.len(),
-                    max: super::MAX_PARTICLES,
-                });
-            }
         }
         let particles = ParticleConfig {
             count: offsets.len(),
