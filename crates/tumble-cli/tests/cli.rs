@@ -337,6 +337,10 @@ fn bunnies_run_at_a_tiny_scale_on_both_devices() {
         assert_eq!(summary["device"], device);
         assert_eq!(summary["bodies"], 4, "{summary}");
         assert_eq!(summary["particles"], 4 * 238, "{summary}");
+        assert!(
+            summary["first_step_ms"].as_f64().unwrap() > 0.0,
+            "{summary}"
+        );
         // Falling for 30 steps: moving.
         assert!(
             summary["kinetic_energy"].as_f64().unwrap() > 0.0,

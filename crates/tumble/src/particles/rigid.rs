@@ -635,6 +635,10 @@ impl RigidSystem {
     pub fn profiler(&self) -> &Profiler {
         &self.profiler
     }
+
+    pub fn profiler_mut(&mut self) -> &mut Profiler {
+        &mut self.profiler
+    }
 }
 
 /// `v` rotated by the unit quaternion `q` (the same operations as `rotate` in WGSL).
