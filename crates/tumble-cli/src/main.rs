@@ -1,5 +1,6 @@
 //! `tumble`: run, list and benchmark (and later view) scenes. See DESIGN.md's CLI contract.
 
+mod bunnies;
 mod particles;
 
 use clap::{Parser, Subcommand, ValueEnum};
@@ -108,11 +109,19 @@ fn main() -> ExitCode {
                 "{:16} the uniform-grid particle demo: 1M particles at scale 1 (use --scale 0.05 on a CPU)",
                 "particles"
             );
+            println!(
+                "{:16} rigid bodies made of particles: 4096 voxelized bunnies (238 particles each) falling into a box at scale 1 (use --scale 0.01 on a CPU)",
+                "bunnies"
+            );
             Ok(())
         }
         Command::View(args) if args.scene == "particles" => particles::demo_config(args.scale)
             .and_then(|config| {
                 tumble_viewer::view_particles(config, &args.options).map_err(|e| e.to_string())
+            }),
+        Command::View(args) if args.scene == "bunnies" => bunnies::pile_config(args.scale)
+            .and_then(|config| {
+                tumble_viewer::view_bunnies(config, &args.options).map_err(|e| e.to_string())
             }),
         Command::View(args) => parse_solver(&args.solver)
             .and_then(|solver| {
@@ -208,6 +217,20 @@ fn run(args: &RunArgs) -> Result<(), String> {
     }
     if args.explain {
         return Err("--explain is for the particles scene".into());
+    }
+    if args.scene == "bunnies" {
+        let request = bunnies::BunnyRun {
+            device: match args.device {
+                Device::Cpu => "cpu",
+                Device::Gpu => "gpu",
+                Device::Auto => "auto",
+            },
+            scale: args.scale,
+            steps: args.steps,
+            profile: args.profile,
+            json: args.json,
+        };
+        return bunnies::run(&request);
     }
     let batcher: Batcher = args
         .batcher

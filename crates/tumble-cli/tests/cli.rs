@@ -319,3 +319,43 @@ fn run_with_the_jacobi_solver_says_so() {
     let summary: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
     assert_eq!(summary["solver"], "jacobi");
 }
+
+#[test]
+fn bunnies_run_at_a_tiny_scale_on_both_devices() {
+    let listed = tumble(&["scenes"]);
+    assert!(String::from_utf8_lossy(&listed.stdout).contains("bunnies"));
+    for device in ["cpu", "gpu"] {
+        let args = [
+            "run", "bunnies", "--scale", "0.001", "--steps", "30", "--device", device, "--json",
+        ];
+        let output = tumble(&args);
+        assert!(output.status.success(), "{device}: {}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let summary: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+        assert_eq!(summary["scene"], "bunnies");
+        assert_eq!(summary["device"], device);
+        assert_eq!(summary["bodies"], 4, "{summary}");
+        assert_eq!(summary["particles"], 4 * 238, "{summary}");
+        assert!(
+            summary["first_step_ms"].as_f64().unwrap() > 0.0,
+            "{summary}"
+        );
+        // Falling for 30 steps: moving.
+        assert!(
+            summary["kinetic_energy"].as_f64().unwrap() > 0.0,
+            "{summary}"
+        );
+        let profile = tumble(&[&args[..8], &["--profile"]].concat());
+        let text = String::from_utf8_lossy(&profile.stdout);
+        for stage in ["world particles", "sort", "collide", "bodies"] {
+            assert!(
+                text.contains(stage),
+                "{device} profile lacks {stage}: {text}"
+            );
+        }
+    }
+    assert_user_error(&["run", "bunnies", "--scale", "0"], "scale");
+    assert_user_error(&["run", "bunnies", "--scale", "-1"], "scale");
+    assert_user_error(&["run", "bunnies", "--scale", "1e9"], "bodies");
+}

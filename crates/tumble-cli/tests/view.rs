@@ -162,3 +162,33 @@ fn the_particle_demo_is_drawn_headless() {
         assert!(message.contains(flag[0]), "{message}");
     }
 }
+
+#[test]
+fn the_bunnies_are_drawn_headless() {
+    let dir = scratch("view-bunnies");
+    let png = dir.join("bunnies.png");
+    let output = tumble_without_display(
+        &[
+            "view",
+            "bunnies",
+            "--scale",
+            "0.001",
+            "--steps",
+            "10",
+            "--size",
+            "160x90",
+            "--png",
+            png.to_str().unwrap(),
+        ],
+        &[],
+    );
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(stdout.contains("952 particles after 10 steps"), "{stdout}");
+    let bytes = std::fs::read(&png).expect("the picture is written");
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}

@@ -215,13 +215,24 @@ impl DrawList {
     /// are, on the floor of the box `container` (its bottom face as a ground), with the
     /// shadow map over the particles.
     pub fn particles(positions: &[[f32; 3]], radius: f32, container: Aabb) -> Self {
+        Self::particles_coloured(positions, |index| index, radius, container)
+    }
+
+    /// [`particles`](Self::particles) with particle `i` in the colour of `colour_of(i)`
+    /// (e.g. its rigid body's index: a body's particles share a colour).
+    pub fn particles_coloured(
+        positions: &[[f32; 3]],
+        colour_of: impl Fn(usize) -> usize,
+        radius: f32,
+        container: Aabb,
+    ) -> Self {
         let mut list = DrawList::default();
         let scale = Mat4::from_scale(Vec3::splat(radius));
         for (index, &position) in positions.iter().enumerate() {
             let model = Mat4::from_translation(Vec3::from(position)) * scale;
             list.push(
                 MeshKey::Sphere,
-                Instance::new(model, body_colour(index)),
+                Instance::new(model, body_colour(colour_of(index))),
                 PoseLink::NONE,
             );
         }

@@ -43,7 +43,7 @@ use tumble::scene::Scene;
 pub use camera::Camera;
 pub use context::GpuContext;
 pub use error::ViewError;
-pub use particles::view_particles;
+pub use particles::{view_bunnies, view_particles};
 pub use quality::Quality;
 pub use renderer::{LIGHT_DIRECTION, Renderer};
 

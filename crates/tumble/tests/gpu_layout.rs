@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 
 use tumble::gpu::kernel::Source;
 use tumble::gpu::prims::{bitonic_sort, compact, fill, radix_sort, reduce, scan};
-use tumble::particles::{self, Particle, ParticleParams};
+use tumble::particles::{self, BodyInfo, Particle, ParticleParams, RigidBody, RigidParams};
 
 /// (field name, offset) of each member, and the size, of every struct in `source`.
 fn wgsl_structs(source: &Source) -> BTreeMap<String, (Vec<(String, u32)>, u32)> {
@@ -156,10 +156,51 @@ fn primitive_parameter_blocks_match_rust() {
 
 #[test]
 fn particle_structs_match_rust() {
-    for source in particles::kernel_sources() {
+    let [
+        hash,
+        cell_bounds,
+        collide,
+        symmetric,
+        world,
+        rigid_collide,
+        bodies,
+    ] = particles::kernel_sources();
+    let rigid = || {
+        vec![
+            rust_layout!(RigidBody {
+                position,
+                orientation,
+                linear_velocity,
+                angular_velocity,
+            }),
+            rust_layout!(BodyInfo {
+                first_particle,
+                particle_count,
+                inverse_mass,
+                padding,
+                inverse_inertia,
+            }),
+            rust_layout!(RigidParams {
+                body_count,
+                padding0,
+                padding1,
+                padding2,
+            }),
+        ]
+    };
+    let sources = [
+        (hash, vec![]),
+        (cell_bounds, vec![]),
+        (collide, vec![]),
+        (symmetric, vec![]),
+        (world, rigid()),
+        (rigid_collide, rigid()),
+        (bodies, rigid()),
+    ];
+    for (source, extra) in sources {
         check(
             source,
-            vec![
+            [
                 rust_layout!(Particle { position, velocity }),
                 rust_layout!(ParticleParams {
                     origin,
@@ -181,7 +222,10 @@ fn particle_structs_match_rust() {
                     padding0,
                     padding1,
                 }),
-            ],
+            ]
+            .into_iter()
+            .chain(extra)
+            .collect(),
         );
     }
 }

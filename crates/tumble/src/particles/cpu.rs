@@ -6,25 +6,25 @@ use rayon::prelude::*;
 use crate::particles::{EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig, ParticleParams};
 use crate::profile::Profiler;
 
-type Vector = [f32; 3];
+pub(super) type Vector = [f32; 3];
 
-fn add(a: Vector, b: Vector) -> Vector {
+pub(super) fn add(a: Vector, b: Vector) -> Vector {
     [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
-fn sub(a: Vector, b: Vector) -> Vector {
+pub(super) fn sub(a: Vector, b: Vector) -> Vector {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 
-fn scale(a: Vector, s: f32) -> Vector {
+pub(super) fn scale(a: Vector, s: f32) -> Vector {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 
-fn dot(a: Vector, b: Vector) -> f32 {
+pub(super) fn dot(a: Vector, b: Vector) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-fn xyz(v: [f32; 4]) -> Vector {
+pub(super) fn xyz(v: [f32; 4]) -> Vector {
     [v[0], v[1], v[2]]
 }
 
@@ -43,7 +43,7 @@ pub(crate) fn cell_index(params: &ParticleParams, cell: [u32; 3]) -> u32 {
 }
 
 /// The neighbour cell at `offset` from `cell`, if inside the grid.
-fn neighbour(params: &ParticleParams, cell: [u32; 3], offset: [i32; 3]) -> Option<u32> {
+pub(super) fn neighbour(params: &ParticleParams, cell: [u32; 3], offset: [i32; 3]) -> Option<u32> {
     let mut coordinates = [0u32; 3];
     for axis in 0..3 {
         let value = cell[axis] as i64 + i64::from(offset[axis]);
@@ -56,7 +56,7 @@ fn neighbour(params: &ParticleParams, cell: [u32; 3], offset: [i32; 3]) -> Optio
 }
 
 /// All 27 offsets, in increasing cell index order (z, then y, then x).
-const FULL_STENCIL: [[i32; 3]; 27] = {
+pub(super) const FULL_STENCIL: [[i32; 3]; 27] = {
     let mut offsets = [[0; 3]; 27];
     let mut index = 0;
     while index < 27 {
@@ -86,7 +86,7 @@ const HALF_STENCIL: [[i32; 3]; 13] = {
 /// `other_velocity`) (N): spring on the overlap, damping on the normal relative velocity,
 /// shear damping on the tangential one. Zero when apart (or coincident: no normal).
 /// Antisymmetric bit for bit: swapping the two negates the result exactly.
-fn pair_force(
+pub(super) fn pair_force(
     params: &ParticleParams,
     position: Vector,
     velocity: Vector,
@@ -127,7 +127,7 @@ fn quantize(params: &ParticleParams, force: Vector) -> [i32; 3] {
 }
 
 /// Spring–damper force of the six walls (the ground is the lower y wall) (N).
-fn wall_force(params: &ParticleParams, position: Vector, velocity: Vector) -> Vector {
+pub(super) fn wall_force(params: &ParticleParams, position: Vector, velocity: Vector) -> Vector {
     let mut force = [0.0; 3];
     for axis in 0..3 {
         let low = params.origin[axis] + params.radius;
@@ -208,7 +208,7 @@ impl Grid {
     }
 
     /// Sorted indices of the particles in `cell`.
-    fn run(&self, cell: u32) -> std::ops::Range<usize> {
+    pub(super) fn run(&self, cell: u32) -> std::ops::Range<usize> {
         match self.cell_start[cell as usize] {
             EMPTY_CELL => 0..0,
             start => start as usize..self.cell_end[cell as usize] as usize,

@@ -18,7 +18,7 @@ use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::particles::{CellSort, EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig};
 use crate::profile::Profiler;
 
-const COMMON_WGSL: &str = include_str!("common.wgsl");
+pub(super) const COMMON_WGSL: &str = include_str!("common.wgsl");
 const HASH_WGSL: &str = include_str!("hash.wgsl");
 const CELL_BOUNDS_WGSL: &str = include_str!("cell_bounds.wgsl");
 const COLLIDE_WGSL: &str = include_str!("collide.wgsl");
@@ -73,21 +73,162 @@ pub(super) fn check_capacity(
     Ok(())
 }
 
+/// Stages 1–3 on the GPU (hash, sort, cell start) over a particle buffer, shared by the
+/// particle demo and the rigid particle bodies.
 #[derive(Debug)]
-pub(super) struct GpuParticles {
-    context: GpuContext,
-    count: usize,
-    particles: GpuVec<Particle>,
+pub(super) struct GpuGrid {
     keys: GpuVec<u32>,
     ids: GpuVec<u32>,
     sorted_keys: GpuVec<u32>,
     sorted_ids: GpuVec<u32>,
+    /// The particles in sorted order, as the collide stage reads them.
+    pub sorted_particles: GpuVec<Particle>,
+    pub cell_start: GpuVec<u32>,
+    pub cell_end: GpuVec<u32>,
+    /// The [`ParticleParams`](crate::particles::ParticleParams) block, binding 0 of every
+    /// particle kernel.
+    pub params: UniformSlots,
     sort: CellSort,
     key_bits: u32,
     radix: RadixSort,
     bitonic: BitonicSort,
     hash: Vec<Dispatch>,
-    cell_start: Vec<Dispatch>,
+    cell_start_dispatches: Vec<Dispatch>,
+}
+
+impl GpuGrid {
+    pub fn new(
+        config: &ParticleConfig,
+        context: &GpuContext,
+        particles: &GpuVec<Particle>,
+    ) -> Result<Self, GpuError> {
+        let count = config.count;
+        let cells = config.cell_count() as usize;
+        let sorted_particles =
+            GpuVec::<Particle>::with_capacity(context, "sorted particles", count)?;
+        let mut keys = GpuVec::<u32>::with_capacity(context, "cell keys", count)?;
+        let mut ids = GpuVec::<u32>::with_capacity(context, "particle ids", count)?;
+        keys.resize(context, count)?;
+        ids.resize(context, count)?;
+        let mut sorted_keys = GpuVec::<u32>::with_capacity(context, "sorted cell keys", count)?;
+        let mut sorted_ids = GpuVec::<u32>::with_capacity(context, "sorted particle ids", count)?;
+        sorted_keys.resize(context, count)?;
+        sorted_ids.resize(context, count)?;
+        let cell_start = GpuVec::<u32>::with_capacity(context, "cell start", cells)?;
+        let cell_end = GpuVec::<u32>::with_capacity(context, "cell end", cells)?;
+        let params = UniformSlots::new(context, "particle params", &[config.params()]);
+        // Bitonic sorts in place: the later stages then read the hash output itself.
+        let (sorted_keys_buffer, sorted_ids_buffer) = match config.sort {
+            CellSort::Radix => (sorted_keys.buffer(), sorted_ids.buffer()),
+            CellSort::Bitonic => (keys.buffer(), ids.buffer()),
+        };
+        let groups = workgroups_for(count, WORKGROUP_SIZE);
+        let kernel = |name: &str, bindings: &[Binding]| {
+            Kernel::new(context, name, &wgsl(name), name, bindings)
+        };
+        use Binding::{StorageRead as Read, StorageReadWrite as Write, Uniform};
+        let hash_kernel = kernel("hash", &[Uniform, Read, Write, Write]);
+        let hash = vec![hash_kernel.dispatch(
+            hash_kernel.bind(
+                context,
+                &[
+                    params.binding(0),
+                    particles.whole(),
+                    keys.whole(),
+                    ids.whole(),
+                ],
+            ),
+            groups,
+        )];
+        let bounds_kernel = kernel(
+            "cell_bounds",
+            &[Uniform, Read, Read, Read, Write, Write, Write],
+        );
+        let cell_start_dispatches = vec![
+            fill_dispatch(context, cell_start.buffer(), cells, EMPTY_CELL)?,
+            bounds_kernel.dispatch(
+                bounds_kernel.bind(
+                    context,
+                    &[
+                        params.binding(0),
+                        sorted_keys_buffer.as_entire_buffer_binding(),
+                        sorted_ids_buffer.as_entire_buffer_binding(),
+                        particles.whole(),
+                        sorted_particles.whole(),
+                        cell_start.whole(),
+                        cell_end.whole(),
+                    ],
+                ),
+                groups,
+            ),
+        ];
+        // Cell ids are below cell_count: only that many bits need sorting.
+        let key_bits = u32::BITS - (config.cell_count().saturating_sub(1) as u32).leading_zeros();
+        Ok(Self {
+            keys,
+            ids,
+            sorted_keys,
+            sorted_ids,
+            sorted_particles,
+            cell_start,
+            cell_end,
+            params,
+            sort: config.sort,
+            key_bits,
+            radix: RadixSort::new(),
+            bitonic: BitonicSort::new(),
+            hash,
+            cell_start_dispatches,
+        })
+    }
+
+    /// Each sorted slot's particle id (where the sort left them).
+    pub fn sorted_ids(&self) -> wgpu::BufferBinding<'_> {
+        match self.sort {
+            CellSort::Radix => self.sorted_ids.whole(),
+            CellSort::Bitonic => self.ids.whole(),
+        }
+    }
+
+    /// Encodes the three stages, one measured pass each.
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        profiler: &mut GpuProfiler,
+        timing: bool,
+    ) -> Result<(), GpuError> {
+        encode_all(&mut begin_pass(encoder, profiler, timing, HASH), &self.hash);
+        {
+            let mut sort_pass = begin_pass(encoder, profiler, timing, SORT);
+            match self.sort {
+                CellSort::Radix => self.radix.encode(
+                    context,
+                    &mut sort_pass,
+                    (&self.keys, &self.ids),
+                    (&mut self.sorted_keys, &mut self.sorted_ids),
+                    self.key_bits,
+                )?,
+                CellSort::Bitonic => {
+                    self.bitonic
+                        .encode(context, &mut sort_pass, &mut self.keys, &mut self.ids)?
+                }
+            }
+        }
+        encode_all(
+            &mut begin_pass(encoder, profiler, timing, CELL_START),
+            &self.cell_start_dispatches,
+        );
+        Ok(())
+    }
+}
+
+#[derive(Debug)]
+pub(super) struct GpuParticles {
+    context: GpuContext,
+    count: usize,
+    particles: GpuVec<Particle>,
+    grid: GpuGrid,
     collide: Vec<Dispatch>,
     profiler: GpuProfiler,
     timing: bool,
@@ -100,71 +241,26 @@ impl GpuParticles {
         initial: &[Particle],
     ) -> Result<Self, GpuError> {
         let count = config.count;
-        let cells = config.cell_count() as usize;
         let particles = GpuVec::from_slice(&context, "particles", initial)?;
-        let sorted_particles =
-            GpuVec::<Particle>::with_capacity(&context, "sorted particles", count)?;
-        let mut keys = GpuVec::<u32>::with_capacity(&context, "cell keys", count)?;
-        let mut ids = GpuVec::<u32>::with_capacity(&context, "particle ids", count)?;
-        keys.resize(&context, count)?;
-        ids.resize(&context, count)?;
-        let mut sorted_keys = GpuVec::<u32>::with_capacity(&context, "sorted cell keys", count)?;
-        let mut sorted_ids = GpuVec::<u32>::with_capacity(&context, "sorted particle ids", count)?;
-        sorted_keys.resize(&context, count)?;
-        sorted_ids.resize(&context, count)?;
-        let cell_start_buffer = GpuVec::<u32>::with_capacity(&context, "cell start", cells)?;
-        let cell_end_buffer = GpuVec::<u32>::with_capacity(&context, "cell end", cells)?;
-        let slots = UniformSlots::new(&context, "particle params", &[config.params()]);
-        let params = slots.binding(0);
-        // Bitonic sorts in place: the later stages then read the hash output itself.
-        let (sorted_keys_buffer, sorted_ids_buffer) = match config.sort {
-            CellSort::Radix => (sorted_keys.buffer(), sorted_ids.buffer()),
-            CellSort::Bitonic => (keys.buffer(), ids.buffer()),
-        };
+        let grid = GpuGrid::new(config, &context, &particles)?;
+        let params = grid.params.binding(0);
         let groups = workgroups_for(count, WORKGROUP_SIZE);
-        let kernel = |name: &str, bindings: &[Binding]| {
-            Kernel::new(&context, name, &wgsl(name), name, bindings)
-        };
         use Binding::{StorageRead as Read, StorageReadWrite as Write, Uniform};
-        let hash_kernel = kernel("hash", &[Uniform, Read, Write, Write]);
-        let hash = vec![hash_kernel.dispatch(
-            hash_kernel.bind(
-                &context,
-                &[params.clone(), particles.whole(), keys.whole(), ids.whole()],
-            ),
-            groups,
-        )];
-        let bounds_kernel = kernel(
-            "cell_bounds",
-            &[Uniform, Read, Read, Read, Write, Write, Write],
-        );
-        let cell_start = vec![
-            fill_dispatch(&context, cell_start_buffer.buffer(), cells, EMPTY_CELL)?,
-            bounds_kernel.dispatch(
-                bounds_kernel.bind(
-                    &context,
-                    &[
-                        params.clone(),
-                        sorted_keys_buffer.as_entire_buffer_binding(),
-                        sorted_ids_buffer.as_entire_buffer_binding(),
-                        particles.whole(),
-                        sorted_particles.whole(),
-                        cell_start_buffer.whole(),
-                        cell_end_buffer.whole(),
-                    ],
-                ),
-                groups,
-            ),
-        ];
         let collide = match config.search {
             NeighbourSearch::Full27 => {
-                let collide_kernel = kernel("collide", &[Uniform, Read, Read, Read, Read, Write]);
+                let collide_kernel = Kernel::new(
+                    &context,
+                    "collide",
+                    &wgsl("collide"),
+                    "collide",
+                    &[Uniform, Read, Read, Read, Read, Write],
+                );
                 let bindings = [
                     params,
-                    sorted_particles.whole(),
-                    sorted_ids_buffer.as_entire_buffer_binding(),
-                    cell_start_buffer.whole(),
-                    cell_end_buffer.whole(),
+                    grid.sorted_particles.whole(),
+                    grid.sorted_ids(),
+                    grid.cell_start.whole(),
+                    grid.cell_end.whole(),
                     particles.whole(),
                 ];
                 vec![collide_kernel.dispatch(collide_kernel.bind(&context, &bindings), groups)]
@@ -184,10 +280,10 @@ impl GpuParticles {
                 );
                 let bindings = [
                     params,
-                    sorted_particles.whole(),
-                    sorted_ids_buffer.as_entire_buffer_binding(),
-                    cell_start_buffer.whole(),
-                    cell_end_buffer.whole(),
+                    grid.sorted_particles.whole(),
+                    grid.sorted_ids(),
+                    grid.cell_start.whole(),
+                    grid.cell_end.whole(),
                     particles.whole(),
                     forces.whole(),
                 ];
@@ -198,23 +294,12 @@ impl GpuParticles {
                 ]
             }
         };
-        // Cell ids are below cell_count: only that many bits need sorting.
-        let key_bits = u32::BITS - (config.cell_count().saturating_sub(1) as u32).leading_zeros();
         let profiler = GpuProfiler::new(&context, 4);
         Ok(Self {
             context,
             count,
             particles,
-            keys,
-            ids,
-            sorted_keys,
-            sorted_ids,
-            sort: config.sort,
-            key_bits,
-            radix: RadixSort::new(),
-            bitonic: BitonicSort::new(),
-            hash,
-            cell_start,
+            grid,
             collide,
             profiler,
             timing: false,
@@ -248,30 +333,8 @@ impl GpuParticles {
                 label: Some("particles step"),
             });
         let timing = self.timing;
-        encode_all(
-            &mut begin_pass(&mut encoder, &mut self.profiler, timing, HASH),
-            &self.hash,
-        );
-        {
-            let mut sort_pass = begin_pass(&mut encoder, &mut self.profiler, timing, SORT);
-            match self.sort {
-                CellSort::Radix => self.radix.encode(
-                    context,
-                    &mut sort_pass,
-                    (&self.keys, &self.ids),
-                    (&mut self.sorted_keys, &mut self.sorted_ids),
-                    self.key_bits,
-                )?,
-                CellSort::Bitonic => {
-                    self.bitonic
-                        .encode(context, &mut sort_pass, &mut self.keys, &mut self.ids)?
-                }
-            }
-        }
-        encode_all(
-            &mut begin_pass(&mut encoder, &mut self.profiler, timing, CELL_START),
-            &self.cell_start,
-        );
+        self.grid
+            .encode(context, &mut encoder, &mut self.profiler, timing)?;
         encode_all(
             &mut begin_pass(&mut encoder, &mut self.profiler, timing, COLLIDE),
             &self.collide,
@@ -294,7 +357,7 @@ impl GpuParticles {
 }
 
 /// A compute pass for one stage, measured when `timing`.
-fn begin_pass<'encoder>(
+pub(super) fn begin_pass<'encoder>(
     encoder: &'encoder mut wgpu::CommandEncoder,
     profiler: &mut GpuProfiler,
     timing: bool,

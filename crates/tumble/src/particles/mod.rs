@@ -22,6 +22,14 @@
 mod cpu;
 pub mod explain;
 mod gpu;
+pub mod rigid;
+mod rigid_cpu;
+mod rigid_gpu;
+
+pub use rigid::{
+    BodyInfo, Ellipsoid, MAX_BODIES, RigidBody, RigidConfig, RigidParams, RigidSystem, Solid,
+    VoxelShape, voxelize,
+};
 
 use bytemuck::{Pod, Zeroable};
 
@@ -247,10 +255,23 @@ impl ParticleConfig {
     }
 }
 
-/// The composed WGSL of the particle kernels (hash, cell bounds, collide), for tools and for
+/// The composed WGSL of the particle kernels (hash, cell bounds, collide, collide symmetric),
+/// then of the rigid particle kernels (world particles, collide, bodies), for tools and for
 /// the layout test.
-pub fn kernel_sources() -> [crate::gpu::kernel::Source; 4] {
-    ["hash", "cell_bounds", "collide", "collide_symmetric"].map(gpu::wgsl)
+pub fn kernel_sources() -> [crate::gpu::kernel::Source; 7] {
+    let [hash, cell_bounds, collide, collide_symmetric] =
+        ["hash", "cell_bounds", "collide", "collide_symmetric"].map(gpu::wgsl);
+    let [world, rigid_collide, bodies] =
+        ["rigid_world", "rigid_collide", "rigid_bodies"].map(rigid_gpu::wgsl);
+    [
+        hash,
+        cell_bounds,
+        collide,
+        collide_symmetric,
+        world,
+        rigid_collide,
+        bodies,
+    ]
 }
 
 /// Most particles a system takes: ids are u32 and sorted ids fit a u32 buffer index.
@@ -306,6 +327,20 @@ pub enum ParticleError {
     TooManyParticles { count: usize, max: usize },
     #[error("{given} initial particles were given for a system of {expected}")]
     ParticleCount { given: usize, expected: usize },
+    #[error("a body must have at least one particle (its shape is empty at this radius)")]
+    EmptyBody,
+    #[error("body {body} names shape {shape}, but there are {shapes} shapes")]
+    ShapeIndex {
+        body: usize,
+        shape: usize,
+        shapes: usize,
+    },
+    #[error("body {0}'s state must be finite with a unit orientation quaternion")]
+    BodyState(usize),
+    #[error("voxelizing this shape at this radius visits {points} lattice points, more than {max}")]
+    VoxelLattice { points: usize, max: usize },
+    #[error("{count} bodies is more than the {max} a system can hold")]
+    TooManyBodies { count: usize, max: usize },
     #[error(transparent)]
     Gpu(#[from] GpuError),
 }
