@@ -203,8 +203,10 @@ pub(crate) struct GpuStages {
     pair_contacts_fresh: bool,
     /// The solver ran on the GPU this step: `solver_bodies` holds the step's motion.
     solved_this_step: bool,
-    /// Host scratch, reused: the identity map, the packed colliders, downloaded contacts.
+    /// Host scratch, reused: the identity map, last step's keys padded, the packed colliders,
+    /// downloaded contacts.
     identity: Vec<u32>,
+    padded_keys: Vec<u64>,
     collider_data: Vec<ColliderData>,
     downloaded: Vec<PairContact>,
     downloaded_bodies: Vec<SolverBody>,
@@ -254,6 +256,7 @@ impl GpuStages {
             pair_contacts_fresh: false,
             solved_this_step: false,
             identity: Vec::new(),
+            padded_keys: Vec::new(),
             collider_data: Vec::new(),
             downloaded: Vec::new(),
             downloaded_bodies: Vec::new(),
@@ -409,7 +412,13 @@ impl GpuStages {
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         self.broadphase.set_bodies(context, is_static)?;
-        self.old_keys.upload(context, old_keys)?;
+        // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
+        // keeps its size from step to step and is not built again.
+        self.padded_keys.clear();
+        self.padded_keys.extend_from_slice(old_keys);
+        let padded = old_keys.len().max(self.broadphase.capacity());
+        self.padded_keys.resize(padded, u64::MAX);
+        self.old_keys.upload(context, &self.padded_keys)?;
         self.old_contacts.upload(context, old_contacts)?;
         self.skipped.upload(context, skipped)?;
         record_copy(profiler, COLLISION.upload, elapsed_ms(start));
@@ -434,7 +443,7 @@ impl GpuStages {
                 broadphase.encode(context, pass, aabbs)?;
                 // The broadphase's keys are padded with u64::MAX past the count, which both
                 // the diff and the narrowphase pass over: the count stays on the device.
-                diff.encode(context, pass, old_keys, broadphase.keys())?;
+                diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
                 let inputs = GpuNarrowphaseInputs {
                     keys: broadphase.keys(),
                     old_index: diff.old_index(),

@@ -113,6 +113,36 @@ impl GpuPairDiff {
         old_keys: &GpuVec<u64>,
         new_keys: &GpuVec<u64>,
     ) -> Result<(), GpuError> {
+        self.encode_lookup(context, pass, old_keys, new_keys)?;
+        self.compact_added.encode(
+            context,
+            pass,
+            &self.new_positions,
+            &self.added_flags,
+            &mut self.added,
+            &mut self.added_count,
+        )?;
+        self.compact_removed.encode(
+            context,
+            pass,
+            &self.old_positions,
+            &self.removed_flags,
+            &mut self.removed,
+            &mut self.removed_count,
+        )
+    }
+
+    /// Encodes the lookup alone: [`Self::old_index`] (and the flags) but not the compacted
+    /// lists, for a step that needs only how kept pairs map to last step's. Its dispatch is
+    /// built again whenever a vector's buffer or length changes: keep both lengths fixed
+    /// (padding) to encode it for free from step to step.
+    pub fn encode_lookup(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        old_keys: &GpuVec<u64>,
+        new_keys: &GpuVec<u64>,
+    ) -> Result<(), GpuError> {
         let (new_count, old_count) = (new_keys.len(), old_keys.len());
         let key = (
             [old_keys.buffer().clone(), new_keys.buffer().clone()],
@@ -141,22 +171,7 @@ impl GpuPairDiff {
         if let Some((_, dispatch)) = &self.cached {
             dispatch.encode(pass);
         }
-        self.compact_added.encode(
-            context,
-            pass,
-            &self.new_positions,
-            &self.added_flags,
-            &mut self.added,
-            &mut self.added_count,
-        )?;
-        self.compact_removed.encode(
-            context,
-            pass,
-            &self.old_positions,
-            &self.removed_flags,
-            &mut self.removed,
-            &mut self.removed_count,
-        )
+        Ok(())
     }
 
     fn lookup_dispatch(
