@@ -43,11 +43,6 @@ pub enum ViewError {
     Write { path: PathBuf, reason: String },
     #[error(transparent)]
     Particles(#[from] tumble::particles::ParticleError),
-    #[error(
-        "the {scene} scene is drawn headless only: give --png FILE or --frames DIR, e.g. \
-         `tumble view {scene} --scale 0.01 --steps 600 --png {scene}.png`"
-    )]
-    HeadlessOnly { scene: String },
     #[error("{flag} draws what a rigid-body world has; the particle demo has none of it")]
     NotForParticles { flag: &'static str },
     #[error("cannot open a window: {0}")]

@@ -1,36 +1,36 @@
-//! `tumble view particles`: pictures of the talk's particle demo, headless. Each particle is
+//! `tumble view particles`: the talk's particle demo, in a window or headless. Each particle is
 //! drawn as a sphere of its radius on the floor of its box, from positions read back after
-//! the steps; on `--device gpu` the particles step on the device the pictures are drawn on.
+//! each step; on `--device gpu` the particles step on the device the pictures are drawn on.
 
 use std::path::PathBuf;
 
 use glam::Vec3;
+use tumble::World;
 use tumble::math::Aabb;
 use tumble::particles::{ParticleConfig, ParticleDevice, ParticleSystem};
+use tumble::pipeline::world::DevicePoses;
+use tumble::profile::ProfileReport;
+use tumble::stages::batching::Batcher;
 
 use crate::camera::Camera;
 use crate::context::GpuContext;
-use crate::draw::DrawList;
+use crate::draw::{DrawList, DrawSettings};
 use crate::error::ViewError;
 use crate::headless::Offscreen;
-use crate::overlay::OverlayKind;
+use crate::input::Executor;
+use crate::overlay::{self, OverlayKind};
+use crate::window::{self, Shown};
 use crate::{ImageSize, StepDevice, ViewOptions};
 
-/// Steps the particle demo of `config` on `options.device` and writes the pictures `--png`
-/// and `--frames` ask for (a window is not offered for the demo).
+/// Shows the particle demo of `config`, stepped on `options.device`: headless when `--png` or
+/// `--frames` is given (writing those pictures), else in a window.
 pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(), ViewError> {
-    if options.png.is_none() && options.frames.is_none() {
-        return Err(ViewError::HeadlessOnly {
-            scene: "particles".into(),
-        });
+    // Batch colours come from a rigid-body world; the demo has no constraints.
+    if options.batches {
+        return Err(ViewError::NotForParticles { flag: "--batches" });
     }
-    // Overlays and batch colours come from a rigid-body world; the demo has neither.
-    let unsupported = [
-        (options.overlay != OverlayKind::Off, "--overlay"),
-        (options.batches, "--batches"),
-    ];
-    if let Some(&(_, flag)) = unsupported.iter().find(|(given, _)| *given) {
-        return Err(ViewError::NotForParticles { flag });
+    if options.png.is_none() && options.frames.is_none() {
+        return view_in_window(config, options);
     }
     let context = GpuContext::headless()?;
     let device = match options.device {
@@ -48,7 +48,14 @@ pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(
         .camera
         .unwrap_or_else(|| Camera::framing_boxes(&[container], width as f32 / height as f32));
     let mut picture = |system: &mut ParticleSystem, path: PathBuf| {
-        let list = DrawList::particles(&system.positions()?, radius, container);
+        let mut list = DrawList::particles(&system.positions()?, radius, container);
+        list.overlay = match options.overlay {
+            OverlayKind::Off => Vec::new(),
+            OverlayKind::Help => overlay::help_lines(),
+            OverlayKind::Profile => {
+                profile_lines(&system.profiler().report(), system.config().count)
+            }
+        };
         offscreen
             .render_list(&context, &list, &camera, None)?
             .save_png(&path)
@@ -96,5 +103,144 @@ fn container(config: &ParticleConfig) -> Aabb {
     Aabb {
         min,
         max: min + size,
+    }
+}
+
+/// The profile overlay of the demo: the step's time per frame, each stage's time and share.
+fn profile_lines(report: &ProfileReport, particles: usize) -> Vec<String> {
+    let mut lines = overlay::stage_report_lines(report);
+    lines.push(format!("particles {particles}"));
+    lines
+}
+
+/// Opens a window on the demo: the same keys as a rigid-body scene, where they mean something
+/// here (`c`, `b` and `d` have no contacts or batches to show; `u` moves the whole step).
+fn view_in_window(config: ParticleConfig, options: &ViewOptions) -> Result<(), ViewError> {
+    window::check_display("particles")?;
+    let container = container(&config);
+    // Until the window's device exists, a GPU step runs on the physics' shared device.
+    let device = match options.device {
+        StepDevice::Cpu => ParticleDevice::Cpu,
+        StepDevice::Gpu => ParticleDevice::Gpu(tumble::gpu::GpuContext::shared()?),
+    };
+    let mut system = ParticleSystem::new(config.clone(), device)?;
+    for _ in 0..options.steps {
+        system.step()?;
+    }
+    let aspect = options.size.width as f32 / options.size.height as f32;
+    let camera = options
+        .camera
+        .unwrap_or_else(|| Camera::framing_boxes(&[container], aspect));
+    let shown = Particles {
+        config,
+        container,
+        system,
+        on: match options.device {
+            StepDevice::Cpu => Executor::Cpu,
+            StepDevice::Gpu => Executor::Gpu,
+        },
+        context: None,
+    };
+    window::show("particles", Box::new(shown), camera, options)
+}
+
+/// The particle demo in a window.
+struct Particles {
+    config: ParticleConfig,
+    container: Aabb,
+    system: ParticleSystem,
+    /// Where the step runs now (`u` moves it).
+    on: Executor,
+    /// The window's device, once it exists: the GPU step runs there.
+    context: Option<tumble::gpu::GpuContext>,
+}
+
+impl Particles {
+    /// `executor` as a device to build a system on: the window's device for the GPU once the
+    /// window is open, the physics' shared one before.
+    fn device(&self, executor: Executor) -> Result<ParticleDevice, ViewError> {
+        Ok(match (executor, &self.context) {
+            (Executor::Cpu, _) => ParticleDevice::Cpu,
+            (Executor::Gpu, Some(context)) => ParticleDevice::Gpu(context.clone()),
+            (Executor::Gpu, None) => ParticleDevice::Gpu(tumble::gpu::GpuContext::shared()?),
+        })
+    }
+
+    /// The same particles, stepping on `executor` from now on.
+    fn move_to(&mut self, executor: Executor) -> Result<(), ViewError> {
+        let device = self.device(executor)?;
+        let particles = self.system.particles()?;
+        self.system = ParticleSystem::with_particles(self.config.clone(), device, &particles)?;
+        self.on = executor;
+        Ok(())
+    }
+}
+
+impl Shown for Particles {
+    fn use_device(&mut self, context: tumble::gpu::GpuContext) -> Result<(), ViewError> {
+        self.context = Some(context);
+        match self.on {
+            Executor::Cpu => Ok(()),
+            Executor::Gpu => self.move_to(Executor::Gpu),
+        }
+    }
+
+    fn reset(&mut self) -> Result<(), ViewError> {
+        self.system = ParticleSystem::new(self.config.clone(), self.device(self.on)?)?;
+        Ok(())
+    }
+
+    fn step(&mut self) -> Result<(), ViewError> {
+        Ok(self.system.step()?)
+    }
+
+    /// The demo's whole step moves: it has no solver of its own.
+    fn put_solver_on(&mut self, executor: Executor) {
+        if executor == self.on {
+            return;
+        }
+        match self.move_to(executor) {
+            Ok(()) => println!("particles step on {}", self.system.device_name()),
+            Err(error) => println!("the particles stay where they were: {error}"),
+        }
+    }
+
+    fn use_batcher(&mut self, _: Batcher) {
+        println!("the particle demo has no constraints to batch");
+    }
+
+    fn draw_list(&mut self, settings: DrawSettings) -> Result<DrawList, ViewError> {
+        let positions = self.system.positions()?;
+        let mut list = DrawList::particles(&positions, self.config.radius, self.container);
+        list.wireframe = settings.wireframe;
+        Ok(list)
+    }
+
+    /// The positions are read back each frame: the demo's buffers are not the renderer's
+    /// instance layout.
+    fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        None
+    }
+
+    fn take_profile(&mut self) -> Vec<String> {
+        let lines = profile_lines(&self.system.profiler().report(), self.config.count);
+        self.system.profiler_mut().reset();
+        lines
+    }
+
+    fn status(&self) -> String {
+        format!(
+            "{} particles on {}",
+            self.config.count,
+            self.system.device_name()
+        )
+    }
+
+    fn batch_count(&self) -> usize {
+        0
+    }
+
+    fn world(&mut self) -> Option<&mut World> {
+        None
     }
 }
