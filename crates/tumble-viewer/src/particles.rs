@@ -116,7 +116,7 @@ fn profile_lines(report: &ProfileReport, particles: usize) -> Vec<String> {
 /// Opens a window on the demo: the same keys as a rigid-body scene, where they mean something
 /// here (`c`, `b` and `d` have no contacts or batches to show; `u` moves the whole step).
 fn view_in_window(config: ParticleConfig, options: &ViewOptions) -> Result<(), ViewError> {
-    window::check_display("particles")?;
+    let event_loop = window::event_loop("particles")?;
     let container = container(&config);
     // Until the window's device exists, a GPU step runs on the physics' shared device.
     let device = match options.device {
@@ -141,7 +141,7 @@ fn view_in_window(config: ParticleConfig, options: &ViewOptions) -> Result<(), V
         },
         context: None,
     };
-    window::show("particles", Box::new(shown), camera, options)
+    window::show(event_loop, "particles", Box::new(shown), camera, options)
 }
 
 /// The particle demo in a window.

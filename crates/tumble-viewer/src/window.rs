@@ -152,7 +152,7 @@ impl Shown for Rigid<'_> {
 
 /// Opens a window on `scene` and runs until it is closed or `q` is pressed.
 pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
-    check_display(name)?;
+    let event_loop = event_loop(name)?;
     // Until the window's device exists, GPU stages run on the physics' shared one.
     let mut world = crate::build_world(scene, options.device, None)?;
     for _ in 0..options.steps {
@@ -168,32 +168,32 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
         world,
         context: None,
     };
-    show(name, Box::new(rigid), camera, options)
+    show(event_loop, name, Box::new(rigid), camera, options)
 }
 
-/// A clear error, before anything is built, when no window can open here.
-pub(crate) fn check_display(name: &str) -> Result<(), ViewError> {
-    match missing_display() {
-        Some(reason) => Err(ViewError::NoDisplay {
-            scene: name.to_owned(),
-            reason,
-        }),
-        None => Ok(()),
+/// The event loop a window of the scene `name` opens in, made before anything is built or
+/// stepped: where no window can open (no display, or one that does not answer), a clear error
+/// comes at once.
+pub(crate) fn event_loop(name: &str) -> Result<EventLoop<()>, ViewError> {
+    let no_display = |reason: String| ViewError::NoDisplay {
+        scene: name.to_owned(),
+        reason,
+    };
+    if let Some(reason) = missing_display() {
+        return Err(no_display(reason));
     }
+    EventLoop::new().map_err(|e| no_display(e.to_string()))
 }
 
-/// Opens a window on `shown` (stepped as far as `--steps` asks), seen from `camera`, and runs
-/// until it is closed or `q` is pressed.
+/// Opens a window of `event_loop` on `shown` (stepped as far as `--steps` asks), seen from
+/// `camera`, and runs until it is closed or `q` is pressed.
 pub(crate) fn show(
+    event_loop: EventLoop<()>,
     name: &str,
     shown: Box<dyn Shown + '_>,
     camera: Camera,
     options: &ViewOptions,
 ) -> Result<(), ViewError> {
-    let event_loop = EventLoop::new().map_err(|e| ViewError::NoDisplay {
-        scene: name.to_owned(),
-        reason: e.to_string(),
-    })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     // The display handle lets the GL backend present too (Vulkan does not need it).
     let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
