@@ -244,3 +244,79 @@ impl Shown for Particles {
         None
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on_the_cpu(count: usize) -> Particles {
+        let config = ParticleConfig::demo(count);
+        Particles {
+            container: container(&config),
+            system: ParticleSystem::new(config.clone(), ParticleDevice::Cpu).unwrap(),
+            config,
+            on: Executor::Cpu,
+            context: None,
+        }
+    }
+
+    #[test]
+    fn u_moves_the_particles_between_cpu_and_gpu_as_they_are() {
+        let mut shown = on_the_cpu(100);
+        let start = shown.system.particles().unwrap();
+        for _ in 0..5 {
+            shown.step().unwrap();
+        }
+        let stepped = shown.system.particles().unwrap();
+        assert_ne!(stepped, start);
+        // The window's device: a CPU step stays where it is.
+        shown
+            .use_device(tumble::gpu::GpuContext::shared().unwrap())
+            .unwrap();
+        assert!(shown.status().ends_with(&format!(
+            "on {}",
+            ParticleSystem::new(ParticleConfig::demo(1), ParticleDevice::Cpu)
+                .unwrap()
+                .device_name()
+        )));
+
+        shown.put_solver_on(Executor::Gpu);
+        assert_eq!(shown.on, Executor::Gpu);
+        assert!(!shown.status().contains("on cpu"), "{}", shown.status());
+        assert_eq!(shown.system.particles().unwrap(), stepped);
+        shown.step().unwrap();
+        let on_the_gpu = shown.system.particles().unwrap();
+        assert_ne!(on_the_gpu, stepped);
+
+        shown.put_solver_on(Executor::Cpu);
+        assert_eq!(shown.on, Executor::Cpu);
+        assert_eq!(shown.system.particles().unwrap(), on_the_gpu);
+
+        // Space: back to the start, on the device the step is on.
+        shown.reset().unwrap();
+        assert_eq!(shown.system.particles().unwrap(), start);
+        assert!(shown.status().starts_with("100 particles on cpu"));
+    }
+
+    #[test]
+    fn the_demo_draws_a_sphere_per_particle_and_has_no_world() {
+        let mut shown = on_the_cpu(10);
+        shown.step().unwrap();
+        let list = shown
+            .draw_list(DrawSettings {
+                wireframe: true,
+                ..DrawSettings::default()
+            })
+            .unwrap();
+        assert_eq!(list.instances[&crate::draw::MeshKey::Particle].len(), 10);
+        assert!(list.wireframe);
+        assert!(shown.world().is_none());
+        assert!(shown.device_poses().is_none());
+        assert_eq!(shown.batch_count(), 0);
+        let profile = shown.take_profile();
+        assert!(profile[0].contains("over 1 frames"), "{profile:?}");
+        assert_eq!(profile.last().unwrap(), "particles 10");
+        // The timings restart after each look.
+        assert!(shown.take_profile()[0].contains("over 0 frames"));
+    }
+}
