@@ -1,5 +1,6 @@
-//! The window: a winit event loop that steps the world, draws it into the window's surface and
-//! feeds keys and the mouse to [`InputState`]. The profile overlay (`p`) is refreshed about
+//! The window: a winit event loop that steps what it shows (a rigid-body world, or the particle
+//! demo: [`Shown`]), draws it into the window's surface and feeds keys and the mouse to
+//! [`InputState`]. The profile overlay (`p`) is refreshed about
 //! once a second, the help overlay (`h`) lists the keys, and a status line is kept in the window
 //! title.
 
