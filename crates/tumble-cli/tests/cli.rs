@@ -152,8 +152,9 @@ fn run_on_the_gpu_shows_stages_and_copies() {
     ]);
     assert!(output.status.success(), "{}", stderr(&output));
     let stdout = String::from_utf8_lossy(&output.stdout);
+    // Stages 1 to 4 run as one submission, under one line.
     for line in [
-        "-- narrowphase",
+        "-- collision",
         "-- batching",
         "copy to gpu [copy]",
         "copy to cpu [copy]",

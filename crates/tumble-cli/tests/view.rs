@@ -48,6 +48,37 @@ fn no_display_and_no_png_says_how_to_run_headless() {
 }
 
 #[test]
+fn a_display_that_does_not_answer_is_said_before_any_step() {
+    // No X server listens on display 4095: the error must come at once, not after the hours
+    // of steps asked for (or the particles' million being built).
+    for args in [
+        &["view", "falling-boxes", "--steps", "1000000"][..],
+        &["view", "particles", "--steps", "1000000"],
+    ] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tumble"))
+            .args(args)
+            .env("DISPLAY", ":4095")
+            .env_remove("WAYLAND_DISPLAY")
+            .env("NODEVICE_SELECT", "1")
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("tumble runs");
+        let start = std::time::Instant::now();
+        while child.try_wait().expect("waits").is_none() {
+            if start.elapsed() > std::time::Duration::from_secs(30) {
+                child.kill().expect("kills");
+                panic!("{args:?}: still running after 30 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        let message = one_line_error(&child.wait_with_output().expect("output"));
+        assert!(message.contains("no display"), "{message}");
+        assert!(message.contains("--png"), "{message}");
+    }
+}
+
+#[test]
 fn unknown_adapter_is_a_clear_error() {
     let dir = scratch("view-adapter");
     let png = dir.join("out.png");
@@ -151,16 +182,23 @@ fn the_particle_demo_is_drawn_headless() {
     assert!(stdout.contains("500 particles after 20 steps"), "{stdout}");
     let bytes = std::fs::read(&png).expect("the picture is written");
     assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
-    // Without --png or --frames: how to draw it instead.
+    // Without --png or --frames it opens a window; with no display, how to draw it instead.
     let message = one_line_error(&tumble_without_display(&args, &[]));
+    assert!(message.contains("no display"), "{message}");
     assert!(message.contains("--png"), "{message}");
-    // Options that only mean something for a rigid-body world are refused by name.
+    // The profile overlay shows the demo's stages.
     let png = png.to_str().unwrap();
-    for flag in [&["--batches"][..], &["--overlay", "profile"]] {
-        let refused = [&args[..], &["--png", png], flag].concat();
-        let message = one_line_error(&tumble_without_display(&refused, &[]));
-        assert!(message.contains(flag[0]), "{message}");
-    }
+    let profiled = [&args[..], &["--png", png, "--overlay", "profile"]].concat();
+    let output = tumble_without_display(&profiled, &[]);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    // Batch colours only mean something for a rigid-body world: refused by name.
+    let refused = [&args[..], &["--png", png, "--batches"]].concat();
+    let message = one_line_error(&tumble_without_display(&refused, &[]));
+    assert!(message.contains("--batches"), "{message}");
 }
 
 #[test]

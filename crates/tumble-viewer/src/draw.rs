@@ -87,6 +87,8 @@ impl Instance {
 pub enum MeshKey {
     Cube,
     Sphere,
+    /// A coarser sphere for the particle demo's particles.
+    Particle,
     Capsule {
         radius: u32,
         half_height: u32,
@@ -231,7 +233,7 @@ impl DrawList {
         for (index, &position) in positions.iter().enumerate() {
             let model = Mat4::from_translation(Vec3::from(position)) * scale;
             list.push(
-                MeshKey::Sphere,
+                MeshKey::Particle,
                 Instance::new(model, body_colour(colour_of(index))),
                 PoseLink::NONE,
             );

@@ -251,21 +251,21 @@ impl InputState {
 
     /// `button` went down (`pressed`) or up with the cursor at `position` (pixels). The left
     /// button picks the dynamic body under the cursor and starts dragging it in `world`, or
-    /// else orbits; letting go of it ends the drag. While one button is held, the other does
-    /// nothing.
+    /// else orbits (always, with no `world`: the particle demo has no bodies to pick); letting
+    /// go of it ends the drag. While one button is held, the other does nothing.
     pub fn mouse_button(
         &mut self,
         button: MouseButton,
         pressed: bool,
         position: (f32, f32),
-        world: &mut World,
+        world: Option<&mut World>,
     ) {
         if !pressed {
             match self.gesture {
                 // Only letting go of the button that started the gesture ends it.
                 Some(gesture) if gesture.button() == button => {
                     self.gesture = None;
-                    if let Gesture::Drag(_) = gesture {
+                    if let (Gesture::Drag(_), Some(world)) = (gesture, world) {
                         world.clear_drag();
                     }
                 }
@@ -276,14 +276,17 @@ impl InputState {
         if self.gesture.is_some() {
             return;
         }
-        let grab = match button {
-            MouseButton::Left => pick::pick(world, &self.camera, position, self.viewport),
-            MouseButton::Right => None,
+        let grab = match (button, world) {
+            (MouseButton::Left, Some(world)) => {
+                pick::pick(world, &self.camera, position, self.viewport)
+                    // The picked body exists and the hit point is finite, so the world takes it.
+                    .filter(|grab| grab.apply(world).is_ok())
+            }
+            _ => None,
         };
         self.gesture = Some(match grab {
-            // The picked body exists and the hit point is finite, so the world takes it.
-            Some(grab) if grab.apply(world).is_ok() => Gesture::Drag(grab),
-            _ => Gesture::Orbit {
+            Some(grab) => Gesture::Drag(grab),
+            None => Gesture::Orbit {
                 button,
                 last: position,
             },
@@ -292,7 +295,7 @@ impl InputState {
 
     /// The cursor moved to `position` (pixels): orbit the camera with it, or move the dragged
     /// body's target under it (in `world`), while a button is held.
-    pub fn cursor_moved(&mut self, position: (f32, f32), world: &mut World) {
+    pub fn cursor_moved(&mut self, position: (f32, f32), world: Option<&mut World>) {
         match &mut self.gesture {
             None => {}
             Some(Gesture::Orbit { last, .. }) => {
@@ -311,10 +314,19 @@ impl InputState {
                     return;
                 };
                 grab.target = target;
-                if grab.apply(world).is_err() {
-                    // The body is gone from `world`: nothing is left to drag.
+                // The body is gone from `world`, or there is no world: nothing is left to drag.
+                let gone = match world {
+                    Some(world) => {
+                        let gone = grab.apply(world).is_err();
+                        if gone {
+                            world.clear_drag();
+                        }
+                        gone
+                    }
+                    None => true,
+                };
+                if gone {
                     self.gesture = None;
-                    world.clear_drag();
                 }
             }
         }
@@ -468,15 +480,15 @@ mod tests {
         let (mut world, _) = scene();
         let mut s = state();
         let start = s.camera;
-        s.cursor_moved((10.0, 10.0), &mut world);
+        s.cursor_moved((10.0, 10.0), Some(&mut world));
         assert_eq!(s.camera, start, "moving without a button does nothing");
-        s.mouse_button(MouseButton::Left, true, ON_THE_SKY, &mut world);
+        s.mouse_button(MouseButton::Left, true, ON_THE_SKY, Some(&mut world));
         assert_eq!(s.camera, start, "pressing does not turn the camera");
-        s.cursor_moved((50.0, 10.0), &mut world);
+        s.cursor_moved((50.0, 10.0), Some(&mut world));
         assert!(s.camera.yaw != start.yaw);
         let dragged = s.camera;
-        s.mouse_button(MouseButton::Left, false, (50.0, 10.0), &mut world);
-        s.cursor_moved((90.0, 30.0), &mut world);
+        s.mouse_button(MouseButton::Left, false, (50.0, 10.0), Some(&mut world));
+        s.cursor_moved((90.0, 30.0), Some(&mut world));
         assert_eq!(s.camera, dragged);
         assert_eq!(s.grab(), None);
     }
@@ -486,7 +498,7 @@ mod tests {
         let (mut world, cube) = scene();
         let mut s = state();
         let start = s.camera;
-        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, &mut world);
+        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, Some(&mut world));
         let grab = *s.grab().expect("the press is on the box");
         assert_eq!(grab.body, cube);
         // Picked on its front face (+Z, towards the camera), pulled where it was picked.
@@ -494,7 +506,7 @@ mod tests {
         assert_eq!(grab.target, grab.picked_at);
 
         // Moving the cursor up moves the target up, and the camera stays.
-        s.cursor_moved((ON_THE_BOX.0, ON_THE_BOX.1 - 100.0), &mut world);
+        s.cursor_moved((ON_THE_BOX.0, ON_THE_BOX.1 - 100.0), Some(&mut world));
         let moved = *s.grab().unwrap();
         assert_eq!((moved.body, moved.local_anchor), (cube, grab.local_anchor));
         assert!(moved.target.y > grab.target.y + 0.5, "{moved:?}");
@@ -506,14 +518,14 @@ mod tests {
         assert!(world.pose(cube).unwrap().position.y > 0.1);
 
         // The right button does nothing while the left drags.
-        s.mouse_button(MouseButton::Right, true, ON_THE_BOX, &mut world);
-        s.cursor_moved((ON_THE_BOX.0 + 50.0, ON_THE_BOX.1), &mut world);
-        s.mouse_button(MouseButton::Right, false, ON_THE_BOX, &mut world);
+        s.mouse_button(MouseButton::Right, true, ON_THE_BOX, Some(&mut world));
+        s.cursor_moved((ON_THE_BOX.0 + 50.0, ON_THE_BOX.1), Some(&mut world));
+        s.mouse_button(MouseButton::Right, false, ON_THE_BOX, Some(&mut world));
         assert_eq!(s.camera, start);
         assert_eq!(s.grab().unwrap().body, cube);
 
         // Letting go ends the drag: the box falls back to the ground.
-        s.mouse_button(MouseButton::Left, false, ON_THE_BOX, &mut world);
+        s.mouse_button(MouseButton::Left, false, ON_THE_BOX, Some(&mut world));
         assert_eq!(s.grab(), None);
         for _ in 0..120 {
             world.step();
@@ -532,11 +544,11 @@ mod tests {
             let (mut world, cube) = scene();
             let mut s = state();
             let start = s.camera;
-            s.mouse_button(button, true, at, &mut world);
+            s.mouse_button(button, true, at, Some(&mut world));
             assert_eq!(s.grab(), None, "{button:?} at {at:?}");
             assert_eq!(s.camera, start, "{button:?} at {at:?}");
             // It orbits instead, and the box stays where it is.
-            s.cursor_moved((at.0 + 40.0, at.1), &mut world);
+            s.cursor_moved((at.0 + 40.0, at.1), Some(&mut world));
             assert!(s.camera.yaw != start.yaw, "{button:?} at {at:?}");
             for _ in 0..30 {
                 world.step();
@@ -546,10 +558,25 @@ mod tests {
     }
 
     #[test]
+    fn with_no_world_a_left_drag_orbits() {
+        // The particle demo's window: nothing to pick, so the left button turns the camera.
+        let mut s = state();
+        let start = s.camera;
+        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, None);
+        assert_eq!(s.grab(), None);
+        s.cursor_moved((ON_THE_BOX.0 + 40.0, ON_THE_BOX.1), None);
+        assert!(s.camera.yaw != start.yaw);
+        let turned = s.camera;
+        s.mouse_button(MouseButton::Left, false, ON_THE_BOX, None);
+        s.cursor_moved((ON_THE_BOX.0 + 80.0, ON_THE_BOX.1), None);
+        assert_eq!(s.camera, turned);
+    }
+
+    #[test]
     fn reset_lets_go_of_the_dragged_body() {
         let (mut world, _) = scene();
         let mut s = state();
-        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, &mut world);
+        s.mouse_button(MouseButton::Left, true, ON_THE_BOX, Some(&mut world));
         assert!(s.grab().is_some());
         assert_eq!(s.key(Key::Space), Action::Reset);
         assert_eq!(s.grab(), None);

@@ -29,6 +29,11 @@ pub struct MeshData {
 /// Segments of a sphere or capsule around its axis, and rings per hemisphere.
 const SEGMENTS: u32 = 24;
 const RINGS: u32 = 8;
+/// The same for a particle of the particle demo: thousands of small spheres, where Mesa's CPU
+/// rasterizer spends its time on vertices (1000 particles at 24 × 8: 1.6M triangles with the
+/// shadow pass, about 1 frame/s), and the facets of a sphere a few pixels wide do not show.
+const PARTICLE_SEGMENTS: u32 = 10;
+const PARTICLE_RINGS: u32 = 3;
 
 impl MeshData {
     /// A box from -1 to 1 on each axis, with a flat normal per face.
@@ -113,27 +118,37 @@ impl MeshData {
         Self::capsule(1.0, 0.0)
     }
 
+    /// A coarser sphere of radius 1, for the particle demo's particles.
+    pub fn particle() -> Self {
+        Self::revolved(1.0, 0.0, PARTICLE_SEGMENTS, PARTICLE_RINGS)
+    }
+
     /// A capsule along Y: the segment from -`half_height` to `half_height` swept by a ball of
     /// `radius` (m), as [`tumble::shape::Capsule`]. With `half_height` 0 it is a sphere.
     pub fn capsule(radius: f32, half_height: f32) -> Self {
+        Self::revolved(radius, half_height, SEGMENTS, RINGS)
+    }
+
+    /// A capsule of `segments` around its axis and `rings` per hemisphere.
+    fn revolved(radius: f32, half_height: f32, segments: u32, rings_per_cap: u32) -> Self {
         let mut mesh = MeshData::default();
         // Latitude rings from the south pole to the north pole; the two equator rings coincide
         // for a sphere and are `2 * half_height` apart for a capsule (the cylinder between).
-        let rings = 2 * RINGS + 2;
+        let rings = 2 * rings_per_cap + 2;
         for ring in 0..rings {
-            let (latitude, shift) = if ring <= RINGS {
+            let (latitude, shift) = if ring <= rings_per_cap {
                 (
-                    -PI / 2.0 + PI / 2.0 * ring as f32 / RINGS as f32,
+                    -PI / 2.0 + PI / 2.0 * ring as f32 / rings_per_cap as f32,
                     -half_height,
                 )
             } else {
                 (
-                    PI / 2.0 * (ring - RINGS - 1) as f32 / RINGS as f32,
+                    PI / 2.0 * (ring - rings_per_cap - 1) as f32 / rings_per_cap as f32,
                     half_height,
                 )
             };
-            for segment in 0..=SEGMENTS {
-                let longitude = 2.0 * PI * segment as f32 / SEGMENTS as f32;
+            for segment in 0..=segments {
+                let longitude = 2.0 * PI * segment as f32 / segments as f32;
                 let normal = Vec3::new(
                     latitude.cos() * longitude.sin(),
                     latitude.sin(),
@@ -142,9 +157,9 @@ impl MeshData {
                 mesh.push(normal * radius + Vec3::Y * shift, normal);
             }
         }
-        let row = SEGMENTS + 1;
+        let row = segments + 1;
         for ring in 0..rings - 1 {
-            for segment in 0..SEGMENTS {
+            for segment in 0..segments {
                 let a = ring * row + segment;
                 let (b, c, d) = (a + 1, a + row, a + row + 1);
                 mesh.triangles.extend([a, b, d, a, d, c]);
@@ -242,10 +257,15 @@ mod tests {
 
     #[test]
     fn sphere_vertices_lie_on_the_unit_sphere() {
-        let sphere = MeshData::sphere();
-        assert_outward(&sphere);
-        for v in &sphere.vertices {
-            assert!((Vec3::from_array(v.position).length() - 1.0).abs() < 1e-5);
+        for sphere in [MeshData::sphere(), MeshData::particle()] {
+            assert_outward(&sphere);
+            for v in &sphere.vertices {
+                assert!((Vec3::from_array(v.position).length() - 1.0).abs() < 1e-5);
+            }
         }
+        // The particle's sphere costs a sixth of the triangles.
+        let triangles = |mesh: MeshData| mesh.triangles.len() / 3;
+        assert_eq!(triangles(MeshData::sphere()), 17 * 24 * 2);
+        assert_eq!(triangles(MeshData::particle()), 7 * 10 * 2);
     }
 }

@@ -37,11 +37,7 @@ pub fn help_lines() -> Vec<String> {
 /// kernels') time and share of the step, the counts, and the batch histogram as the talk
 /// prints it ("0: 4931, 1: 4836, ..."), wrapped.
 pub fn profile_lines(report: &ProfileReport, bodies: usize, stats: &StepStats) -> Vec<String> {
-    let mut lines = vec![format!(
-        "{}: {:.3} ms / frame over {} frames",
-        report.root.name, report.root.ms_per_frame, report.frames
-    )];
-    stage_lines(&report.root, report.root.ms_per_frame, 1, &mut lines);
+    let mut lines = stage_report_lines(report);
     lines.push(format!(
         "bodies {bodies}  pairs {}  manifolds {}  contacts {}",
         stats.pairs, stats.manifolds, stats.contacts
@@ -68,6 +64,17 @@ pub fn profile_lines(report: &ProfileReport, bodies: usize, stats: &StepStats) -
     if !line.is_empty() {
         lines.push(format!("  {line}"));
     }
+    lines
+}
+
+/// The step's time per frame, then each stage's (and, indented, its copies' and kernels')
+/// time and share of the step.
+pub fn stage_report_lines(report: &ProfileReport) -> Vec<String> {
+    let mut lines = vec![format!(
+        "{}: {:.3} ms / frame over {} frames",
+        report.root.name, report.root.ms_per_frame, report.frames
+    )];
+    stage_lines(&report.root, report.root.ms_per_frame, 1, &mut lines);
     lines
 }
 

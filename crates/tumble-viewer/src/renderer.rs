@@ -1067,6 +1067,7 @@ fn mesh_data(key: MeshKey, list: &DrawList) -> MeshData {
     match key {
         MeshKey::Cube => MeshData::cube(),
         MeshKey::Sphere => MeshData::sphere(),
+        MeshKey::Particle => MeshData::particle(),
         MeshKey::Capsule {
             radius,
             half_height,

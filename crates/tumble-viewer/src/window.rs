@@ -1,5 +1,6 @@
-//! The window: a winit event loop that steps the world, draws it into the window's surface and
-//! feeds keys and the mouse to [`InputState`]. The profile overlay (`p`) is refreshed about
+//! The window: a winit event loop that steps what it shows (a rigid-body world, or the particle
+//! demo: [`Shown`]), draws it into the window's surface and feeds keys and the mouse to
+//! [`InputState`]. The profile overlay (`p`) is refreshed about
 //! once a second, the help overlay (`h`) lists the keys, and a status line is kept in the window
 //! title.
 
@@ -7,7 +8,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use tumble::World;
+use tumble::pipeline::devices::StageDevices;
+use tumble::pipeline::world::DevicePoses;
 use tumble::scene::Scene;
+use tumble::stages::batching::Batcher;
 use winit::application::ApplicationHandler;
 use winit::dpi::{LogicalSize, PhysicalPosition};
 use winit::event::{ElementState, MouseButton as WinitButton, MouseScrollDelta, WindowEvent};
@@ -17,9 +21,9 @@ use winit::window::{Window, WindowId};
 
 use crate::camera::Camera;
 use crate::context::GpuContext;
-use crate::draw::DrawList;
+use crate::draw::{DrawList, DrawSettings};
 use crate::error::ViewError;
-use crate::input::{Action, Executor, HELP, InputState, Key, MouseButton};
+use crate::input::{Action, BatchView, Executor, HELP, InputState, Key, MouseButton};
 use crate::overlay::{self, OverlayKind};
 use crate::quality::Quality;
 use crate::renderer::{Renderer, depth_view};
@@ -31,25 +35,138 @@ const PROFILE_PERIOD: Duration = Duration::from_secs(1);
 /// Camera distance factor per mouse wheel line.
 const WHEEL_ZOOM: f32 = 0.9;
 
+/// What a window steps and draws: a rigid-body world ([`Rigid`]) or the particle demo
+/// (particles.rs). The keys, the camera and the overlays are the window's; what a key means
+/// for the simulation is asked of this.
+pub(crate) trait Shown {
+    /// Moves the GPU work onto the window's device (once it exists), where the renderer reads
+    /// what the step leaves.
+    fn use_device(&mut self, context: tumble::gpu::GpuContext) -> Result<(), ViewError>;
+    /// Back to the start (space).
+    fn reset(&mut self) -> Result<(), ViewError>;
+    fn step(&mut self) -> Result<(), ViewError>;
+    /// `u`: the solver (the particle demo: its whole step) on the CPU or the GPU.
+    fn put_solver_on(&mut self, executor: Executor);
+    /// `d`: the batcher from the next step.
+    fn use_batcher(&mut self, batcher: Batcher);
+    fn draw_list(&mut self, settings: DrawSettings) -> Result<DrawList, ViewError>;
+    /// The step's pose buffers on the window's device, when the step runs there.
+    fn device_poses(&self) -> Option<DevicePoses<'_>>;
+    /// The profile overlay's lines for the steps since the last call, whose timings restart.
+    fn take_profile(&mut self) -> Vec<String>;
+    /// The title's counts, e.g. "286 bodies, 1328 contacts, 8 batches".
+    fn status(&self) -> String;
+    /// Constraint batches of the last step (for `b`).
+    fn batch_count(&self) -> usize;
+    /// The world whose bodies the mouse picks, if there is one.
+    fn world(&mut self) -> Option<&mut World>;
+}
+
+/// A rigid-body scene in a window.
+struct Rigid<'a> {
+    scene: &'a Scene,
+    /// Where the step runs after a reset, before the `u` key moves the solver.
+    device: StepDevice,
+    world: World,
+    /// The window's device, once it exists: a reset builds the world's GPU stages there.
+    context: Option<tumble::gpu::GpuContext>,
+}
+
+impl Shown for Rigid<'_> {
+    fn use_device(&mut self, context: tumble::gpu::GpuContext) -> Result<(), ViewError> {
+        self.world.set_gpu_context(context.clone())?;
+        if self.device == StepDevice::Gpu {
+            self.world
+                .set_stage_devices(StageDevices::all(tumble::pipeline::devices::Executor::Gpu))?;
+        }
+        self.context = Some(context);
+        Ok(())
+    }
+
+    fn reset(&mut self) -> Result<(), ViewError> {
+        self.world = crate::build_world(self.scene, self.device, self.context.clone())?;
+        Ok(())
+    }
+
+    fn step(&mut self) -> Result<(), ViewError> {
+        self.world.step();
+        Ok(())
+    }
+
+    /// The talk's `u` key: the solver stage on the CPU or the GPU (the other stages stay).
+    fn put_solver_on(&mut self, executor: Executor) {
+        let mut devices = self.world.stage_devices();
+        let (on, name) = match executor {
+            Executor::Cpu => (tumble::pipeline::devices::Executor::Cpu, "CPU"),
+            Executor::Gpu => (tumble::pipeline::devices::Executor::Gpu, "GPU"),
+        };
+        devices.set(tumble::pipeline::devices::Stage::Batching, on);
+        devices.set(tumble::pipeline::devices::Stage::Solver, on);
+        match self.world.set_stage_devices(devices) {
+            Ok(()) => println!("solver on the {name}"),
+            Err(error) => println!("the solver stays where it was: {error}"),
+        }
+    }
+
+    fn use_batcher(&mut self, batcher: Batcher) {
+        let config = tumble::StepConfig {
+            batcher,
+            ..*self.world.config()
+        };
+        match self.world.set_config(config) {
+            Ok(()) => println!("batcher: {batcher}"),
+            Err(error) => println!("the batcher stays: {error}"),
+        }
+    }
+
+    fn draw_list(&mut self, settings: DrawSettings) -> Result<DrawList, ViewError> {
+        Ok(DrawList::build(&self.world, settings))
+    }
+
+    fn device_poses(&self) -> Option<DevicePoses<'_>> {
+        self.world.device_poses()
+    }
+
+    fn take_profile(&mut self) -> Vec<String> {
+        let lines = overlay::profile_lines(
+            &self.world.profiler().report(),
+            self.world.body_count(),
+            self.world.stats(),
+        );
+        self.world.profiler_mut().reset();
+        lines
+    }
+
+    fn status(&self) -> String {
+        let stats = self.world.stats();
+        format!(
+            "{} bodies, {} contacts, {} batches",
+            self.world.body_count(),
+            stats.contacts,
+            stats.batch_histogram.len()
+        )
+    }
+
+    fn batch_count(&self) -> usize {
+        self.world.stats().batch_histogram.len()
+    }
+
+    fn world(&mut self) -> Option<&mut World> {
+        Some(&mut self.world)
+    }
+}
+
 /// Opens a window on `scene` and runs until it is closed or `q` is pressed.
 pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
-    let no_display = |reason: String| ViewError::NoDisplay {
-        scene: name.to_owned(),
-        reason,
+    let event_loop = event_loop(name)?;
+    // Steps before the window opens run their GPU stages on the physics' shared device. With
+    // none, the stages are made once, on the window's device (`use_device`): making them
+    // compiles every kernel, 3.5 s on lavapipe (falling-boxes, --steps 0).
+    let early = match options.steps {
+        0 => StepDevice::Cpu,
+        _ => options.device,
     };
-    if let Some(reason) = missing_display() {
-        return Err(no_display(reason));
-    }
-    let event_loop = EventLoop::new().map_err(|e| no_display(e.to_string()))?;
-    event_loop.set_control_flow(ControlFlow::Poll);
-    // The display handle lets the GL backend present too (Vulkan does not need it).
-    let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
-        event_loop.owned_display_handle(),
-    ));
-    let backends = descriptor.backends;
-    let instance = wgpu::Instance::new(descriptor);
-    // Until the window's device exists, GPU stages run on the physics' shared one.
-    let mut world = crate::build_world(scene, options.device, None)?;
+    let mut world = crate::build_world(scene, early, None)?;
     for _ in 0..options.steps {
         world.step();
     }
@@ -57,6 +174,45 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     let camera = options
         .camera
         .unwrap_or_else(|| Camera::framing(&world, aspect));
+    let rigid = Rigid {
+        scene,
+        device: options.device,
+        world,
+        context: None,
+    };
+    show(event_loop, name, Box::new(rigid), camera, options)
+}
+
+/// The event loop a window of the scene `name` opens in, made before anything is built or
+/// stepped: where no window can open (no display, or one that does not answer), a clear error
+/// comes at once.
+pub(crate) fn event_loop(name: &str) -> Result<EventLoop<()>, ViewError> {
+    let no_display = |reason: String| ViewError::NoDisplay {
+        scene: name.to_owned(),
+        reason,
+    };
+    if let Some(reason) = missing_display() {
+        return Err(no_display(reason));
+    }
+    EventLoop::new().map_err(|e| no_display(e.to_string()))
+}
+
+/// Opens a window of `event_loop` on `shown` (stepped as far as `--steps` asks), seen from
+/// `camera`, and runs until it is closed or `q` is pressed.
+pub(crate) fn show(
+    event_loop: EventLoop<()>,
+    name: &str,
+    shown: Box<dyn Shown + '_>,
+    camera: Camera,
+    options: &ViewOptions,
+) -> Result<(), ViewError> {
+    event_loop.set_control_flow(ControlFlow::Poll);
+    // The display handle lets the GL backend present too (Vulkan does not need it).
+    let descriptor = wgpu::InstanceDescriptor::new_with_display_handle_from_env(Box::new(
+        event_loop.owned_display_handle(),
+    ));
+    let backends = descriptor.backends;
+    let instance = wgpu::Instance::new(descriptor);
     println!("{HELP}");
     // The window's size in pixels is known once it opens (`resumed`).
     let mut input = InputState::new(camera, (options.size.width, options.size.height));
@@ -68,9 +224,7 @@ pub fn run(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), ViewE
     input.profile = options.overlay == OverlayKind::Profile;
     let mut app = App {
         name: name.to_owned(),
-        scene,
-        device: options.device,
-        world,
+        shown,
         input,
         size: options.size,
         quality: options.quality.unwrap_or_default(),
@@ -117,10 +271,7 @@ struct WindowView {
 
 struct App<'a> {
     name: String,
-    scene: &'a Scene,
-    /// Where the step runs after a reset, before the `u` key moves the solver.
-    device: StepDevice,
-    world: World,
+    shown: Box<dyn Shown + 'a>,
     input: InputState,
     size: ImageSize,
     quality: Quality,
@@ -193,72 +344,51 @@ impl App<'_> {
     }
 
     fn act(&mut self, event_loop: &ActiveEventLoop, action: Action) {
-        match action {
-            Action::None => {}
-            Action::Reset => match crate::build_world(
-                self.scene,
-                self.device,
-                self.view.as_ref().map(|view| view.context.physics()),
-            ) {
-                Ok(world) => {
-                    self.world = world;
-                    self.put_solver_on(self.input.solver);
-                    self.use_batcher(self.input.batcher);
-                }
-                Err(error) => self.fail(event_loop, error),
-            },
-            Action::Solver(executor) => self.put_solver_on(executor),
-            Action::Step => self.world.step(),
-            Action::Profile => self.refresh_profile(),
-            Action::Batcher(batcher) => self.use_batcher(batcher),
-            Action::Quit => event_loop.exit(),
-        }
-    }
-
-    /// The talk's `u` key: the solver stage on the CPU or the GPU (the other stages stay).
-    fn put_solver_on(&mut self, executor: Executor) {
-        let mut devices = self.world.stage_devices();
-        let (on, name) = match executor {
-            Executor::Cpu => (tumble::pipeline::devices::Executor::Cpu, "CPU"),
-            Executor::Gpu => (tumble::pipeline::devices::Executor::Gpu, "GPU"),
+        let done = match action {
+            Action::None => Ok(()),
+            // The rebuilt simulation keeps the solver and batcher the keys chose.
+            Action::Reset => self.shown.reset().map(|()| {
+                self.shown.put_solver_on(self.input.solver);
+                self.shown.use_batcher(self.input.batcher);
+            }),
+            Action::Solver(executor) => {
+                self.shown.put_solver_on(executor);
+                Ok(())
+            }
+            Action::Step => self.shown.step(),
+            Action::Profile => {
+                self.refresh_profile();
+                Ok(())
+            }
+            Action::Batcher(batcher) => {
+                self.shown.use_batcher(batcher);
+                Ok(())
+            }
+            Action::Quit => {
+                event_loop.exit();
+                Ok(())
+            }
         };
-        devices.set(tumble::pipeline::devices::Stage::Batching, on);
-        devices.set(tumble::pipeline::devices::Stage::Solver, on);
-        match self.world.set_stage_devices(devices) {
-            Ok(()) => println!("solver on the {name}"),
-            Err(error) => println!("the solver stays where it was: {error}"),
-        }
-    }
-
-    /// The talk's `d` key: the batcher from the next step.
-    fn use_batcher(&mut self, batcher: tumble::stages::batching::Batcher) {
-        let config = tumble::StepConfig {
-            batcher,
-            ..*self.world.config()
-        };
-        match self.world.set_config(config) {
-            Ok(()) => println!("batcher: {batcher}"),
-            Err(error) => println!("the batcher stays: {error}"),
+        if let Err(error) = done {
+            self.fail(event_loop, error);
         }
     }
 
     /// The talk's profile screen: stage times, counts and the batch histogram. The timings
     /// restart after each refresh, so each covers the frames since the last.
     fn refresh_profile(&mut self) {
-        self.profile_lines = overlay::profile_lines(
-            &self.world.profiler().report(),
-            self.world.body_count(),
-            self.world.stats(),
-        );
-        self.world.profiler_mut().reset();
+        self.profile_lines = self.shown.take_profile();
         self.last_profile = Instant::now();
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) {
-        if self.input.running {
-            self.world.step();
+        if self.input.running
+            && let Err(error) = self.shown.step()
+        {
+            self.fail(event_loop, error);
+            return;
         }
-        self.input.batch_count = self.world.stats().batch_histogram.len();
+        self.input.batch_count = self.shown.batch_count();
         let Some(view) = &mut self.view else {
             return;
         };
@@ -279,20 +409,26 @@ impl App<'_> {
                 return;
             }
         };
-        let mut list = DrawList::build(&self.world, self.input.draw_settings());
+        let mut list = match self.shown.draw_list(self.input.draw_settings()) {
+            Ok(list) => list,
+            Err(error) => {
+                self.fail(event_loop, error);
+                return;
+            }
+        };
         if self.input.help {
             list.overlay = overlay::help_lines();
         } else if self.input.profile {
             list.overlay.clone_from(&self.profile_lines);
         }
         let (width, height) = (view.config.width, view.config.height);
-        // The world's GPU stages run on this device (resumed), so a GPU step is drawn from its
+        // The step's GPU stages run on this device (resumed), so a GPU step is drawn from its
         // buffers.
         view.renderer.prepare(
             &list,
             &self.input.camera,
             (width, height),
-            self.world.device_poses(),
+            self.shown.device_poses(),
         );
         let target = frame.texture.create_view(&Default::default());
         let mut encoder = view
@@ -308,15 +444,8 @@ impl App<'_> {
         let elapsed = self.last_status.elapsed();
         if elapsed >= STATUS_PERIOD {
             let fps = self.frames as f32 / elapsed.as_secs_f32();
-            let stats = self.world.stats();
-            view.window.set_title(&format!(
-                "tumble view {}: {} bodies, {} contacts, {} batches, {fps:.0} fps{}  (h: help)",
-                self.name,
-                self.world.body_count(),
-                stats.contacts,
-                stats.batch_histogram.len(),
-                if self.input.running { "" } else { ", paused" },
-            ));
+            view.window
+                .set_title(&title(&self.name, &self.shown.status(), fps, &self.input));
             self.frames = 0;
             self.last_status = Instant::now();
         }
@@ -326,13 +455,31 @@ impl App<'_> {
     }
 }
 
+/// The window's title: the scene, its counts, the frame rate, and what the keys and the mouse
+/// changed that the picture does not say (paused, which single batch `b` shows, which body the
+/// mouse drags; scripts/window-smoke.sh reads the last).
+fn title(name: &str, status: &str, fps: f32, input: &InputState) -> String {
+    let mut title = format!("tumble view {name}: {status}, {fps:.0} fps");
+    if !input.running {
+        title.push_str(", paused");
+    }
+    if let BatchView::One(batch) = input.batches {
+        title.push_str(&format!(", batch {batch} of {} shown", input.batch_count));
+    }
+    if let Some(grab) = input.grab() {
+        title.push_str(&format!(", dragging body {}", grab.body.index()));
+    }
+    title.push_str("  (h: help)");
+    title
+}
+
 impl ApplicationHandler for App<'_> {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.view.is_none() {
             // The world's GPU stages move to the window's device, where the renderer reads
             // the poses they leave.
             let opened = self.open(event_loop).and_then(|view| {
-                self.world.set_gpu_context(view.context.physics())?;
+                self.shown.use_device(view.context.physics())?;
                 Ok(view)
             });
             match opened {
@@ -367,7 +514,7 @@ impl ApplicationHandler for App<'_> {
                 if let Some(button) = translate_button(button) {
                     let pressed = state == ElementState::Pressed;
                     self.input
-                        .mouse_button(button, pressed, self.cursor, &mut self.world);
+                        .mouse_button(button, pressed, self.cursor, self.shown.world());
                 }
             }
             WindowEvent::CursorMoved {
@@ -375,7 +522,7 @@ impl ApplicationHandler for App<'_> {
                 ..
             } => {
                 self.cursor = (x as f32, y as f32);
-                self.input.cursor_moved(self.cursor, &mut self.world);
+                self.input.cursor_moved(self.cursor, self.shown.world());
             }
             WindowEvent::MouseWheel { delta, .. } => {
                 let lines = match delta {
@@ -448,6 +595,42 @@ mod tests {
             Some(Key::Escape)
         );
         assert_eq!(translate(&WinitKey::Named(NamedKey::Shift)), None);
+    }
+
+    #[test]
+    fn the_title_says_what_the_picture_does_not() {
+        let camera = Camera::look_at(glam::Vec3::new(0.0, 2.0, 10.0), glam::Vec3::ZERO);
+        let mut input = InputState::new(camera, (800, 600));
+        let status = "2 bodies, 4 contacts, 3 batches";
+        assert_eq!(
+            title("cube", status, 59.6, &input),
+            "tumble view cube: 2 bodies, 4 contacts, 3 batches, 60 fps  (h: help)"
+        );
+        input.key(Key::Char('i'));
+        input.batch_count = 3;
+        input.key(Key::Char('b'));
+        input.key(Key::Char('b'));
+        input.key(Key::Char('b'));
+        assert_eq!(
+            title("cube", status, 12.0, &input),
+            "tumble view cube: 2 bodies, 4 contacts, 3 batches, 12 fps, paused, batch 1 of 3 \
+             shown  (h: help)"
+        );
+
+        // A box in front of the camera, picked at the centre of the window.
+        let mut world = tumble::World::new(tumble::StepConfig::default()).unwrap();
+        let cube = world
+            .add_body(tumble::BodyDesc::dynamic(tumble::Shape::cuboid(
+                glam::Vec3::splat(0.5),
+            )))
+            .unwrap();
+        input.mouse_button(MouseButton::Left, true, (400.0, 300.0), Some(&mut world));
+        assert!(
+            title("cube", status, 12.0, &input)
+                .ends_with(&format!(", dragging body {}  (h: help)", cube.index())),
+            "{}",
+            title("cube", status, 12.0, &input)
+        );
     }
 
     #[test]

@@ -32,12 +32,12 @@ fn dragging_a_box_with_the_mouse_lifts_it_and_letting_go_drops_it() {
     let mut input = InputState::new(camera, VIEWPORT);
 
     let on_the_box = pixel(&camera, start);
-    input.mouse_button(MouseButton::Left, true, on_the_box, &mut world);
+    input.mouse_button(MouseButton::Left, true, on_the_box, Some(&mut world));
     let grab = *input.grab().expect("the press is on the box");
     assert_eq!(grab.body, cube);
     // The cursor a quarter of the picture higher.
     let cursor = (on_the_box.0, on_the_box.1 - VIEWPORT.1 as f32 / 4.0);
-    input.cursor_moved(cursor, &mut world);
+    input.cursor_moved(cursor, Some(&mut world));
     let target = input.grab().unwrap().target;
     assert!(target.y > grab.picked_at.y + 1.0, "{target}");
     // The target lies under the cursor.
@@ -66,7 +66,7 @@ fn dragging_a_box_with_the_mouse_lifts_it_and_letting_go_drops_it() {
     // The camera stayed put while the box was dragged.
     assert_eq!(input.camera, camera);
 
-    input.mouse_button(MouseButton::Left, false, cursor, &mut world);
+    input.mouse_button(MouseButton::Left, false, cursor, Some(&mut world));
     assert_eq!(input.grab(), None);
     for _ in 0..120 {
         world.step();
