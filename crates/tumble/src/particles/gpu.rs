@@ -21,6 +21,7 @@ use crate::profile::Profiler;
 pub(super) const COMMON_WGSL: &str = include_str!("common.wgsl");
 const HASH_WGSL: &str = include_str!("hash.wgsl");
 const CELL_BOUNDS_WGSL: &str = include_str!("cell_bounds.wgsl");
+pub(super) const SEARCH_WGSL: &str = include_str!("search.wgsl");
 const COLLIDE_WGSL: &str = include_str!("collide.wgsl");
 const COLLIDE_SYMMETRIC_WGSL: &str = include_str!("collide_symmetric.wgsl");
 
@@ -39,10 +40,14 @@ pub fn wgsl(kernel: &str) -> Source {
         "collide_symmetric" => COLLIDE_SYMMETRIC_WGSL,
         _ => unreachable!("no particle kernel {kernel}"),
     };
-    Source::new()
+    let source = Source::new()
         .constant_u32("EMPTY_CELL", EMPTY_CELL)
-        .snippet("particles/common.wgsl", COMMON_WGSL)
-        .snippet(kernel, text)
+        .snippet("particles/common.wgsl", COMMON_WGSL);
+    let source = match kernel {
+        "collide" => source.snippet("particles/search.wgsl", SEARCH_WGSL),
+        _ => source,
+    };
+    source.snippet(kernel, text)
 }
 
 /// Whether the largest buffers fit the adapter's bindings, without allocating anything.

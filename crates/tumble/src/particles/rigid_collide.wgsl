@@ -2,10 +2,7 @@
 // the walls with friction. Writes each particle's force at its body-order index, so that a
 // body's forces are contiguous for the next stage.
 
-@group(0) @binding(1) var<storage, read> sorted_particles: array<Particle>;
-@group(0) @binding(2) var<storage, read> sorted_ids: array<u32>;
-@group(0) @binding(3) var<storage, read> cell_start: array<u32>;
-@group(0) @binding(4) var<storage, read> cell_end: array<u32>;
+// Needs search.wgsl (the sorted particles, the cell table, `neighbour_force`).
 @group(0) @binding(5) var<storage, read_write> forces: array<vec4<f32>>;
 
 // The walls' friction: a particle inside a wall has its tangential velocity damped (N).
@@ -38,32 +35,7 @@ fn rigid_collide(
     let me = sorted_particles[index];
     let position = me.position.xyz;
     let velocity = me.velocity.xyz;
-    let cell = vec3<i32>(cell_of(position));
-    let grid = vec3<i32>(params.grid);
-    var force = vec3<f32>(0.0);
-    // Neighbour cells in increasing id order (z, then y, then x), as the CPU twin.
-    for (var dz = -1; dz <= 1; dz++) {
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                let neighbour = cell + vec3<i32>(dx, dy, dz);
-                if any(neighbour < vec3<i32>(0)) || any(neighbour >= grid) {
-                    continue;
-                }
-                let neighbour_index = cell_index(vec3<u32>(neighbour));
-                let start = cell_start[neighbour_index];
-                if start == EMPTY_CELL {
-                    continue;
-                }
-                let end = cell_end[neighbour_index];
-                for (var other = start; other < end; other++) {
-                    let them = sorted_particles[other];
-                    if them.position.w != me.position.w {
-                        force += pair_force(position, velocity, them.position.xyz, them.velocity.xyz);
-                    }
-                }
-            }
-        }
-    }
+    var force = neighbour_force(index, true);
     force += wall_force(position, velocity);
     force += wall_friction(position, velocity);
     forces[sorted_ids[index]] = vec4<f32>(force, 0.0);

@@ -9,7 +9,7 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
-use crate::particles::gpu::{COMMON_WGSL, GpuGrid, begin_pass, check_capacity};
+use crate::particles::gpu::{COMMON_WGSL, GpuGrid, SEARCH_WGSL, begin_pass, check_capacity};
 use crate::particles::rigid::{Flat, RigidBody};
 use crate::particles::{EMPTY_CELL, Particle};
 use crate::profile::Profiler;
@@ -32,11 +32,15 @@ pub fn wgsl(kernel: &str) -> Source {
         "rigid_bodies" => BODIES_WGSL,
         _ => unreachable!("no rigid particle kernel {kernel}"),
     };
-    Source::new()
+    let source = Source::new()
         .constant_u32("EMPTY_CELL", EMPTY_CELL)
         .snippet("particles/common.wgsl", COMMON_WGSL)
-        .snippet("particles/rigid_common.wgsl", RIGID_COMMON_WGSL)
-        .snippet(kernel, text)
+        .snippet("particles/rigid_common.wgsl", RIGID_COMMON_WGSL);
+    let source = match kernel {
+        "rigid_collide" => source.snippet("particles/search.wgsl", SEARCH_WGSL),
+        _ => source,
+    };
+    source.snippet(kernel, text)
 }
 
 #[derive(Debug)]
