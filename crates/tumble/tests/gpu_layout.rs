@@ -338,8 +338,8 @@ fn narrowphase_structs_match_rust() {
             rust_layout!(PairContact { manifold, impulses }),
         ],
         // Box–box's polygon vertex and the hull pairs' views of the packed hulls, frames,
-        // queries and polygon vertices live in one thread's private memory; the hulls
-        // themselves are words (`pack_hulls`).
+        // queries, polygon vertices and round cores' features live in one thread's private
+        // memory; the hulls themselves are words (`pack_hulls`).
         &[
             "ClipVertex",
             "Polyhedron",
@@ -348,6 +348,8 @@ fn narrowphase_structs_match_rust() {
             "FaceQuery",
             "EdgeQuery",
             "PlaneCandidates",
+            "CoreFeature",
+            "CoreContact",
         ],
     );
 }

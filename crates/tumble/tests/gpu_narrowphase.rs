@@ -75,6 +75,7 @@ impl Random {
 }
 
 /// Bodies, pairs and last step's contacts of a test.
+#[derive(Clone)]
 struct World {
     poses: Vec<BodyPose>,
     velocities: Vec<BodyVelocity>,
@@ -471,15 +472,161 @@ fn random_hull_pairs_match_the_cpu() {
     }
 }
 
-/// Sphere– and capsule–hull pairs (GJK and EPA) are host work, and so are the pairs of a hull
-/// with a face of more than `MAX_HULL_FACE_VERTICES` vertices (the kernel's clip polygon
-/// holds twice that many).
+/// A prism of `sides` sides (radius 1 m, 1 m tall) scaled by `scale`: two faces of `sides`
+/// vertices, past the clip polygon of hull–hull pairs when `sides` > 16.
+fn prism(sides: usize, scale: Vec3) -> Shape {
+    let points: Vec<Vec3> = (0..2 * sides)
+        .map(|k| {
+            let angle = std::f32::consts::TAU * (k % sides) as f32 / sides as f32;
+            scale * vec3(angle.cos(), if k < sides { -0.5 } else { 0.5 }, angle.sin())
+        })
+        .collect();
+    Shape::convex_hull(&points).unwrap()
+}
+
+/// Sphere– and capsule–hull pairs on the GPU (GJK, and the sampled penetration depth where the
+/// cores overlap), in both index orders: apart within the margin, touching, overlapping and
+/// deep (a core inside the hull), against the barrel, random hulls and prisms of 3 to 40 sides
+/// (faces of every size, larger than hull–hull pairs take), flat or tall. Capsules lying along
+/// a face get two points. (Before this kernel the GPU gave these pairs no contact.)
 #[test]
-fn round_shapes_and_large_faces_stay_on_the_host() {
+fn random_round_hull_pairs_match_the_cpu() {
+    let context = context();
+    let mut narrowphase = GpuNarrowphase::new(&context);
+    let barrel = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+    for (seed, pairs) in [0usize, 1, 257, 3000].into_iter().enumerate() {
+        let mut random = Random::new(seed as u64 + 70);
+        let world = random_world_with(&mut random, pairs, |random| {
+            let round = if random.below(2) == 0 {
+                Shape::sphere(random.range(0.05, 0.6))
+            } else {
+                Shape::capsule(random.range(0.05, 0.5), random.range(0.05, 1.0))
+            };
+            let hull = match random.below(3) {
+                0 => barrel.clone(),
+                1 => random_hull(random),
+                _ => prism(
+                    3 + random.below(38) as usize,
+                    vec3(
+                        random.range(0.2, 2.0),
+                        random.range(0.1, 2.0),
+                        random.range(0.2, 2.0),
+                    ),
+                ),
+            };
+            assert!(tumble::stages::narrowphase::gpu_pair(&round, &hull));
+            (round, hull)
+        });
+        let cpu = compare_with_cpu(&context, &mut narrowphase, &mut random, world.clone());
+        if pairs == 3000 {
+            let touching = cpu.iter().filter(|c| c.manifold.count > 0).count();
+            let two_points = cpu.iter().filter(|c| c.manifold.count == 2).count();
+            // A core inside the hull: deeper than the round shape's radius.
+            let cores_overlap = cpu
+                .iter()
+                .zip(&world.keys)
+                .filter(|(contact, key)| {
+                    let (a, b) = tumble::stages::pairs::pair_bodies(**key);
+                    let radius = [a, b]
+                        .iter()
+                        .find_map(|&body| match &world.colliders[body as usize].shape {
+                            Shape::Sphere(sphere) => Some(sphere.radius),
+                            Shape::Capsule(capsule) => Some(capsule.radius),
+                            _ => None,
+                        })
+                        .unwrap();
+                    contact
+                        .manifold
+                        .points()
+                        .iter()
+                        .any(|p| p.separation < -radius)
+                })
+                .count();
+            let carried = cpu.iter().filter(|c| c.impulses[0].normal > 0.0).count();
+            assert!(touching > pairs / 4, "{touching} pairs touch");
+            assert!(two_points > 20, "{two_points} capsules along a face");
+            assert!(cores_overlap > pairs / 20, "{cores_overlap} cores overlap");
+            assert!(carried > pairs / 10, "{carried} pairs carry impulses");
+        }
+    }
+}
+
+/// Spheres and capsules at set distances from hull faces, edges and vertices, over steps that
+/// slide them along: resting exactly on a face (separation 0), within the margin, just inside,
+/// a capsule flat on a face (two points) and tilted past 2° (one), a core exactly on the
+/// surface and one at the hull's centre.
+#[test]
+fn round_shapes_on_hulls_match() {
+    let context = context();
+    let barrel = &Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+    let box_hull = &prism(4, vec3(1.0, 1.0, 1.0));
+    let sphere = &Shape::sphere(0.25);
+    let capsule = &Shape::capsule(0.1, 0.3);
+    let lying = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+    let tilted = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2 - 0.05);
+    let frames: Vec<World> = (0..4)
+        .map(|step| {
+            let slide = vec3(step as f32 * 0.05, 0.0, step as f32 * 0.02);
+            pairs_world(&[
+                // The barrel's top face is at y = 0.5.
+                [
+                    (sphere, vec3(0.0, 0.75, 0.0) + slide, Quat::IDENTITY),
+                    (barrel, Vec3::ZERO, Quat::IDENTITY),
+                ],
+                [
+                    (barrel, vec3(5.0, 0.0, 0.0), Quat::IDENTITY),
+                    (sphere, vec3(5.0, 0.76, 0.0) + slide, Quat::IDENTITY),
+                ],
+                [
+                    (sphere, vec3(10.0, 0.7, 0.0) + slide, Quat::IDENTITY),
+                    (barrel, vec3(10.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (capsule, vec3(15.0, 0.6, 0.0) + slide, lying),
+                    (barrel, vec3(15.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (capsule, vec3(20.0, 0.61, 0.0) + slide, tilted),
+                    (barrel, vec3(20.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // The core on the prism's top face, and at its centre.
+                [
+                    (sphere, vec3(25.0, 0.5, 0.0) + slide, Quat::IDENTITY),
+                    (box_hull, vec3(25.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (capsule, vec3(30.0, 0.0, 0.0) + 0.1 * slide, lying),
+                    (box_hull, vec3(30.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                // Over the prism's vertical edge at x = 1, beyond its corner.
+                [
+                    (sphere, vec3(36.2, 0.0, 0.0) + slide, Quat::IDENTITY),
+                    (box_hull, vec3(35.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+                [
+                    (sphere, vec3(41.0, 0.7, 0.1) + slide, Quat::IDENTITY),
+                    (box_hull, vec3(40.0, 0.0, 0.0), Quat::IDENTITY),
+                ],
+            ])
+        })
+        .collect();
+    let steps = run_steps(&context, &frames);
+    let counts: Vec<u32> = steps[0].iter().map(|c| c.manifold.count).collect();
+    assert_eq!(counts, [1, 1, 1, 2, 1, 1, 2, 1, 1]);
+}
+
+/// Pairs of a hull with a face of more than `MAX_HULL_FACE_VERTICES` vertices and a box, plane
+/// or hull are host work (the kernel's clip polygon holds twice that many); spheres and
+/// capsules take any hull.
+#[test]
+fn large_faces_stay_on_the_host() {
     use tumble::stages::narrowphase::gpu_pair;
     let hull = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
+    let (fits, too_large) = (prism(16, Vec3::ONE), prism(17, Vec3::ONE));
     for round in [Shape::sphere(0.5), Shape::capsule(0.3, 0.5)] {
-        assert!(!gpu_pair(&round, &hull) && !gpu_pair(&hull, &round));
+        for any in [&hull, &fits, &too_large] {
+            assert!(gpu_pair(&round, any) && gpu_pair(any, &round));
+        }
     }
     for polyhedral in [
         hull.clone(),
@@ -488,16 +635,6 @@ fn round_shapes_and_large_faces_stay_on_the_host() {
     ] {
         assert!(gpu_pair(&polyhedral, &hull) && gpu_pair(&hull, &polyhedral));
     }
-    let prism = |sides: usize| {
-        let points: Vec<Vec3> = (0..2 * sides)
-            .map(|k| {
-                let angle = std::f32::consts::TAU * (k % sides) as f32 / sides as f32;
-                vec3(angle.cos(), if k < sides { -0.5 } else { 0.5 }, angle.sin())
-            })
-            .collect();
-        Shape::convex_hull(&points).unwrap()
-    };
-    let (fits, too_large) = (prism(16), prism(17));
     assert!(gpu_pair(&fits, &hull) && gpu_pair(&fits, &Shape::cuboid(Vec3::ONE)));
     assert!(!gpu_pair(&too_large, &hull) && !gpu_pair(&Shape::cuboid(Vec3::ONE), &too_large));
 }

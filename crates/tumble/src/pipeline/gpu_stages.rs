@@ -532,9 +532,9 @@ impl GpuStages {
 
         let start = Instant::now();
         self.contacts.download_into(context, &mut self.downloaded)?;
-        // Pairs with a mesh or a compound, and sphere– and capsule–hull pairs, have no kernel
-        // yet: they keep last step's contact (for its impulses) and the host computes them, as
-        // the `cpu pairs` line shows.
+        // Pairs with a mesh or a compound (and of a hull whose faces are too large to clip)
+        // have no kernel yet: they keep last step's contact (for its impulses) and the host
+        // computes them, as the `cpu pairs` line shows.
         let colliders = inputs.colliders;
         let on_gpu = |key: u64| {
             let (a, b) = crate::stages::pairs::pair_bodies(key);

@@ -1,5 +1,5 @@
 //! Pairs with a convex hull: box–hull and hull–hull by SAT and clipping, sphere–hull and
-//! capsule–hull by GJK (EPA when the cores overlap), plane–hull by vertices.
+//! capsule–hull by SAT and nearest features, plane–hull by vertices.
 //!
 //! # Polyhedra (box–hull, hull–hull)
 //!
@@ -37,28 +37,38 @@
 //!
 //! # Spheres and capsules
 //!
-//! Their cores (a point, a segment) against the hull by GJK: the separation is the core
-//! distance minus the radius, the normal the closest points' direction. When the cores overlap,
-//! EPA gives depth and normal (the sampled depth if EPA's polytope degenerates). A capsule lying along a face (its segment within 2° of
-//! parallel to the face touched) gets two points, the ends of its segment clipped to the face
-//! (ids 0 and 1, as for capsule–box), so it rests without rolling about one point; otherwise one
-//! point (id 0).
+//! Their cores (a point, a segment) against the hull as capsule–box does against a box, with
+//! no iteration, so that the GPU (`contact_hull.wgsl`) computes the same contacts in f32: the
+//! separating-axis test over the hull's face normals and the cross products of the segment
+//! with the hull's edges (those whose Gauss-map arc the segment's great circle crosses: the
+//! faces of the Minkowski difference) gives the exact depth and normal when the cores overlap;
+//! when they are apart (the best axis separates them), the nearest of each core end above a
+//! face it projects into and of the core against each edge gives the exact distance, normal
+//! (from the hull towards the core) and closest points. The separation is the core distance
+//! minus the radius. A capsule lying along a face (its segment within 2° of parallel to the
+//! face touched) gets two points, the ends of its segment clipped to the face (ids 0 and 1, as
+//! for capsule–box), so it rests without rolling about one point; otherwise one point (id 0).
+//!
+//! (GJK with EPA, or the sampled penetration depth on the GPU, was the first design: on
+//! prisms and barrels, whose many parallel faces make GJK's simplices degenerate, GJK in f32
+//! on the GPU and in f64 on the CPU took different paths and stopped at different points,
+//! 10 % apart, and the sampled depth's witness point depends on the ray that found the face.)
 //!
 //! Nothing here allocates except the clip buffers of polyhedron contacts (two small vectors).
 
 use super::segment::closest_parameters_between_segments;
-use super::{EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater, push_contact};
-use crate::collision::epa::epa;
-use crate::collision::gjk::{GjkResult, MinkowskiDifference, SupportMap, gjk};
+use super::{
+    COINCIDENT_DISTANCE_SQUARED, EDGE_RELATIVE_TOLERANCE, PARALLEL_SINE_SQUARED, clearly_greater,
+    push_contact,
+};
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
-use crate::collision::penetration::{Sampling, sampled_penetration};
 use crate::math::{Mat3, Transform, Vec3};
 use crate::shape::convex_hull::{HullEdge, HullFace};
 use crate::shape::{Capsule, ConvexHull, Cuboid, Plane, Sphere};
 
 /// `cos²` of 2°: a capsule whose segment is this close to parallel to the touched face rests
 /// on it with two points.
-const CAPSULE_FACE_COS_SQUARED: f32 = 0.998_782;
+pub(crate) const CAPSULE_FACE_COS_SQUARED: f32 = 0.998_782;
 
 pub(super) const REFERENCE_IS_A_BIT: u32 = 1 << 30;
 pub(super) const EDGE_CONTACT_BIT: u32 = 1 << 31;
@@ -473,40 +483,144 @@ pub(super) fn edge_contact(
     );
 }
 
-/// Normal (B → A, world), separation and the surface point on A of the cores' closest or
-/// deepest points, with A's swept radius; `None` when apart by `margin` or more.
-fn core_contact<A: SupportMap + ?Sized>(
-    a: &A,
+/// Normal (B → A, world), separation and the surface point on A of a round shape against
+/// hull B (see the module docs), for A's core the segment from `-half_height` to `+half_height`
+/// along A's y (a point when 0) swept by `radius`; `None` when apart by `margin` or more.
+/// Computed in B's frame.
+fn core_contact(
+    half_height: f32,
+    radius: f32,
     pose_a: &Transform,
     b: &ConvexHull,
     pose_b: &Transform,
     margin: f32,
 ) -> Option<(Vec3, f32, Vec3)> {
-    let radius = a.radius();
-    let m = MinkowskiDifference::new(a, pose_a, b, pose_b);
-    let (normal, core_separation, point_a) = match gjk(&m) {
-        GjkResult::Separated {
-            distance,
-            normal,
-            point_a,
-            ..
-        } => {
-            if distance - radius >= margin {
-                return None;
-            }
-            (normal, distance, point_a)
-        }
-        GjkResult::Overlapping { simplex } => {
-            // EPA fails only on a degenerate polytope (rounding on a touching pair); the
-            // sampled depth always answers.
-            let penetration = epa(&m, &simplex)
-                .unwrap_or_else(|| sampled_penetration(&m, Sampling::Directions162));
-            (penetration.normal, -penetration.depth, penetration.point_a)
-        }
+    let centre = pose_b.inverse_transform_point(pose_a.position);
+    let half_axis =
+        pose_b.inverse_transform_vector(pose_a.transform_vector(Vec3::new(0.0, half_height, 0.0)));
+    let start = centre - half_axis;
+    let delta = 2.0 * half_axis;
+    let (separation, normal, core_point) = match core_sat(b, start, delta) {
+        // Every axis is a lower bound of the distance: this one is already too far.
+        (separation, ..) if separation - radius >= margin => return None,
+        // Apart: the nearest features, exactly (touching within rounding: the axis).
+        sat if sat.0 > 0.0 => core_closest(b, start, delta).unwrap_or(sat),
+        overlapping => overlapping,
     };
-    let world_normal = pose_a.transform_vector(normal);
-    let surface_a = pose_a.transform_point(point_a - normal * radius);
-    Some((world_normal, core_separation - radius, surface_a))
+    if separation - radius >= margin {
+        return None;
+    }
+    let normal_world = pose_b.transform_vector(normal);
+    let surface_a = pose_b.transform_point(core_point - normal * radius);
+    Some((normal_world, separation - radius, surface_a))
+}
+
+/// The separating-axis test of the core `start + t delta` (t in [0, 1], B's frame) against
+/// hull B: the largest separation (m, < 0 when the core cuts into the hull) over B's face
+/// normals and the cross products of the core with B's edges, with its axis (from B towards
+/// the core) and the core's deepest point along it. Edges count only where the core's great
+/// circle on the Gauss map crosses the edge's arc (the axis is then a face normal of the
+/// Minkowski difference and the edge is B's support along it), and only when clearly better
+/// than the best face, as in [`polyhedra`], so near ties give the face on both executors.
+fn core_sat(b: &ConvexHull, start: Vec3, delta: Vec3) -> (f32, Vec3, Vec3) {
+    let end = start + delta;
+    let mut best = (f32::NEG_INFINITY, Vec3::Y, start);
+    for face in b.faces() {
+        let (height_start, height_end) = (
+            face.normal.dot(start) - face.offset,
+            face.normal.dot(end) - face.offset,
+        );
+        // The deeper end; the start on ties.
+        let deepest = if height_end < height_start {
+            (height_end, end)
+        } else {
+            (height_start, start)
+        };
+        if deepest.0 > best.0 {
+            best = (deepest.0, face.normal, deepest.1);
+        }
+    }
+    // Separation, axis, and the edge as a start and a direction.
+    let mut best_edge: Option<(f32, Vec3, Vec3, Vec3)> = None;
+    for edge in b.edges() {
+        let [n1, n2] = edge.faces.map(|f| b.faces()[f as usize].normal);
+        let (side1, side2) = (n1.dot(delta), n2.dot(delta));
+        if side1 * side2 >= 0.0 {
+            continue;
+        }
+        let p = b.vertices()[edge.vertices[0] as usize];
+        let e = b.vertices()[edge.vertices[1] as usize] - p;
+        let axis = e.cross(delta);
+        let length_squared = axis.length_squared();
+        if length_squared <= PARALLEL_SINE_SQUARED * e.length_squared() * delta.length_squared() {
+            continue;
+        }
+        let mut axis = axis / length_squared.sqrt();
+        // The orientation on the edge's arc, between its faces' normals.
+        if axis.dot(n1 + n2) < 0.0 {
+            axis = -axis;
+        }
+        let separation = axis.dot(start - p);
+        if best_edge.is_none_or(|(s, ..)| separation > s) {
+            best_edge = Some((separation, axis, p, e));
+        }
+    }
+    match best_edge {
+        Some((separation, axis, p, e))
+            if clearly_greater(separation, best.0, EDGE_RELATIVE_TOLERANCE) =>
+        {
+            // The core's point across from the edge.
+            let (s, _) = closest_parameters_between_segments(start, delta, p, e);
+            (separation, axis, start + delta * s)
+        }
+        _ => best,
+    }
+}
+
+/// Distance (m, > 0), unit normal (from B towards the core) and core point of the nearest
+/// points of the core `start + t delta` and hull B, the core lying outside: the nearest of
+/// each core end over each face it projects into, and of the core against each edge (the
+/// first found on ties; near a tie the candidates agree, so either executor's pick is close).
+/// `None` when every candidate is closer than rounding can give a direction to.
+fn core_closest(b: &ConvexHull, start: Vec3, delta: Vec3) -> Option<(f32, Vec3, Vec3)> {
+    let end = start + delta;
+    let mut best = (f32::INFINITY, Vec3::Y, start);
+    let ends: &[Vec3] = if delta == Vec3::ZERO {
+        &[start]
+    } else {
+        &[start, end]
+    };
+    for face in b.faces() {
+        for &point in ends {
+            let height = face.normal.dot(point) - face.offset;
+            if height > 0.0 && height < best.0 && over_face(b, face, point) {
+                best = (height, face.normal, point);
+            }
+        }
+    }
+    for edge in b.edges() {
+        let p = b.vertices()[edge.vertices[0] as usize];
+        let e = b.vertices()[edge.vertices[1] as usize] - p;
+        let (s, t) = closest_parameters_between_segments(start, delta, p, e);
+        let on_core = start + delta * s;
+        let offset = on_core - (p + e * t);
+        let distance_squared = offset.length_squared();
+        if distance_squared < best.0 * best.0 && distance_squared > COINCIDENT_DISTANCE_SQUARED {
+            let distance = distance_squared.sqrt();
+            best = (distance, offset / distance, on_core);
+        }
+    }
+    best.0.is_finite().then_some(best)
+}
+
+/// Whether `point` (B's frame) lies within the side planes of `face` of hull B.
+fn over_face(b: &ConvexHull, face: &HullFace, point: Vec3) -> bool {
+    let face_loop = b.face_loop(face);
+    (0..face_loop.len()).all(|k| {
+        let p = b.vertices()[face_loop[k] as usize];
+        let q = b.vertices()[face_loop[(k + 1) % face_loop.len()] as usize];
+        (q - p).cross(face.normal).dot(point - p) <= 0.0
+    })
 }
 
 pub(super) fn sphere_hull(
@@ -517,7 +631,9 @@ pub(super) fn sphere_hull(
     margin: f32,
     out: &mut Manifold,
 ) {
-    if let Some((normal, separation, surface_a)) = core_contact(a, pose_a, b, pose_b, margin) {
+    if let Some((normal, separation, surface_a)) =
+        core_contact(0.0, a.radius, pose_a, b, pose_b, margin)
+    {
         out.normal = normal;
         push_contact(out, surface_a, normal, separation, 0);
     }
@@ -531,7 +647,9 @@ pub(super) fn capsule_hull(
     margin: f32,
     out: &mut Manifold,
 ) {
-    let Some((normal, separation, surface_a)) = core_contact(a, pose_a, b, pose_b, margin) else {
+    let Some((normal, separation, surface_a)) =
+        core_contact(a.half_height, a.radius, pose_a, b, pose_b, margin)
+    else {
         return;
     };
     // Along a face: clip the segment to the face's side planes, one point per end.
@@ -635,6 +753,86 @@ pub(super) fn hull_plane(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::Quat;
+
+    fn cube() -> ConvexHull {
+        let corners: Vec<Vec3> = (0..8)
+            .map(|i| {
+                Vec3::new(
+                    [-0.5, 0.5][i & 1],
+                    [-0.5, 0.5][(i >> 1) & 1],
+                    [-0.5, 0.5][i >> 2],
+                )
+            })
+            .collect();
+        ConvexHull::new(&corners).unwrap()
+    }
+
+    fn assert_contact(out: &Manifold, normal: Vec3, separation: f32) {
+        assert_eq!(out.count, 1, "{out:?}");
+        assert!((out.normal - normal).length() < 1e-5, "{out:?}");
+        assert!(
+            (out.points[0].separation - separation).abs() < 1e-5,
+            "{out:?}"
+        );
+    }
+
+    /// A sphere over a face, beyond an edge and beyond a corner of a unit cube hull, 0.05 m
+    /// from touching, and one whose centre is 0.1 m inside the +x face.
+    #[test]
+    fn sphere_hull_closed_forms() {
+        let (hull, ball) = (cube(), Sphere { radius: 0.25 });
+        let diagonal = |n: Vec3, reach: f32| n * 0.5 + n.normalize() * reach;
+        for (centre, normal, separation) in [
+            (Vec3::new(0.1, 0.8, 0.2), Vec3::Y, 0.05),
+            (
+                diagonal(Vec3::new(1.0, 1.0, 0.0), 0.3),
+                Vec3::new(1.0, 1.0, 0.0).normalize(),
+                0.05,
+            ),
+            (diagonal(Vec3::ONE, 0.3), Vec3::ONE.normalize(), 0.05),
+            (Vec3::new(0.4, 0.0, 0.05), Vec3::X, -0.35),
+        ] {
+            let mut out = Manifold::default();
+            let pose = Transform::from_position(centre);
+            sphere_hull(&ball, &pose, &hull, &Transform::IDENTITY, 0.1, &mut out);
+            assert_contact(&out, normal, separation);
+            let expected = centre - normal * (0.25 + 0.5 * separation);
+            assert!((out.points[0].position - expected).length() < 1e-5);
+        }
+    }
+
+    /// A capsule across the cube's edge at x = y = 0.5, its segment 0.02 m deep along the
+    /// edge's bisector: the edge axis beats every face; and parallel to that edge just outside
+    /// it, where the nearest points are the edge and the segment.
+    #[test]
+    fn capsule_hull_edge_closed_forms() {
+        let (hull, capsule) = (
+            cube(),
+            Capsule {
+                radius: 0.1,
+                half_height: 0.3,
+            },
+        );
+        let bisector = Vec3::new(1.0, 1.0, 0.0).normalize();
+        for (position, rotation, separation) in [
+            (
+                Vec3::new(0.48, 0.48, 0.1),
+                Quat::from_rotation_z(std::f32::consts::FRAC_PI_4),
+                -0.02 * 2.0f32.sqrt() - 0.1,
+            ),
+            (
+                Vec3::new(0.55, 0.55, 0.1),
+                Quat::from_rotation_x(std::f32::consts::FRAC_PI_2),
+                0.05 * 2.0f32.sqrt() - 0.1,
+            ),
+        ] {
+            let mut out = Manifold::default();
+            let pose = Transform::new(position, rotation);
+            capsule_hull(&capsule, &pose, &hull, &Transform::IDENTITY, 0.1, &mut out);
+            assert_contact(&out, bisector, separation);
+        }
+    }
 
     /// The box tables agree with the hull built from the box's corners.
     #[test]

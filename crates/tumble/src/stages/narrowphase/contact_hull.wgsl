@@ -535,3 +535,259 @@ fn plane_candidate(c: PlaneCandidates, index: u32) -> ContactPoint {
     let separation = c.centre_height + dot3(c.local_normal, v);
     return contact_point(frame_point(c.pose, v) - c.normal * (0.5 * separation), separation, index);
 }
+
+// A contact of a round shape's core with a hull: separation of the cores (m), normal (from the
+// hull towards the core) and the core's point, in the hull's frame.
+struct CoreFeature {
+    separation: f32,
+    normal: vec3<f32>,
+    point: vec3<f32>,
+}
+
+// hull.rs `core_contact`: normal (B → A, world), separation and A's surface point of A's core,
+// the segment from -half_height to +half_height along A's y (a point when 0) swept by
+// `radius`, against hull `b`; `found` false when apart by `margin` or more.
+struct CoreContact {
+    found: bool,
+    normal: vec3<f32>,
+    separation: f32,
+    surface_a: vec3<f32>,
+}
+
+fn core_contact(
+    half_height: f32,
+    radius: f32,
+    pose_a: Frame,
+    b: Polyhedron,
+    pose_b: Frame,
+    margin: f32,
+) -> CoreContact {
+    let none = CoreContact(false, vec3<f32>(0.0), 0.0, vec3<f32>(0.0));
+    let centre = frame_inverse_point(pose_b, pose_a.position);
+    let half_axis = frame_inverse_vector(pose_b, frame_vector(pose_a, vec3<f32>(0.0, half_height, 0.0)));
+    let start = centre - half_axis;
+    let delta = 2.0 * half_axis;
+    var feature = core_sat(b, start, delta);
+    // Every axis is a lower bound of the distance: this one is already too far.
+    if feature.separation - radius >= margin {
+        return none;
+    }
+    if feature.separation > 0.0 {
+        // Apart: the nearest features, exactly (touching within rounding: the axis).
+        let closest = core_closest(b, start, delta);
+        if closest.separation < bitcast<f32>(0x7f800000u) {
+            feature = closest;
+        }
+    }
+    if feature.separation - radius >= margin {
+        return none;
+    }
+    let normal_world = frame_vector(pose_b, feature.normal);
+    let surface_a = frame_point(pose_b, feature.point - feature.normal * radius);
+    return CoreContact(true, normal_world, feature.separation - radius, surface_a);
+}
+
+// hull.rs `core_sat`: the separating-axis test of the core `start + t delta` against hull `b`
+// over its face normals and the crossing edges' axes (edges only when clearly better).
+fn core_sat(b: Polyhedron, start: vec3<f32>, delta: vec3<f32>) -> CoreFeature {
+    let end = start + delta;
+    var best = CoreFeature(bitcast<f32>(0xff800000u), vec3<f32>(0.0, 1.0, 0.0), start);
+    for (var face = 0u; face < b.face_count; face++) {
+        let normal = face_normal(b, face);
+        let offset = face_offset(b, face);
+        let height_start = dot3(normal, start) - offset;
+        let height_end = dot3(normal, end) - offset;
+        // The deeper end; the start on ties.
+        var deepest = CoreFeature(height_start, normal, start);
+        if height_end < height_start {
+            deepest = CoreFeature(height_end, normal, end);
+        }
+        if deepest.separation > best.separation {
+            best = deepest;
+        }
+    }
+    var edge_found = false;
+    var edge_separation = 0.0;
+    var edge_axis = vec3<f32>(0.0);
+    var edge_start = vec3<f32>(0.0);
+    var edge_delta = vec3<f32>(0.0);
+    for (var edge = 0u; edge < b.edge_count; edge++) {
+        let n1 = face_normal(b, edge_word(b, edge, 2u));
+        let n2 = face_normal(b, edge_word(b, edge, 3u));
+        let side1 = dot3(n1, delta);
+        let side2 = dot3(n2, delta);
+        if side1 * side2 >= 0.0 {
+            continue;
+        }
+        let p = vertex_of(b, edge_word(b, edge, 0u));
+        let e = vertex_of(b, edge_word(b, edge, 1u)) - p;
+        var axis = cross(e, delta);
+        let length_squared = dot3(axis, axis);
+        if length_squared <= PARALLEL_SINE_SQUARED * dot3(e, e) * dot3(delta, delta) {
+            continue;
+        }
+        axis = axis / sqrt(length_squared);
+        // The orientation on the edge's arc, between its faces' normals.
+        if dot3(axis, n1 + n2) < 0.0 {
+            axis = -axis;
+        }
+        let separation = dot3(axis, start - p);
+        if !edge_found || separation > edge_separation {
+            edge_found = true;
+            edge_separation = separation;
+            edge_axis = axis;
+            edge_start = p;
+            edge_delta = e;
+        }
+    }
+    if edge_found && clearly_greater(edge_separation, best.separation, EDGE_RELATIVE_TOLERANCE) {
+        // The core's point across from the edge.
+        let st = closest_parameters_between_segments(start, delta, edge_start, edge_delta);
+        return CoreFeature(edge_separation, edge_axis, start + delta * st.x);
+    }
+    return best;
+}
+
+// hull.rs `core_closest`: the nearest points of the core (outside the hull) and hull `b`;
+// separation infinite when every candidate is closer than rounding gives a direction to.
+fn core_closest(b: Polyhedron, start: vec3<f32>, delta: vec3<f32>) -> CoreFeature {
+    let end = start + delta;
+    var best = CoreFeature(bitcast<f32>(0x7f800000u), vec3<f32>(0.0, 1.0, 0.0), start);
+    let end_count = select(2u, 1u, all(delta == vec3<f32>(0.0)));
+    for (var face = 0u; face < b.face_count; face++) {
+        let normal = face_normal(b, face);
+        let offset = face_offset(b, face);
+        for (var k = 0u; k < end_count; k++) {
+            let point = select(start, end, k == 1u);
+            let height = dot3(normal, point) - offset;
+            if height > 0.0 && height < best.separation && over_face(b, face, normal, point) {
+                best = CoreFeature(height, normal, point);
+            }
+        }
+    }
+    for (var edge = 0u; edge < b.edge_count; edge++) {
+        let p = vertex_of(b, edge_word(b, edge, 0u));
+        let e = vertex_of(b, edge_word(b, edge, 1u)) - p;
+        let st = closest_parameters_between_segments(start, delta, p, e);
+        let on_core = start + delta * st.x;
+        let offset = on_core - (p + e * st.y);
+        let distance_squared = dot3(offset, offset);
+        if distance_squared < best.separation * best.separation
+            && distance_squared > COINCIDENT_DISTANCE_SQUARED {
+            let distance = sqrt(distance_squared);
+            best = CoreFeature(distance, offset / distance, on_core);
+        }
+    }
+    return best;
+}
+
+// hull.rs `over_face`: whether `point` lies within the side planes of `face` (of `normal`).
+fn over_face(b: Polyhedron, face: u32, normal: vec3<f32>, point: vec3<f32>) -> bool {
+    let side_count = loop_length(b, face);
+    for (var k = 0u; k < side_count; k++) {
+        let p = vertex_of(b, loop_vertex(b, face, k));
+        let q = vertex_of(b, loop_vertex(b, face, (k + 1u) % side_count));
+        if dot3(cross(q - p, normal), point - p) > 0.0 {
+            return false;
+        }
+    }
+    return true;
+}
+
+fn sphere_hull(a: vec4<f32>, pose_a: BodyPose, b: u32, pose_b: BodyPose, margin: f32) {
+    let contact = core_contact(0.0, a.x, frame_of(pose_a), hull_polyhedron(b), frame_of(pose_b), margin);
+    if contact.found {
+        out.normal = contact.normal;
+        push_contact(contact.surface_a, contact.normal, contact.separation, 0u);
+    }
+}
+
+// hull.rs `capsule_hull`: one point, or two when the segment lies along the face touched.
+fn capsule_hull(a: vec4<f32>, pose_a: BodyPose, b: u32, pose_b: BodyPose, margin: f32) {
+    let frame_a = frame_of(pose_a);
+    let frame_b = frame_of(pose_b);
+    let hull = hull_polyhedron(b);
+    let contact = core_contact(a.y, a.x, frame_a, hull, frame_b, margin);
+    if !contact.found {
+        return;
+    }
+    // Along a face: clip the segment to the face's side planes, one point per end. The face
+    // most parallel to the normal, the last on ties (Iterator::max_by).
+    let normal_b = frame_inverse_vector(frame_b, contact.normal);
+    var face = 0u;
+    var face_dot = dot3(face_normal(hull, 0u), normal_b);
+    for (var index = 1u; index < hull.face_count; index++) {
+        let d = dot3(face_normal(hull, index), normal_b);
+        if d >= face_dot {
+            face = index;
+            face_dot = d;
+        }
+    }
+    let axis = frame_inverse_vector(frame_b, frame_vector(frame_a, vec3<f32>(0.0, 1.0, 0.0)));
+    let axis_dot = dot3(axis, face_normal(hull, face));
+    if a.y > 0.0 && face_dot * face_dot >= CAPSULE_FACE_COS_SQUARED
+        && axis_dot * axis_dot <= 1.0 - CAPSULE_FACE_COS_SQUARED
+        && capsule_on_hull_face(a, frame_a, hull, frame_b, face, margin) {
+        return;
+    }
+    out.normal = contact.normal;
+    push_contact(contact.surface_a, contact.normal, contact.separation, 0u);
+}
+
+// hull.rs `capsule_on_face`: the segment clipped to the side planes of `face` of `hull`, one
+// point per end below `margin` (ids 0 and 1 for the -half_height and +half_height ends);
+// false if none.
+fn capsule_on_hull_face(
+    a: vec4<f32>,
+    pose_a: Frame,
+    hull: Polyhedron,
+    pose_b: Frame,
+    face: u32,
+    margin: f32,
+) -> bool {
+    let radius = a.x;
+    let half_height = a.y;
+    let normal = face_normal(hull, face);
+    let centre = frame_inverse_point(pose_b, pose_a.position);
+    let axis = frame_inverse_vector(pose_b, frame_vector(pose_a, vec3<f32>(0.0, 1.0, 0.0)));
+    var t0 = -half_height;
+    var t1 = half_height;
+    let side_count = loop_length(hull, face);
+    for (var e = 0u; e < side_count; e++) {
+        let p = vertex_of(hull, loop_vertex(hull, face, e));
+        let q = vertex_of(hull, loop_vertex(hull, face, (e + 1u) % side_count));
+        // Keep side · (centre + t axis - p) <= 0: a bound on t from each side plane.
+        let side = cross(q - p, normal);
+        let start = dot3(side, centre - p);
+        let rate = dot3(side, axis);
+        if rate == 0.0 {
+            if start > 0.0 {
+                return false;
+            }
+        } else if rate > 0.0 {
+            t1 = min(t1, -start / rate);
+        } else {
+            t0 = max(t0, -start / rate);
+        }
+    }
+    if t0 >= t1 {
+        return false;
+    }
+    let world_normal = frame_vector(pose_b, normal);
+    let offset = face_offset(hull, face);
+    out.normal = world_normal;
+    for (var id = 0u; id < 2u; id++) {
+        let t = select(t1, t0, id == 0u);
+        let point = centre + axis * t - normal * radius;
+        let separation = dot3(normal, point) - offset;
+        if separation < margin {
+            push_contact(frame_point(pose_b, point), world_normal, separation, id);
+        }
+    }
+    return out.count > 0u;
+}
+
+// Transform::inverse_transform_point.
+fn frame_inverse_point(frame: Frame, p: vec3<f32>) -> vec3<f32> {
+    return quat_rotate(quat_conjugate(frame.rotation), p - frame.position);
+}

@@ -88,19 +88,25 @@ pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &Narr
 pub const MAX_HULL_FACE_VERTICES: u32 = 16;
 
 /// Whether the GPU narrowphase computes a pair of these shapes: spheres, capsules, boxes and
-/// planes among themselves, and hulls (with faces of at most [`MAX_HULL_FACE_VERTICES`]
-/// vertices) against boxes, planes and hulls, by SAT and clipping as `hull.rs`. Sphere– and
-/// capsule–hull pairs (GJK and EPA), meshes and compounds stay with [`update_contacts_where`]
-/// on the host.
+/// planes among themselves; hulls against spheres and capsules (SAT and nearest features, as
+/// `hull.rs`, for any hull: no face is clipped); and hulls with faces of
+/// at most [`MAX_HULL_FACE_VERTICES`] vertices against boxes, planes and such hulls, by SAT and
+/// clipping. Meshes and compounds stay with [`update_contacts_where`] on the host.
 pub fn gpu_pair(a: &Shape, b: &Shape) -> bool {
     let polyhedral = |shape: &Shape| match shape {
         Shape::Cuboid(_) | Shape::Plane(_) => true,
         Shape::ConvexHull(hull) => hull.max_face_vertices() <= MAX_HULL_FACE_VERTICES,
         _ => false,
     };
-    match (a.kind(), b.kind()) {
-        (ShapeKind::ConvexHull, _) | (_, ShapeKind::ConvexHull) => polyhedral(a) && polyhedral(b),
-        _ => a.kind() <= ShapeKind::Plane && b.kind() <= ShapeKind::Plane,
+    let round = |shape: &Shape| matches!(shape, Shape::Sphere(_) | Shape::Capsule(_));
+    match (a, b) {
+        (Shape::ConvexHull(_), other) | (other, Shape::ConvexHull(_)) if round(other) => true,
+        _ => match (a.kind(), b.kind()) {
+            (ShapeKind::ConvexHull, _) | (_, ShapeKind::ConvexHull) => {
+                polyhedral(a) && polyhedral(b)
+            }
+            _ => a.kind() <= ShapeKind::Plane && b.kind() <= ShapeKind::Plane,
+        },
     }
 }
 

@@ -117,7 +117,8 @@ fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
                 out.normal = -out.normal;
             }
             case SHAPE_CONVEX_HULL: { hull_hull(body_a, pose_a, body_b, pose_b, margin); }
-            // Sphere– and capsule–hull are host work (`narrowphase::gpu_pair`).
+            case SHAPE_SPHERE: { sphere_hull(a.params, pose_a, body_b, pose_b, margin); }
+            case SHAPE_CAPSULE: { capsule_hull(a.params, pose_a, body_b, pose_b, margin); }
             default: {}
         }
         return;
