@@ -448,3 +448,81 @@ fn compounds_beside_gpu_stages_follow_the_cpu() {
         );
     }
 }
+
+/// With every stage on the GPU, stages 1 to 4 run as one submission also while bodies sleep
+/// (the host merges their resting pairs into the GPU's) and after a body is removed (the host
+/// drops its pairs): such a world follows the all-CPU one, and the profile shows that the
+/// one-submission path ran.
+#[test]
+fn one_submission_collision_with_sleeping_and_removed_bodies_follows_the_cpu() {
+    let _turn = gpu_common::context();
+    let build =
+        |stages: &[Stage]| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            let mut boxes = Vec::new();
+            for x in [0.0, 5.0] {
+                for level in 0..3 {
+                    let body = BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                        .position(Vec3::new(x, 0.5 + level as f32, 0.0));
+                    boxes.push(world.add_body(body).unwrap());
+                }
+            }
+            let mut devices = StageDevices::default();
+            for &stage in stages {
+                devices.set(stage, Executor::Gpu);
+            }
+            world.set_stage_devices(devices).unwrap();
+            (world, boxes)
+        };
+    let (mut cpu, boxes) = build(&[]);
+    let (mut gpu, _) = build(&Stage::ALL);
+    let step_both = |cpu: &mut World, gpu: &mut World, steps: usize| {
+        for _ in 0..steps {
+            cpu.step();
+            gpu.try_step().unwrap();
+        }
+    };
+    // Both stacks fall asleep.
+    step_both(&mut cpu, &mut gpu, 240);
+    assert_eq!(gpu.stats().sleeping, 6, "both stacks asleep");
+    assert_eq!(cpu.stats().sleeping, 6);
+    // A box dropped beside the stacks moves while they sleep (a drop onto a stack would
+    // amplify rounding into millimetres, on the stages one by one as well); then the first
+    // stack's top box goes, which wakes that stack.
+    for world in [&mut cpu, &mut gpu] {
+        world
+            .add_body(
+                BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+                    .position(Vec3::new(-3.0, 1.0, 0.0)),
+            )
+            .unwrap();
+        world.profiler_mut().reset();
+    }
+    step_both(&mut cpu, &mut gpu, 40);
+    for world in [&mut cpu, &mut gpu] {
+        world.remove_body(boxes[2]).unwrap();
+    }
+    step_both(&mut cpu, &mut gpu, 40);
+    assert!(gpu.stats().sleeping >= 3, "the second stack sleeps on");
+    let bodies: Vec<BodyHandle> = cpu.bodies().collect();
+    let distance = max_distance(&cpu, &gpu, &bodies);
+    assert!(
+        distance < 1e-3,
+        "the GPU world drifted {distance} m from the CPU"
+    );
+    let report = gpu.profiler().report();
+    let collision = report
+        .root
+        .children
+        .iter()
+        .find(|line| line.name == "collision")
+        .expect("a collision line");
+    assert!(
+        collision.calls_per_frame > 0.9,
+        "one submission in most steps: {}",
+        collision.calls_per_frame
+    );
+}
