@@ -27,9 +27,7 @@ pub(crate) struct StepScratch {
     /// Which bodies a GPU broadphase puts in its static tree.
     is_static: Vec<bool>,
     pair_keys: Vec<u64>,
-    /// The pairs and contacts of one GPU submission of stages 1 to 4, before the host drops
-    /// removed bodies' pairs and merges in sleeping ones'.
-    collided_keys: Vec<u64>,
+    /// The contacts of `pair_keys` as one GPU submission computed them.
     collided: Vec<narrowphase::PairContact>,
     /// Every manifold slot's key and contact (pairs, then children), for GPU rows.
     slot_keys: Vec<u64>,
@@ -464,21 +462,21 @@ impl World {
     }
 
     /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
-    /// the GPU, unless sleeping bodies just fell asleep or woke (`refresh_resting`: their
-    /// resting pairs, which no tree gives, are computed again then, by the stages one by one).
+    /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
+    /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
     fn collides_in_one_submission(&self) -> bool {
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         self.gpu.is_some()
             && on_gpu(Stage::Aabb)
             && on_gpu(Stage::Broadphase)
             && on_gpu(Stage::Narrowphase)
-            && !self.refresh_resting
+            && self.resting_pairs.is_empty()
+            && self.islands.sleeping_count() == 0
+            && self.slots.iter().all(|slot| slot.is_live())
     }
 
     /// Stages 1 to 4 in one GPU submission; the pair cache then takes the GPU's keys and
-    /// contacts, less removed bodies' pairs and with the resting pairs of sleeping bodies
-    /// (which keep their contacts: neither body moved), and the host computes the pairs the
-    /// GPU has no kernel for.
+    /// contacts, and the host computes the pairs the GPU has no kernel for.
     fn collide_in_one_submission(&mut self) -> Result<(), GpuError> {
         let config = self.config;
         let scratch = &mut self.scratch;
@@ -504,28 +502,13 @@ impl World {
             (self.pairs.keys(), self.pairs.values()),
             &self.jointed_pairs,
             (config.contact_margin, config.dt),
-            &mut scratch.collided_keys,
+            &mut scratch.pair_keys,
             &mut scratch.collided,
         );
         if collided.is_err() {
             profiler.end();
         }
         collided?;
-        // Static to the broadphase are static, sleeping and removed bodies: drop the removed
-        // ones' pairs, merge in the sleeping ones' with each other and with static bodies.
-        let slots = &self.slots;
-        scratch.pair_keys.clear();
-        scratch
-            .pair_keys
-            .extend(scratch.collided_keys.iter().copied().filter(|&key| {
-                let (a, b) = crate::stages::pairs::pair_bodies(key);
-                slots[a as usize].is_live() && slots[b as usize].is_live()
-            }));
-        let exact =
-            scratch.pair_keys.len() == scratch.collided_keys.len() && self.resting_pairs.is_empty();
-        if !self.resting_pairs.is_empty() {
-            merge_sorted(&mut scratch.pair_keys, &self.resting_pairs);
-        }
         profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
         let colliders = &self.colliders;
         let on_gpu = |key: u64| {
@@ -534,19 +517,9 @@ impl World {
         };
         let (keys, contacts) = self.pairs.keys_and_values_mut();
         let mut host_pairs = 0;
-        // Both key lists ascend: walk the GPU's beside the cache's.
-        let mut collided = scratch
-            .collided_keys
-            .iter()
-            .zip(&scratch.collided)
-            .peekable();
-        for (contact, &key) in contacts.iter_mut().zip(keys) {
-            while collided.next_if(|&(&gpu_key, _)| gpu_key < key).is_some() {}
-            let Some((_, gpu_contact)) = collided.next_if(|&(&gpu_key, _)| gpu_key == key) else {
-                continue; // a resting pair
-            };
+        for ((contact, collided), &key) in contacts.iter_mut().zip(&scratch.collided).zip(keys) {
             if on_gpu(key) {
-                *contact = *gpu_contact;
+                *contact = *collided;
             } else {
                 host_pairs += 1;
             }
@@ -561,10 +534,9 @@ impl World {
             keep_resting: (!self.refresh_resting).then_some(&self.masses[..]),
         };
         self.refresh_resting = false;
-        if exact && host_pairs == 0 {
+        if host_pairs == 0 {
             gpu.pair_cache_is_collide_output();
-        }
-        if host_pairs > 0 {
+        } else {
             profiler.scope("cpu pairs", || {
                 narrowphase::update_contacts_where(keys, contacts, &inputs, |a, b| {
                     !narrowphase::gpu_pair(a, b)
