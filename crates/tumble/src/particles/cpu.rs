@@ -55,6 +55,42 @@ pub(super) fn neighbour(params: &ParticleParams, cell: [u32; 3], offset: [i32; 3
     Some(cell_index(params, coordinates))
 }
 
+/// The pair forces on sorted particle `index` from the particles of the 27 cells around it,
+/// summed in stencil order as they are found (`search.wgsl`'s `neighbour_force`). With
+/// `skip_own_body`, particles with the same `position[3]` (a rigid body's index) are left out.
+pub(super) fn neighbour_force(
+    params: &ParticleParams,
+    grid: &Grid,
+    sorted: &[Particle],
+    index: usize,
+    skip_own_body: bool,
+) -> Vector {
+    let me = sorted[index];
+    let (position, velocity) = (xyz(me.position), xyz(me.velocity));
+    let cell = cell_of(params, position);
+    let mut force = [0.0; 3];
+    for offset in FULL_STENCIL {
+        let Some(neighbour) = neighbour(params, cell, offset) else {
+            continue;
+        };
+        for other in grid.run(neighbour) {
+            let them = sorted[other];
+            let own_body = skip_own_body && them.position[3] == me.position[3];
+            if other != index && !own_body {
+                let pair = pair_force(
+                    params,
+                    position,
+                    velocity,
+                    xyz(them.position),
+                    xyz(them.velocity),
+                );
+                force = add(force, pair);
+            }
+        }
+    }
+    force
+}
+
 /// All 27 offsets, in increasing cell index order (z, then y, then x).
 pub(super) const FULL_STENCIL: [[i32; 3]; 27] = {
     let mut offsets = [[0; 3]; 27];
@@ -312,27 +348,8 @@ impl CpuParticles {
             .for_each(|(index, updated)| {
                 let me = sorted[index];
                 let (position, velocity) = (xyz(me.position), xyz(me.velocity));
-                let cell = cell_of(params, position);
-                let mut force = [0.0; 3];
-                for offset in FULL_STENCIL {
-                    let Some(neighbour) = neighbour(params, cell, offset) else {
-                        continue;
-                    };
-                    for other in grid.run(neighbour) {
-                        if other != index {
-                            let them = sorted[other];
-                            let pair = pair_force(
-                                params,
-                                position,
-                                velocity,
-                                xyz(them.position),
-                                xyz(them.velocity),
-                            );
-                            force = add(force, pair);
-                        }
-                    }
-                }
-                force = add(force, wall_force(params, position, velocity));
+                let force = neighbour_force(params, grid, sorted, index, false);
+                let force = add(force, wall_force(params, position, velocity));
                 *updated = integrate(params, position, velocity, force);
             });
     }

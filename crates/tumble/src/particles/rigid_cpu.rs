@@ -3,9 +3,7 @@
 
 use rayon::prelude::*;
 
-use crate::particles::cpu::{
-    FULL_STENCIL, Grid, Vector, add, cell_of, neighbour, pair_force, scale, wall_force, xyz,
-};
+use crate::particles::cpu::{Grid, Vector, add, neighbour_force, scale, wall_force, xyz};
 use crate::particles::rigid::{BodyInfo, Flat, RigidBody, cross, rotate};
 use crate::particles::{Particle, ParticleParams};
 use crate::profile::Profiler;
@@ -181,26 +179,7 @@ fn collide(params: &ParticleParams, grid: &Grid, sorted: &[Particle], forces: &m
     forces.par_iter_mut().enumerate().for_each(|(index, out)| {
         let me = sorted[index];
         let (position, velocity) = (xyz(me.position), xyz(me.velocity));
-        let cell = cell_of(params, position);
-        let mut force = [0.0; 3];
-        for offset in FULL_STENCIL {
-            let Some(neighbour) = neighbour(params, cell, offset) else {
-                continue;
-            };
-            for other in grid.run(neighbour) {
-                let them = sorted[other];
-                if them.position[3] != me.position[3] {
-                    let pair = pair_force(
-                        params,
-                        position,
-                        velocity,
-                        xyz(them.position),
-                        xyz(them.velocity),
-                    );
-                    force = add(force, pair);
-                }
-            }
-        }
+        let mut force = neighbour_force(params, grid, sorted, index, true);
         force = add(force, wall_force(params, position, velocity));
         force = add(force, wall_friction(params, position, velocity));
         *out = [force[0], force[1], force[2], 0.0];
