@@ -11,6 +11,7 @@ use crate::gpu::kernel::{
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::particles::gpu::{COMMON_WGSL, GpuGrid, SEARCH_WGSL, begin_pass, check_capacity};
 use crate::particles::rigid::{Flat, RigidBody};
+use crate::particles::rigid_cpu::BODY_LANES;
 use crate::particles::{EMPTY_CELL, Particle};
 use crate::profile::Profiler;
 
@@ -34,6 +35,7 @@ pub fn wgsl(kernel: &str) -> Source {
     };
     let source = Source::new()
         .constant_u32("EMPTY_CELL", EMPTY_CELL)
+        .constant_u32("BODY_LANES", BODY_LANES as u32)
         .snippet("particles/common.wgsl", COMMON_WGSL)
         .snippet("particles/rigid_common.wgsl", RIGID_COMMON_WGSL);
     let source = match kernel {
@@ -70,7 +72,8 @@ impl GpuRigid {
         let grid = GpuGrid::new(config, &context, &particles)?;
         let rigid_params = UniformSlots::new(&context, "rigid params", &[flat.rigid_params()]);
         let particle_groups = workgroups_for(count, WORKGROUP_SIZE);
-        let body_groups = workgroups_for(flat.bodies.len(), WORKGROUP_SIZE);
+        // A workgroup per body.
+        let body_groups = u32::try_from(flat.bodies.len()).expect("body count fits in u32");
         let kernel = |name: &str, bindings: &[Binding]| {
             Kernel::new(&context, name, &wgsl(name), name, bindings)
         };
