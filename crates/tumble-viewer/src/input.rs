@@ -115,6 +115,21 @@ tumble view keys:
   left drag    on a body: pull it by that point (let go to drop it);  elsewhere: orbit
   right drag   orbit the camera";
 
+/// The help overlay of the particle demo's window: the keys that mean something there (it has
+/// no contacts, batches or bodies to pick).
+pub const PARTICLE_HELP: &str = "\
+tumble view keys (particle demo):
+  space        reset the particles
+  i            start / stop the simulation
+  s            single step (stops the simulation)
+  p            profile: stage timings
+  u            the whole step on CPU / GPU (the particles carry over)
+  w            wireframe / solid
+  h            this help (on / off)
+  q, escape    quit
+  cursor keys  orbit the camera;  z / x  move closer / farther;  mouse wheel  zoom
+  left or right drag   orbit the camera";
+
 /// Camera turn per cursor key press (radians) and per pixel of mouse drag.
 const KEY_TURN: f32 = 0.08;
 const DRAG_TURN: f32 = 0.005;

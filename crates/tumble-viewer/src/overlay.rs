@@ -30,7 +30,12 @@ const HISTOGRAM_WIDTH: usize = 64;
 
 /// The help overlay: the key list `h` shows.
 pub fn help_lines() -> Vec<String> {
-    HELP.lines().map(str::to_owned).collect()
+    lines_of(HELP)
+}
+
+/// The lines of a help text.
+pub fn lines_of(help: &str) -> Vec<String> {
+    help.lines().map(str::to_owned).collect()
 }
 
 /// The profile overlay: the step's time per frame, each stage's (and, indented, its copies and

@@ -21,7 +21,7 @@ use crate::context::GpuContext;
 use crate::draw::{DrawList, DrawSettings};
 use crate::error::ViewError;
 use crate::headless::Offscreen;
-use crate::input::Executor;
+use crate::input::{Executor, PARTICLE_HELP};
 use crate::overlay::{self, OverlayKind};
 use crate::window::{self, Shown};
 use crate::{ImageSize, StepDevice, ViewOptions};
@@ -134,7 +134,7 @@ fn view_headless(
         };
         list.overlay = match options.overlay {
             OverlayKind::Off => Vec::new(),
-            OverlayKind::Help => overlay::help_lines(),
+            OverlayKind::Help => overlay::lines_of(PARTICLE_HELP),
             OverlayKind::Profile => {
                 profile_lines(&system.profiler().report(), system.config().count)
             }
@@ -323,6 +323,10 @@ impl Shown for Particles {
         0
     }
 
+    fn help(&self) -> &'static str {
+        PARTICLE_HELP
+    }
+
     fn world(&mut self) -> Option<&mut World> {
         None
     }
@@ -396,6 +400,9 @@ mod tests {
         assert!(shown.world().is_none());
         assert!(shown.device_poses().is_none());
         assert_eq!(shown.batch_count(), 0);
+        // Its help names the keys that do something here, and not contacts or batches.
+        assert!(shown.help().contains("the whole step on CPU / GPU"));
+        assert!(!shown.help().contains("contact") && !shown.help().contains("batch"));
         let profile = shown.take_profile();
         assert!(profile[0].contains("over 1 frames"), "{profile:?}");
         assert_eq!(profile.last().unwrap(), "particles 10");

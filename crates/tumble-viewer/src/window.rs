@@ -60,6 +60,8 @@ pub(crate) trait Shown {
     fn batch_count(&self) -> usize;
     /// The world whose bodies the mouse picks, if there is one.
     fn world(&mut self) -> Option<&mut World>;
+    /// The help overlay's text (`h`): the keys that mean something here.
+    fn help(&self) -> &'static str;
 }
 
 /// A rigid-body scene in a window.
@@ -149,6 +151,10 @@ impl Shown for Rigid<'_> {
 
     fn batch_count(&self) -> usize {
         self.world.stats().batch_histogram.len()
+    }
+
+    fn help(&self) -> &'static str {
+        crate::input::HELP
     }
 
     fn world(&mut self) -> Option<&mut World> {
@@ -417,7 +423,7 @@ impl App<'_> {
             }
         };
         if self.input.help {
-            list.overlay = overlay::help_lines();
+            list.overlay = overlay::lines_of(self.shown.help());
         } else if self.input.profile {
             list.overlay.clone_from(&self.profile_lines);
         }
