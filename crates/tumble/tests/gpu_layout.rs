@@ -498,7 +498,8 @@ fn solver_structs_match_rust() {
     use tumble::stages::solver::SolverBody;
     use tumble::stages::solver::batched::BatchedJointImpulses;
     use tumble::stages::solver::gpu::{SolverParams, wgsl};
-    // AngularRow, JointPose and JointMasses are the joint kernels' locals.
+    // AngularRow, JointPose and JointMasses are the joint kernels' locals, PointRows and
+    // ConstraintHeader the contact kernels' registers.
     check_with_gpu_only(
         wgsl(),
         vec![
@@ -630,7 +631,13 @@ fn solver_structs_match_rust() {
             }),
             rust_layout!(BatchedJointImpulses { point, angular }),
         ],
-        &["AngularRow", "JointPose", "JointMasses"],
+        &[
+            "AngularRow",
+            "JointPose",
+            "JointMasses",
+            "PointRows",
+            "ConstraintHeader",
+        ],
     );
 }
 

@@ -72,9 +72,77 @@ fn apply(row: Row, direction: vec3<f32>, impulse: f32, mass_a: f32, mass_b: f32,
     return out;
 }
 
-// The constraints are read through pointers into `contacts`, a point at a time: a copy of a
-// whole constraint indexed by a loop variable is spilled to local memory at every such index
-// (1 KB each time), which made each dispatch on an H100 take about 100 µs instead of a few.
+// A constraint's point data is loaded into registers before the rows are solved and stored
+// after them, with the four point slots written out (guarded by the point count) rather than
+// looped over. Drivers do not unroll naga's loops, and a store into `contacts` inside a loop
+// keeps the next iteration's loads from being issued before it: the per-point loop made a
+// constraint a chain of a memory round trip per point and pass, the latency that bounds
+// these kernels, which have a thread per constraint and few threads. Copying a whole
+// constraint indexed by a loop variable is no way out either: it is spilled to local memory
+// at every such index (1 KB each time), which made each dispatch on an H100 take about
+// 100 µs instead of a few. The order of operations is the CPU's (contact.rs): points 0 to
+// count − 1, normal rows, then friction rows.
+
+// The rows and state of one point as the sweeps read and write them.
+struct PointRows {
+    normal: Row,
+    tangent1: Row,
+    tangent2: Row,
+    anchor_a: vec3<f32>,
+    adjusted_separation: f32,
+    anchor_b: vec3<f32>,
+    separation: f32,
+    max_normal_impulse: f32,
+}
+
+fn no_point() -> PointRows {
+    let row = Row(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0),
+        0.0);
+    return PointRows(row, row, row, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, 0.0);
+}
+
+// Point `k` of constraint `index`, or no point past its count (then never used).
+fn load_point(index: u32, k: u32, count: u32) -> PointRows {
+    if k >= count {
+        return no_point();
+    }
+    let p = &contacts[index].points[k];
+    return PointRows((*p).normal, (*p).tangent[0], (*p).tangent[1], (*p).anchor_a,
+        (*p).adjusted_separation, (*p).anchor_b, (*p).separation, (*p).max_normal_impulse);
+}
+
+// Stores what a solve sweep changed of point `k`: its separation (when recomputed) and impulses.
+fn store_point(index: u32, k: u32, count: u32, point: PointRows) {
+    if k >= count {
+        return;
+    }
+    let p = &contacts[index].points[k];
+    if params.moved != 0u {
+        (*p).separation = point.separation;
+    }
+    (*p).normal.impulse = point.normal.impulse;
+    (*p).max_normal_impulse = point.max_normal_impulse;
+    (*p).tangent[0].impulse = point.tangent1.impulse;
+    (*p).tangent[1].impulse = point.tangent2.impulse;
+}
+
+// The manifold-wide data of a constraint.
+struct ConstraintHeader {
+    normal: vec3<f32>,
+    tangent1: vec3<f32>,
+    tangent2: vec3<f32>,
+    mass_a: f32,
+    mass_b: f32,
+    friction: f32,
+    softness: Softness,
+}
+
+fn load_header(index: u32) -> ConstraintHeader {
+    let c = &contacts[index];
+    return ConstraintHeader((*c).normal, (*c).tangent1, (*c).tangent2, (*c).inverse_mass_a,
+        (*c).inverse_mass_b, (*c).friction, (*c).softness);
+}
+
 fn warm_start_contact(index: u32) {
     let c = &contacts[index];
     let pair = warm_start_contact_pair(index,
@@ -83,21 +151,33 @@ fn warm_start_contact(index: u32) {
     store_body((*c).body_b, pair[1]);
 }
 
+fn warm_start_point(h: ConstraintHeader, point: PointRows, pair: BodyPair) -> BodyPair {
+    var out = apply(point.normal, h.normal, point.normal.impulse, h.mass_a, h.mass_b, pair);
+    out = apply(point.tangent1, h.tangent1, point.tangent1.impulse, h.mass_a, h.mass_b, out);
+    return apply(point.tangent2, h.tangent2, point.tangent2.impulse, h.mass_a, h.mass_b, out);
+}
+
 // The row functions take the two bodies and return them moved, wherever they come from: the
 // PGS sweeps load and store them in `bodies`, the Jacobi sweeps (jacobi.wgsl) keep copies.
 fn warm_start_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let c = &contacts[index];
-    let n = (*c).normal;
-    let mass_a = (*c).inverse_mass_a;
-    let mass_b = (*c).inverse_mass_b;
+    let count = contacts[index].point_count;
+    let h = load_header(index);
+    let p0 = load_point(index, 0u, count);
+    let p1 = load_point(index, 1u, count);
+    let p2 = load_point(index, 2u, count);
+    let p3 = load_point(index, 3u, count);
     var pair = start;
-    for (var i = 0u; i < (*c).point_count; i++) {
-        let point = (*c).points[i];
-        pair = apply(point.normal, n, point.normal.impulse, mass_a, mass_b, pair);
-        pair = apply(point.tangent[0], (*c).tangent1, point.tangent[0].impulse, mass_a, mass_b,
-            pair);
-        pair = apply(point.tangent[1], (*c).tangent2, point.tangent[1].impulse, mass_a, mass_b,
-            pair);
+    if count > 0u {
+        pair = warm_start_point(h, p0, pair);
+    }
+    if count > 1u {
+        pair = warm_start_point(h, p1, pair);
+    }
+    if count > 2u {
+        pair = warm_start_point(h, p2, pair);
+    }
+    if count > 3u {
+        pair = warm_start_point(h, p3, pair);
     }
     return pair;
 }
@@ -122,58 +202,88 @@ fn solve_contact(index: u32) {
     store_body((*c).body_b, pair[1]);
 }
 
+// The bodies with one point's non-penetration row solved; `point` gets its new separation and
+// impulse.
+fn solve_normal(h: ConstraintHeader, point: ptr<function, PointRows>, pair: BodyPair)
+    -> BodyPair {
+    var separation = (*point).separation;
+    if params.moved != 0u {
+        let moved = (pair[0].delta_position + quat_rotate(pair[0].delta_rotation,
+            (*point).anchor_a)) - (pair[1].delta_position
+            + quat_rotate(pair[1].delta_rotation, (*point).anchor_b));
+        separation = dot(h.normal, moved) + (*point).adjusted_separation;
+        (*point).separation = separation;
+    }
+    let terms = bias_terms(separation, h.softness);
+    let row = (*point).normal;
+    let velocity = row_velocity(row, h.normal, pair);
+    let impulse = -row.mass * terms.y * (velocity + terms.x) - terms.z * row.impulse;
+    let total = max(row.impulse + impulse, 0.0);
+    let delta = total - row.impulse;
+    (*point).normal.impulse = total;
+    (*point).max_normal_impulse = max((*point).max_normal_impulse, total);
+    return apply(row, h.normal, delta, h.mass_a, h.mass_b, pair);
+}
+
+// The bodies with one point's friction rows solved, clamped to the circle |λ_t| ≤ μ λ_n (see
+// contact.rs); `point` gets its new tangent impulses.
+fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: BodyPair)
+    -> BodyPair {
+    let row1 = (*point).tangent1;
+    let row2 = (*point).tangent2;
+    let want1 = row1.impulse - row_velocity(row1, h.tangent1, pair) * row1.mass;
+    let want2 = row2.impulse - row_velocity(row2, h.tangent2, pair) * row2.mass;
+    let limit = h.friction * (*point).normal.impulse;
+    let length_squared = want1 * want1 + want2 * want2;
+    var scale = 1.0;
+    if length_squared > limit * limit {
+        scale = limit / sqrt(length_squared);
+    }
+    let total1 = want1 * scale;
+    let total2 = want2 * scale;
+    var out = apply(row1, h.tangent1, total1 - row1.impulse, h.mass_a, h.mass_b, pair);
+    out = apply(row2, h.tangent2, total2 - row2.impulse, h.mass_a, h.mass_b, out);
+    (*point).tangent1.impulse = total1;
+    (*point).tangent2.impulse = total2;
+    return out;
+}
+
 fn solve_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let c = &contacts[index];
-    let n = (*c).normal;
-    let mass_a = (*c).inverse_mass_a;
-    let mass_b = (*c).inverse_mass_b;
-    let softness = (*c).softness;
-    let count = (*c).point_count;
+    let count = contacts[index].point_count;
+    let h = load_header(index);
+    var p0 = load_point(index, 0u, count);
+    var p1 = load_point(index, 1u, count);
+    var p2 = load_point(index, 2u, count);
+    var p3 = load_point(index, 3u, count);
     var pair = start;
-    for (var i = 0u; i < count; i++) {
-        let point = &(*c).points[i];
-        var separation = (*point).separation;
-        if params.moved != 0u {
-            let moved = (pair[0].delta_position
-                + quat_rotate(pair[0].delta_rotation, (*point).anchor_a))
-                - (pair[1].delta_position
-                + quat_rotate(pair[1].delta_rotation, (*point).anchor_b));
-            separation = dot(n, moved) + (*point).adjusted_separation;
-            (*point).separation = separation;
-        }
-        let terms = bias_terms(separation, softness);
-        let row = (*point).normal;
-        let velocity = row_velocity(row, n, pair);
-        let impulse = -row.mass * terms.y * (velocity + terms.x) - terms.z * row.impulse;
-        let total = max(row.impulse + impulse, 0.0);
-        let delta = total - row.impulse;
-        (*point).normal.impulse = total;
-        (*point).max_normal_impulse = max((*point).max_normal_impulse, total);
-        pair = apply(row, n, delta, mass_a, mass_b, pair);
+    if count > 0u {
+        pair = solve_normal(h, &p0, pair);
     }
-    // Friction, clamped to the circle |λ_t| ≤ μ λ_n (see contact.rs).
-    let friction = (*c).friction;
-    let t1 = (*c).tangent1;
-    let t2 = (*c).tangent2;
-    for (var i = 0u; i < count; i++) {
-        let point = &(*c).points[i];
-        let row1 = (*point).tangent[0];
-        let row2 = (*point).tangent[1];
-        let want1 = row1.impulse - row_velocity(row1, t1, pair) * row1.mass;
-        let want2 = row2.impulse - row_velocity(row2, t2, pair) * row2.mass;
-        let limit = friction * (*point).normal.impulse;
-        let length_squared = want1 * want1 + want2 * want2;
-        var scale = 1.0;
-        if length_squared > limit * limit {
-            scale = limit / sqrt(length_squared);
-        }
-        let total1 = want1 * scale;
-        let total2 = want2 * scale;
-        pair = apply(row1, t1, total1 - row1.impulse, mass_a, mass_b, pair);
-        pair = apply(row2, t2, total2 - row2.impulse, mass_a, mass_b, pair);
-        (*point).tangent[0].impulse = total1;
-        (*point).tangent[1].impulse = total2;
+    if count > 1u {
+        pair = solve_normal(h, &p1, pair);
     }
+    if count > 2u {
+        pair = solve_normal(h, &p2, pair);
+    }
+    if count > 3u {
+        pair = solve_normal(h, &p3, pair);
+    }
+    if count > 0u {
+        pair = solve_friction(h, &p0, pair);
+    }
+    if count > 1u {
+        pair = solve_friction(h, &p1, pair);
+    }
+    if count > 2u {
+        pair = solve_friction(h, &p2, pair);
+    }
+    if count > 3u {
+        pair = solve_friction(h, &p3, pair);
+    }
+    store_point(index, 0u, count, p0);
+    store_point(index, 1u, count, p1);
+    store_point(index, 2u, count, p2);
+    store_point(index, 3u, count, p3);
     return pair;
 }
 
