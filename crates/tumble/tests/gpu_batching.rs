@@ -75,6 +75,7 @@ fn gpu_colors_equal_cpu_colors() {
             }
             assert_eq!(from_gpu.histogram, cpu.histogram, "{batcher} {size}");
             assert_eq!(from_gpu.has_overflow, cpu.has_overflow);
+            assert_eq!(from_gpu.rounds, cpu.rounds, "{batcher} {size}: rounds");
             // The colors are valid batches: no dynamic body twice in a normal batch.
             let mut owner = vec![u8::MAX; *bodies];
             for color in 0..MAX_COLORS as u8 {
@@ -140,5 +141,22 @@ fn rounds_in_two_parts_give_the_same_colors() {
         assert!(gpu.read_back(&context, &mut parts).unwrap());
         assert_eq!(parts.colors, whole.colors, "{batcher}");
         assert_eq!(parts.histogram, whole.histogram, "{batcher}");
+        assert_eq!(parts.rounds, whole.rounds, "{batcher}");
+        // The rounds it says it needed are enough (the step encodes those next time), and
+        // one fewer is not.
+        for (rounds, complete) in [(whole.rounds, true), (whole.rounds - 1, false)] {
+            context
+                .submit_pass("needed rounds", |pass| {
+                    gpu.encode_rounds(&context, pass, 400, 30, batcher, rounds)
+                })
+                .unwrap();
+            let mut cut = Coloring::default();
+            assert_eq!(
+                gpu.read_back(&context, &mut cut).unwrap(),
+                complete,
+                "{batcher}: {rounds} of {} rounds",
+                whole.rounds
+            );
+        }
     }
 }

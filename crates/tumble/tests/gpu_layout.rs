@@ -730,7 +730,7 @@ fn row_and_batching_parameters_match_rust() {
             "ContactConstraint",
         ],
     );
-    // Tally is two u32 words on the host ([u32; 2]: batched, count).
+    // Tally is three u32 words on the host ([u32; 3]: batched, count, rounds).
     check_with_gpu_only(
         batching::wgsl(),
         vec![rust_layout!(BatchParams {

@@ -28,6 +28,10 @@ use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 /// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
 /// talk's batcher makes one batch a round), the colors batcher as many.
 const FIRST_BATCHING_ROUNDS: usize = 32;
+/// Rounds encoded past those the last batching needed: a pile's contact graph changes a little
+/// from step to step, and a batching that needs more than were encoded costs a second pass
+/// and read-back.
+const BATCHING_ROUND_SLACK: usize = 4;
 
 /// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
 /// time), submitting and waiting on the host, downloads.
@@ -669,8 +673,8 @@ impl GpuStages {
         let start = Instant::now();
         self.batching.upload(context, bodies)?;
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
-        // Most of the 64 rounds find nothing left: encode as many as the last steps needed,
-        // and the rest only when some constraint is still unbatched after them.
+        // Most of the 64 rounds find nothing left: encode as many as the last step needed
+        // and a few more, and the rest only when some constraint is still unbatched after them.
         let rounds = self.batching_rounds;
         let batching = &mut self.batching;
         run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
@@ -689,8 +693,8 @@ impl GpuStages {
             let complete = self.batching.read_back(context, coloring)?;
             debug_assert!(complete, "every round and the finish ran");
             record_copy(profiler, BATCHING.download, elapsed_ms(start));
-            self.batching_rounds = (2 * rounds).min(MAX_ROUNDS);
         }
+        self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
         Ok(())
     }
 

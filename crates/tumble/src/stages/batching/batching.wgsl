@@ -17,6 +17,9 @@ struct Tally {
     // How many constraints have a batch: the rounds stop working once all have one.
     batched: atomic<u32>,
     count: u32,
+    // Rounds that found a constraint left to batch (written by thread 0 of each claim), so
+    // that the host encodes no more of them than the next steps need.
+    rounds: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BatchParams;
@@ -75,6 +78,7 @@ fn start(
     }
     if i == 0u {
         atomicStore(&tally.batched, 0u);
+        tally.rounds = 0u;
     }
 }
 
@@ -85,6 +89,10 @@ fn claim(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let i = thread_index(id, workgroup, groups);
+    // Commits happen in the next dispatch: no thread of this one changes what it sees here.
+    if i == 0u && !all_batched() {
+        tally.rounds = params.round + 1u;
+    }
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }

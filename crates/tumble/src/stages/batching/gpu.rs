@@ -59,12 +59,14 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
-    /// How many constraints have a batch (the rounds' early exit), and how many there are.
-    tally: GpuVec<[u32; 2]>,
+    /// How many constraints have a batch (the rounds' early exit), how many there are, and
+    /// how many rounds found one left to batch ([`Coloring::rounds`]).
+    tally: GpuVec<[u32; 3]>,
     cached: Option<(BatchKey, Vec<Dispatch>)>,
-    /// Host scratch: the bodies to upload, the colors read back.
+    /// Host scratch: the bodies to upload, the colors and the tally read back.
     host_bodies: Vec<[u32; 2]>,
     host_colors: Vec<u32>,
+    host_tally: Vec<[u32; 3]>,
 }
 
 impl GpuBatching {
@@ -74,10 +76,11 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
-            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0]])?,
+            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0, 0]])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
+            host_tally: Vec::new(),
         })
     }
 
@@ -116,7 +119,7 @@ impl GpuBatching {
             return Ok(());
         }
         // Lands before this submission's commands run.
-        self.tally.upload(context, &[[0, count as u32]])?;
+        self.tally.upload(context, &[[0, count as u32, 0]])?;
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * body_count)?;
         self.masks.resize(context, body_count)?;
@@ -256,6 +259,12 @@ impl GpuBatching {
         if self.host_colors.contains(&UNBATCHED) {
             return Ok(false);
         }
+        coloring.rounds = if self.host_colors.is_empty() {
+            0
+        } else {
+            self.tally.download_into(context, &mut self.host_tally)?;
+            self.host_tally[0][2] as usize
+        };
         coloring.colors.clear();
         coloring
             .colors

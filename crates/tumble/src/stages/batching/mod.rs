@@ -123,6 +123,10 @@ pub struct Coloring {
     pub has_overflow: bool,
     /// Constraints per batch: the talk's batch histogram.
     pub histogram: Vec<u32>,
+    /// Rounds that found a constraint left to batch: how many a GPU batching has to encode
+    /// to finish without a second pass (see `GpuStages::color_constraints`), unless some
+    /// constraint is left for the overflow batch after the last round.
+    pub rounds: usize,
     /// Scratch kept to avoid allocation per step: the constraints' bodies, the per-body
     /// color masks and locks, the constraints not yet batched.
     bodies: Vec<[u32; 2]>,
@@ -200,10 +204,12 @@ pub fn color_constraints(
     let dynamic = |pair: [u32; 2]| pair.into_iter().filter(|&body| body != STATIC_BODY);
     let ordered = ordered as u32;
 
+    coloring.rounds = 0;
     for round in 0..MAX_ROUNDS {
         if remaining.is_empty() {
             break;
         }
+        coloring.rounds = round + 1;
         for &c in remaining.iter() {
             for body in dynamic(pairs[c as usize]) {
                 let lock = &mut locks[body as usize];
