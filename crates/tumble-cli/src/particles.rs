@@ -66,7 +66,9 @@ pub fn run(request: &ParticleRun) -> Result<(), String> {
     if request.json {
         let summary = serde_json::json!({
             "scene": "particles",
+            // The contract's field (DESIGN.md), as for every scene; here a body is a particle.
             "bodies": count,
+            "particles": count,
             "steps": request.steps,
             "device": device_label,
             "adapter": adapter,

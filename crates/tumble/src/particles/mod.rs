@@ -138,6 +138,14 @@ impl ParticleConfig {
 
     /// Checks the parameters; every error names the field and what it must be.
     pub fn validate(&self) -> Result<(), ParticleError> {
+        // First: a demo config for too many particles also has too many cells, and the count
+        // is what the user asked for.
+        if self.count > MAX_PARTICLES {
+            return Err(ParticleError::TooManyParticles {
+                count: self.count,
+                max: MAX_PARTICLES,
+            });
+        }
         if !(self.radius.is_finite() && self.radius > 0.0) {
             return Err(ParticleError::Radius(self.radius));
         }
@@ -172,12 +180,6 @@ impl ParticleConfig {
             .any(|v| !v.is_finite())
         {
             return Err(ParticleError::NotFinite);
-        }
-        if self.count > MAX_PARTICLES {
-            return Err(ParticleError::TooManyParticles {
-                count: self.count,
-                max: MAX_PARTICLES,
-            });
         }
         Ok(())
     }
@@ -384,18 +386,22 @@ impl ParticleSystem {
                 expected: config.count,
             });
         }
+        let mut profiler = Profiler::new("particles step");
         let executor = match device {
             ParticleDevice::Cpu => {
                 Executor::Cpu(Box::new(cpu::CpuParticles::new(&config, particles)))
             }
             ParticleDevice::Gpu(context) => Executor::Gpu(Box::new(gpu::GpuParticles::new(
-                &config, context, particles,
+                &config,
+                context,
+                particles,
+                &mut profiler,
             )?)),
         };
         Ok(Self {
             config,
             executor,
-            profiler: Profiler::new("particles step"),
+            profiler,
         })
     }
 
