@@ -495,3 +495,66 @@ fn particles_explain_prints_the_talks_tables() {
         "{text}"
     );
 }
+
+/// `--sort bitonic` and `--search 14` reach the particle system on both devices, as its JSON
+/// says; bitonic sort gives radix sort's order (the same run, bitwise) and the 14-cell search
+/// sums the same forces in fixed point (close, not equal).
+#[test]
+fn particles_sort_and_search_flags() {
+    let summary = |device: &str, flags: &[&str]| {
+        let args = [
+            "run",
+            "particles",
+            "--scale",
+            "0.001",
+            "--steps",
+            "20",
+            "--device",
+            device,
+            "--json",
+        ];
+        let output = tumble(&[&args[..], flags].concat());
+        assert!(output.status.success(), "{device}: {}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let last = stdout.lines().last().unwrap().to_owned();
+        let summary: serde_json::Value = serde_json::from_str(&last).unwrap();
+        (
+            summary["sort"].as_str().unwrap().to_owned(),
+            summary["search"].as_u64().unwrap(),
+            summary["kinetic_energy"].as_f64().unwrap(),
+        )
+    };
+    for device in ["cpu", "gpu"] {
+        let (sort, search, default) = summary(device, &[]);
+        assert_eq!((sort.as_str(), search), ("radix", 27), "{device}");
+        let (sort, search, radix) = summary(device, &["--sort", "radix", "--search", "27"]);
+        assert_eq!((sort.as_str(), search, radix), ("radix", 27, default));
+        let (sort, search, bitonic) = summary(device, &["--sort", "bitonic"]);
+        assert_eq!((sort.as_str(), search), ("bitonic", 27), "{device}");
+        assert_eq!(bitonic, radix, "{device}: bitonic and radix runs differ");
+        let (sort, search, symmetric) = summary(device, &["--search", "14"]);
+        assert_eq!((sort.as_str(), search), ("radix", 14), "{device}");
+        assert!(
+            symmetric != radix && (symmetric - radix).abs() <= 1e-3 * radix,
+            "{device}: 14-cell search {symmetric} J, 27-cell {radix} J"
+        );
+        let (sort, search, _) = summary(device, &["--sort", "bitonic", "--search", "14"]);
+        assert_eq!((sort.as_str(), search), ("bitonic", 14), "{device}");
+    }
+    assert_user_error(
+        &["run", "particles", "--sort", "merge"],
+        "--sort: unknown sort \"merge\"; sorts are radix, bitonic",
+    );
+    assert_user_error(
+        &["run", "particles", "--search", "26"],
+        "--search: unknown search \"26\"; searches are 27, 14",
+    );
+    assert_user_error(
+        &["run", "falling-boxes", "--sort", "bitonic"],
+        "--sort is for the particles scene",
+    );
+    assert_user_error(
+        &["run", "bunnies", "--search", "14"],
+        "--search is for the particles scene",
+    );
+}
