@@ -94,6 +94,14 @@ struct RunArgs {
     /// For `particles`: print the talk's uniform-grid tables for its six-particle example.
     #[arg(long)]
     explain: bool,
+    /// For `particles`: the sort by cell, `radix` (default) or `bitonic` (the talk's
+    /// alternative, in the same order; the CPU twin has one sort, which gives that order).
+    #[arg(long)]
+    sort: Option<String>,
+    /// For `particles`: the neighbour search, `27` cells (default) or `14` (symmetric: each
+    /// pair once, forces summed in fixed point).
+    #[arg(long)]
+    search: Option<String>,
 }
 
 fn main() -> ExitCode {
@@ -212,11 +220,19 @@ fn run(args: &RunArgs) -> Result<(), String> {
             profile: args.profile,
             json: args.json,
             explain: args.explain,
+            sort: particles::parse_sort(args.sort.as_deref().unwrap_or("radix"))?,
+            search: particles::parse_search(args.search.as_deref().unwrap_or("27"))?,
         };
         return particles::run(&request);
     }
-    if args.explain {
-        return Err("--explain is for the particles scene".into());
+    for (flag, given) in [
+        ("--explain", args.explain),
+        ("--sort", args.sort.is_some()),
+        ("--search", args.search.is_some()),
+    ] {
+        if given {
+            return Err(format!("{flag} is for the particles scene"));
+        }
     }
     if args.scene == "bunnies" {
         let request = bunnies::BunnyRun {

@@ -360,3 +360,201 @@ fn bunnies_run_at_a_tiny_scale_on_both_devices() {
     assert_user_error(&["run", "bunnies", "--scale", "-1"], "scale");
     assert_user_error(&["run", "bunnies", "--scale", "1e9"], "bodies");
 }
+
+/// `tumble run particles` on both devices: the profile shows the pipeline's stages (on the GPU
+/// as timestamped kernel passes, with the copies), the JSON summary its fields, and the two
+/// devices end in the same state.
+#[test]
+fn particles_run_at_a_tiny_scale_on_both_devices() {
+    let mut energies = Vec::new();
+    for device in ["cpu", "gpu"] {
+        let args = [
+            "run",
+            "particles",
+            "--scale",
+            "0.001",
+            "--steps",
+            "20",
+            "--device",
+            device,
+        ];
+        let output = tumble(&[&args[..], &["--profile"]].concat());
+        assert!(output.status.success(), "{device}: {}", stderr(&output));
+        let text = String::from_utf8_lossy(&output.stdout);
+        assert!(
+            text.contains("--- Profiling: particles step")
+                && text.contains("over 20 frames")
+                && text.contains("particles: 1000 particles, 20 steps on "),
+            "{device}: {text}"
+        );
+        let lines: &[&str] = if device == "cpu" {
+            &[
+                "-- hash (",
+                "-- sort (",
+                "-- cell start (",
+                "-- collide (",
+                "-- scatter (",
+            ]
+        } else {
+            &[
+                "-- encode and submit (",
+                "-- hash [gpu] (",
+                "-- sort [gpu] (",
+                "-- cell start [gpu] (",
+                "-- collide [gpu] (",
+                "-- copy particles to gpu [copy] (",
+                "-- copy particles to host [copy] (",
+            ]
+        };
+        for line in lines {
+            assert!(
+                text.contains(line),
+                "{device} profile lacks {line:?}: {text}"
+            );
+        }
+        let output = tumble(&[&args[..], &["--json"]].concat());
+        assert!(output.status.success(), "{device}: {}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let last = stdout.lines().last().unwrap();
+        let summary: serde_json::Value = serde_json::from_str(last).unwrap();
+        assert_eq!(summary["scene"], "particles", "{last}");
+        assert_eq!(summary["device"], device, "{last}");
+        assert_eq!(summary["steps"], 20, "{last}");
+        assert_eq!(summary["bodies"], 1000, "{last}");
+        assert_eq!(summary["particles"], 1000, "{last}");
+        assert!(!summary["adapter"].as_str().unwrap().is_empty(), "{last}");
+        assert!(summary["ms_per_step"].as_f64().unwrap() > 0.0, "{last}");
+        assert!(summary["stage_ms"].is_object(), "{last}");
+        // Falling for 20 steps: moving.
+        let energy = summary["kinetic_energy"].as_f64().unwrap();
+        assert!(energy > 0.0, "{last}");
+        energies.push(energy);
+    }
+    // Same arithmetic in the same order; a GPU may fuse multiply-adds (gpu_particles.rs allows
+    // for that in positions), so allow 0.1 % (lavapipe agrees bitwise).
+    let (cpu, gpu) = (energies[0], energies[1]);
+    assert!(
+        (cpu - gpu).abs() <= 1e-3 * cpu,
+        "kinetic energy {cpu} J on the cpu, {gpu} J on the gpu"
+    );
+    assert_user_error(&["run", "particles", "--scale", "0"], "scale");
+    assert_user_error(&["run", "particles", "--scale", "-1"], "scale");
+    assert_user_error(&["run", "particles", "--scale", "nan"], "scale");
+    // 10¹⁵ particles: past MAX_PARTICLES, on any device.
+    assert_user_error(
+        &["run", "particles", "--scale", "1e9", "--device", "cpu"],
+        "1000000000000000 particles is more than",
+    );
+}
+
+/// The rows of the section of `text` that starts with the line `title` (up to a blank line),
+/// each row's fields separated by single spaces.
+fn table_rows(text: &str, title: &str) -> Vec<String> {
+    text.lines()
+        .skip_while(|line| !line.starts_with(title))
+        .skip(1)
+        .take_while(|line| !line.trim().is_empty())
+        .map(|line| line.split_whitespace().collect::<Vec<_>>().join(" "))
+        .collect()
+}
+
+/// The talk's six-particle example (tumble::particles::explain, whose test checks the tables
+/// against the slides): the same values reach the command line.
+#[test]
+fn particles_explain_prints_the_talks_tables() {
+    let output = tumble(&["run", "particles", "--explain"]);
+    assert!(output.status.success(), "{}", stderr(&output));
+    let text = String::from_utf8_lossy(&output.stdout);
+    assert!(text.starts_with("Uniform grid (4 x 4 cells)\n"), "{text}");
+    let cells = table_rows(&text, "Cell ID");
+    assert_eq!(cells.len(), 16, "{text}");
+    let occupied: Vec<&String> = cells.iter().filter(|row| !row.ends_with(" 0")).collect();
+    assert_eq!(occupied, ["4 2 D,F", "6 3 B,C,E", "9 1 A"], "{text}");
+    // Array index, unsorted (cell, particle), sorted (cell, particle).
+    assert_eq!(
+        table_rows(&text, "Array index"),
+        [
+            "0 9, A 4, D",
+            "1 6, B 4, F",
+            "2 6, C 6, B",
+            "3 4, D 6, C",
+            "4 6, E 6, E",
+            "5 4, F 9, A"
+        ],
+        "{text}"
+    );
+    let starts = table_rows(&text, "Cell index");
+    assert_eq!(starts.len(), 16, "{text}");
+    let filled: Vec<&String> = starts.iter().filter(|row| row.contains(' ')).collect();
+    assert_eq!(filled, ["4 0", "6 2", "9 5"], "{text}");
+    assert_eq!(
+        table_rows(&text, "Interacting particle pairs"),
+        [
+            "D,F", "B,C", "B,E", "C,E", "A,D", "A,F", "A,B", "A,C", "A,E"
+        ],
+        "{text}"
+    );
+}
+
+/// `--sort bitonic` and `--search 14` reach the particle system on both devices, as its JSON
+/// says; bitonic sort gives radix sort's order (the same run, bitwise) and the 14-cell search
+/// sums the same forces in fixed point (close, not equal).
+#[test]
+fn particles_sort_and_search_flags() {
+    let summary = |device: &str, flags: &[&str]| {
+        let args = [
+            "run",
+            "particles",
+            "--scale",
+            "0.001",
+            "--steps",
+            "20",
+            "--device",
+            device,
+            "--json",
+        ];
+        let output = tumble(&[&args[..], flags].concat());
+        assert!(output.status.success(), "{device}: {}", stderr(&output));
+        let stdout = String::from_utf8_lossy(&output.stdout);
+        let last = stdout.lines().last().unwrap().to_owned();
+        let summary: serde_json::Value = serde_json::from_str(&last).unwrap();
+        (
+            summary["sort"].as_str().unwrap().to_owned(),
+            summary["search"].as_u64().unwrap(),
+            summary["kinetic_energy"].as_f64().unwrap(),
+        )
+    };
+    for device in ["cpu", "gpu"] {
+        let (sort, search, default) = summary(device, &[]);
+        assert_eq!((sort.as_str(), search), ("radix", 27), "{device}");
+        let (sort, search, radix) = summary(device, &["--sort", "radix", "--search", "27"]);
+        assert_eq!((sort.as_str(), search, radix), ("radix", 27, default));
+        let (sort, search, bitonic) = summary(device, &["--sort", "bitonic"]);
+        assert_eq!((sort.as_str(), search), ("bitonic", 27), "{device}");
+        assert_eq!(bitonic, radix, "{device}: bitonic and radix runs differ");
+        let (sort, search, symmetric) = summary(device, &["--search", "14"]);
+        assert_eq!((sort.as_str(), search), ("radix", 14), "{device}");
+        assert!(
+            symmetric != radix && (symmetric - radix).abs() <= 1e-3 * radix,
+            "{device}: 14-cell search {symmetric} J, 27-cell {radix} J"
+        );
+        let (sort, search, _) = summary(device, &["--sort", "bitonic", "--search", "14"]);
+        assert_eq!((sort.as_str(), search), ("bitonic", 14), "{device}");
+    }
+    assert_user_error(
+        &["run", "particles", "--sort", "merge"],
+        "--sort: unknown sort \"merge\"; sorts are radix, bitonic",
+    );
+    assert_user_error(
+        &["run", "particles", "--search", "26"],
+        "--search: unknown search \"26\"; searches are 27, 14",
+    );
+    assert_user_error(
+        &["run", "falling-boxes", "--sort", "bitonic"],
+        "--sort is for the particles scene",
+    );
+    assert_user_error(
+        &["run", "bunnies", "--search", "14"],
+        "--search is for the particles scene",
+    );
+}

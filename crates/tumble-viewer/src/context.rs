@@ -11,7 +11,8 @@
 //! limits and features the physics asks for) and hands it to the world
 //! ([`tumble::World::set_gpu_context`]): there too, a GPU step is drawn from its buffers.
 //!
-//! Picking an adapter, as the engine's tests do (DESIGN.md, Testing): `WGPU_BACKEND` restricts
+//! Picking an adapter, as the engine does ([`tumble::gpu::context::pick_adapter`], here over the
+//! adapters that can present to the window; DESIGN.md, Testing): `WGPU_BACKEND` restricts
 //! the backends, `TUMBLE_ADAPTER` keeps adapters whose name contains the text
 //! (case-insensitive). Among those left, a discrete GPU beats an integrated, virtual or CPU one,
 //! and Vulkan / Metal / DX12 beat GL. Mesa's CPU driver (lavapipe) is accepted, so pictures can be
@@ -44,14 +45,16 @@ impl GpuContext {
         backends: wgpu::Backends,
         surface: &wgpu::Surface<'_>,
     ) -> Result<(Self, wgpu::Adapter), ViewError> {
-        let adapters: Vec<wgpu::Adapter> = instance
+        let mut adapters: Vec<wgpu::Adapter> = instance
             .enumerate_adapters(backends)
             .await
             .into_iter()
             .filter(|adapter| adapter.is_surface_supported(surface))
             .collect();
+        let infos: Vec<wgpu::AdapterInfo> = adapters.iter().map(wgpu::Adapter::get_info).collect();
         let wanted = std::env::var("TUMBLE_ADAPTER").ok();
-        let adapter = pick_adapter(adapters, wanted.as_deref(), backends)?;
+        let index = tumble::gpu::context::pick_adapter(&infos, wanted.as_deref(), backends)?;
+        let adapter = adapters.swap_remove(index);
         let info = adapter.get_info();
         // The physics' limits and features: the world's GPU stages will run on this device.
         let (device, queue) = adapter
@@ -87,41 +90,4 @@ impl GpuContext {
             self.info.name, self.info.backend, self.info.device_type
         )
     }
-}
-
-/// Best adapter by device type, then backend; `wanted` filters by name first.
-fn pick_adapter(
-    adapters: Vec<wgpu::Adapter>,
-    wanted: Option<&str>,
-    backends: wgpu::Backends,
-) -> Result<wgpu::Adapter, ViewError> {
-    let available: Vec<String> = adapters
-        .iter()
-        .map(|adapter| {
-            let info = adapter.get_info();
-            format!("{} ({:?})", info.name, info.backend)
-        })
-        .collect();
-    let candidates: Vec<wgpu::Adapter> = match wanted {
-        Some(text) => {
-            let text = text.to_lowercase();
-            adapters
-                .into_iter()
-                .filter(|adapter| adapter.get_info().name.to_lowercase().contains(&text))
-                .collect()
-        }
-        None => adapters,
-    };
-    if let (Some(text), true) = (wanted, candidates.is_empty() && !available.is_empty()) {
-        return Err(ViewError::NoMatchingAdapter {
-            wanted: text.to_owned(),
-            available: available.join(", "),
-        });
-    }
-    candidates
-        .into_iter()
-        .min_by_key(|adapter| tumble::gpu::context::adapter_rank(&adapter.get_info()))
-        .ok_or_else(|| ViewError::NoAdapter {
-            backends: format!("{backends:?}"),
-        })
 }

@@ -6,7 +6,8 @@ use std::path::PathBuf;
 pub enum ViewError {
     #[error(transparent)]
     Scene(#[from] tumble::scene::SceneError),
-    /// No adapter or device for the physics' GPU stages, which headless pictures draw with too.
+    /// No adapter or device for the physics' GPU stages, which headless pictures draw with too,
+    /// or no adapter that can present to the window.
     #[error(transparent)]
     Gpu(#[from] tumble::gpu::GpuError),
     #[error(
@@ -14,15 +15,6 @@ pub enum ViewError {
          `tumble view {scene} --steps 120 --png {scene}.png` (or --frames DIR for a PNG per step)"
     )]
     NoDisplay { scene: String, reason: String },
-    #[error(
-        "no GPU adapter found (backends: {backends}); install a driver, or Mesa's CPU driver \
-         (`apt-get install mesa-vulkan-drivers` for lavapipe), or unset WGPU_BACKEND"
-    )]
-    NoAdapter { backends: String },
-    #[error(
-        "no GPU adapter name contains TUMBLE_ADAPTER={wanted:?}; available adapters: {available}"
-    )]
-    NoMatchingAdapter { wanted: String, available: String },
     #[error("the adapter {adapter:?} refused to create a device: {reason}")]
     RequestDevice { adapter: String, reason: String },
     #[error(

@@ -68,9 +68,11 @@ impl GpuContext {
         let descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         let backends = descriptor.backends;
         let instance = wgpu::Instance::new(descriptor);
-        let adapters = instance.enumerate_adapters(backends).await;
+        let mut adapters = instance.enumerate_adapters(backends).await;
+        let infos: Vec<wgpu::AdapterInfo> = adapters.iter().map(wgpu::Adapter::get_info).collect();
         let wanted = std::env::var("TUMBLE_ADAPTER").ok();
-        let adapter = pick_adapter(adapters, wanted.as_deref(), backends)?;
+        let index = pick_adapter(&infos, wanted.as_deref(), backends)?;
+        let adapter = adapters.swap_remove(index);
         let info = adapter.get_info();
         let (device, queue) = adapter
             .request_device(&Self::device_descriptor(&adapter))
@@ -179,54 +181,45 @@ impl GpuContext {
     }
 }
 
-/// Best adapter by device type, then backend; `wanted` filters by name first.
-fn pick_adapter(
-    adapters: Vec<wgpu::Adapter>,
+/// Index in `adapters` of the one to use: among those whose name contains `wanted`
+/// (case-insensitive), if given, the best by [`adapter_rank`]; the first of equals. Pure, so
+/// that the choice is tested without the adapters (`backends` is only for the message).
+/// The viewer picks among the adapters that can draw to its window with it.
+pub fn pick_adapter(
+    adapters: &[wgpu::AdapterInfo],
     wanted: Option<&str>,
     backends: wgpu::Backends,
-) -> Result<wgpu::Adapter, GpuError> {
-    let names = || {
-        let list: Vec<String> = adapters
-            .iter()
-            .map(|adapter| {
-                let info = adapter.get_info();
-                format!("{} ({:?})", info.name, info.backend)
-            })
-            .collect();
-        if list.is_empty() {
-            "none".to_owned()
-        } else {
-            list.join(", ")
-        }
-    };
-    let available = names();
-    let candidates: Vec<wgpu::Adapter> = match wanted {
-        Some(text) => {
-            let text = text.to_lowercase();
-            adapters
-                .into_iter()
-                .filter(|adapter| adapter.get_info().name.to_lowercase().contains(&text))
-                .collect()
-        }
-        None => adapters,
-    };
-    if let (Some(text), true) = (wanted, candidates.is_empty()) {
-        return Err(GpuError::NoMatchingAdapter {
-            wanted: text.to_owned(),
-            available,
-        });
-    }
-    candidates
-        .into_iter()
-        .min_by_key(|adapter| adapter_rank(&adapter.get_info()))
-        .ok_or_else(|| GpuError::NoAdapter {
-            backends: format!("{backends:?}"),
+) -> Result<usize, GpuError> {
+    let wanted_lowercase = wanted.map(str::to_lowercase);
+    let best = adapters
+        .iter()
+        .enumerate()
+        .filter(|(_, info)| {
+            wanted_lowercase
+                .as_deref()
+                .is_none_or(|text| info.name.to_lowercase().contains(text))
         })
+        .min_by_key(|(_, info)| adapter_rank(info))
+        .map(|(index, _)| index);
+    match (best, wanted) {
+        (Some(index), _) => Ok(index),
+        (None, Some(text)) if !adapters.is_empty() => Err(GpuError::NoMatchingAdapter {
+            wanted: text.to_owned(),
+            available: adapters
+                .iter()
+                .map(|info| format!("{} ({:?})", info.name, info.backend))
+                .collect::<Vec<_>>()
+                .join(", "),
+        }),
+        (None, _) => Err(GpuError::NoAdapter {
+            backends: format!("{backends:?}"),
+        }),
+    }
 }
 
 /// Preference of an adapter, lower first: discrete > integrated > virtual > CPU, then
-/// Vulkan / Metal / DX12 > GL. The viewer ranks the adapters that can draw to its window with it.
-pub fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
+/// Vulkan / Metal / DX12 > GL.
+fn adapter_rank(info: &wgpu::AdapterInfo) -> (u8, u8) {
     (device_rank(info.device_type), backend_rank(info.backend))
 }
 
@@ -245,5 +238,134 @@ fn backend_rank(backend: wgpu::Backend) -> u8 {
         wgpu::Backend::Vulkan | wgpu::Backend::Metal | wgpu::Backend::Dx12 => 0,
         wgpu::Backend::Gl => 1,
         _ => 2,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use wgpu::{AdapterInfo, Backend, Backends, DeviceType};
+
+    fn adapter(name: &str, device_type: DeviceType, backend: Backend) -> AdapterInfo {
+        AdapterInfo {
+            name: name.to_owned(),
+            ..AdapterInfo::new(device_type, backend)
+        }
+    }
+
+    /// A machine with every kind of adapter, listed worst first so that order cannot win.
+    fn machine() -> Vec<AdapterInfo> {
+        vec![
+            adapter(
+                "llvmpipe (LLVM 19.1.7, 256 bits)",
+                DeviceType::Cpu,
+                Backend::Gl,
+            ),
+            adapter(
+                "llvmpipe (LLVM 19.1.7, 256 bits)",
+                DeviceType::Cpu,
+                Backend::Vulkan,
+            ),
+            adapter("Virtio-GPU Venus", DeviceType::VirtualGpu, Backend::Vulkan),
+            adapter(
+                "Intel(R) UHD Graphics 770",
+                DeviceType::IntegratedGpu,
+                Backend::Gl,
+            ),
+            adapter(
+                "Intel(R) UHD Graphics 770",
+                DeviceType::IntegratedGpu,
+                Backend::Vulkan,
+            ),
+            adapter("NVIDIA H200", DeviceType::DiscreteGpu, Backend::Gl),
+            adapter("NVIDIA H200", DeviceType::DiscreteGpu, Backend::Vulkan),
+        ]
+    }
+
+    fn pick(adapters: &[AdapterInfo], wanted: Option<&str>) -> Result<usize, GpuError> {
+        pick_adapter(adapters, wanted, Backends::all())
+    }
+
+    #[test]
+    fn discrete_beats_integrated_beats_virtual_beats_cpu_and_vulkan_beats_gl() {
+        let mut adapters = machine();
+        let mut picked = Vec::new();
+        while !adapters.is_empty() {
+            let index = pick(&adapters, None).unwrap();
+            let info = adapters.remove(index);
+            picked.push((info.device_type, info.backend));
+        }
+        assert_eq!(
+            picked,
+            [
+                (DeviceType::DiscreteGpu, Backend::Vulkan),
+                (DeviceType::DiscreteGpu, Backend::Gl),
+                (DeviceType::IntegratedGpu, Backend::Vulkan),
+                (DeviceType::IntegratedGpu, Backend::Gl),
+                (DeviceType::VirtualGpu, Backend::Vulkan),
+                (DeviceType::Cpu, Backend::Vulkan),
+                (DeviceType::Cpu, Backend::Gl),
+            ]
+        );
+    }
+
+    #[test]
+    fn equal_adapters_keep_the_enumeration_order() {
+        let adapters = [
+            adapter("first", DeviceType::DiscreteGpu, Backend::Vulkan),
+            adapter("second", DeviceType::DiscreteGpu, Backend::Vulkan),
+        ];
+        assert_eq!(pick(&adapters, None).unwrap(), 0);
+    }
+
+    #[test]
+    fn tumble_adapter_keeps_names_containing_it_ignoring_case() {
+        let adapters = machine();
+        // Only the CPU driver matches: it is chosen over the GPUs, on Vulkan over GL.
+        let index = pick(&adapters, Some("LLVMpipe")).unwrap();
+        assert_eq!(
+            (adapters[index].device_type, adapters[index].backend),
+            (DeviceType::Cpu, Backend::Vulkan)
+        );
+        let index = pick(&adapters, Some("uhd")).unwrap();
+        assert_eq!(adapters[index].device_type, DeviceType::IntegratedGpu);
+        assert_eq!(
+            pick(&adapters, Some("")).unwrap(),
+            6,
+            "every name contains \"\""
+        );
+    }
+
+    #[test]
+    fn no_matching_adapter_names_what_was_wanted_and_what_there_is() {
+        let adapters = machine();
+        let error = pick(&adapters[3..5], Some("radeon")).unwrap_err();
+        assert!(
+            matches!(&error, GpuError::NoMatchingAdapter { wanted, .. } if wanted == "radeon"),
+            "{error:?}"
+        );
+        assert_eq!(
+            error.to_string(),
+            "no GPU adapter name contains TUMBLE_ADAPTER=\"radeon\"; available adapters: \
+             Intel(R) UHD Graphics 770 (Gl), Intel(R) UHD Graphics 770 (Vulkan)"
+        );
+    }
+
+    /// No adapter at all (no driver, or `WGPU_BACKEND` naming a backend without one): the
+    /// message names the backends searched and how to get an adapter, with or without
+    /// `TUMBLE_ADAPTER` (there is nothing for it to match).
+    #[test]
+    fn no_adapter_says_which_backends_and_how_to_get_one() {
+        for wanted in [None, Some("nvidia")] {
+            let error = pick_adapter(&[], wanted, Backends::GL).unwrap_err();
+            assert!(matches!(error, GpuError::NoAdapter { .. }), "{error:?}");
+            let message = error.to_string();
+            assert!(
+                message.starts_with("no GPU adapter found (backends: Backends(GL))")
+                    && message.contains("mesa-vulkan-drivers")
+                    && message.contains("WGPU_BACKEND"),
+                "{message}"
+            );
+        }
     }
 }

@@ -1,8 +1,11 @@
 //! CPU executor of the particle step (rayon), the twin of `gpu.rs`: same stages, same
 //! arithmetic in the same order as the WGSL (`common.wgsl`, `collide.wgsl`).
 
+use std::collections::TryReserveError;
+
 use rayon::prelude::*;
 
+use crate::particles::host_memory::try_with_capacity;
 use crate::particles::{EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig, ParticleParams};
 use crate::profile::Profiler;
 
@@ -209,6 +212,16 @@ pub(crate) struct Grid {
 }
 
 impl Grid {
+    /// A grid with room for `count` particles in `cells` cells: its stages then allocate
+    /// nothing.
+    fn with_capacity(count: usize, cells: usize) -> Result<Self, TryReserveError> {
+        Ok(Self {
+            pairs: try_with_capacity(count)?,
+            cell_start: try_with_capacity(cells)?,
+            cell_end: try_with_capacity(cells)?,
+        })
+    }
+
     /// Stage 1: hash every particle to its cell.
     pub fn hash(&mut self, params: &ParticleParams, particles: &[Particle]) {
         self.pairs.clear();
@@ -296,16 +309,39 @@ pub(super) struct CpuParticles {
 }
 
 impl CpuParticles {
-    pub fn new(config: &ParticleConfig, particles: &[Particle]) -> Self {
-        Self {
+    /// Host memory [`new`](Self::new) allocates for `config` (bytes): the particles three
+    /// times (state, sorted copy, new state), a (cell, particle) pair each, the fixed-point
+    /// forces of the 14-cell search, and a start and an end per cell.
+    pub fn bytes(config: &ParticleConfig) -> u64 {
+        let forces = match config.search {
+            NeighbourSearch::Full27 => 0,
+            NeighbourSearch::Symmetric14 => size_of::<[i32; 3]>(),
+        };
+        let per_particle = 3 * size_of::<Particle>() + size_of::<(u32, u32)>() + forces;
+        config.count as u64 * per_particle as u64 + config.cell_count() * 2 * 4
+    }
+
+    /// Allocates every array a step uses, with `try_reserve_exact`: the allocator's refusal
+    /// is returned, never an abort, and a step allocates nothing.
+    pub fn new(config: &ParticleConfig, particles: &[Particle]) -> Result<Self, TryReserveError> {
+        let count = particles.len();
+        let mut state = try_with_capacity(count)?;
+        state.extend_from_slice(particles);
+        let mut updated = try_with_capacity(count)?;
+        updated.resize(count, Particle::default());
+        let forces = match config.search {
+            NeighbourSearch::Full27 => Vec::new(),
+            NeighbourSearch::Symmetric14 => try_with_capacity(count)?,
+        };
+        Ok(Self {
             params: config.params(),
             search: config.search,
-            particles: particles.to_vec(),
-            grid: Grid::default(),
-            sorted: Vec::with_capacity(particles.len()),
-            updated: vec![Particle::default(); particles.len()],
-            forces: Vec::new(),
-        }
+            particles: state,
+            grid: Grid::with_capacity(count, config.cell_count() as usize)?,
+            sorted: try_with_capacity(count)?,
+            updated,
+            forces,
+        })
     }
 
     pub fn particles(&self) -> &[Particle] {

@@ -29,6 +29,7 @@ const HASH: SpanPath = &["hash"];
 const SORT: SpanPath = &["sort"];
 const CELL_START: SpanPath = &["cell start"];
 const COLLIDE: SpanPath = &["collide"];
+const UPLOAD: SpanPath = &["copy particles to gpu"];
 const DOWNLOAD: SpanPath = &["copy particles to host"];
 
 /// The particle kernels' sources: shared part, then the kernel (for the layout test too).
@@ -240,13 +241,18 @@ pub(super) struct GpuParticles {
 }
 
 impl GpuParticles {
+    /// Uploads `initial`, timed as a copy in `profiler` (the run's only host→device copy: a
+    /// step reads and writes device memory alone).
     pub fn new(
         config: &ParticleConfig,
         context: GpuContext,
         initial: &[Particle],
+        profiler: &mut Profiler,
     ) -> Result<Self, GpuError> {
         let count = config.count;
+        let start = Instant::now();
         let particles = GpuVec::from_slice(&context, "particles", initial)?;
+        record_copy(profiler, UPLOAD, start.elapsed().as_secs_f64() * 1e3);
         let grid = GpuGrid::new(config, &context, &particles)?;
         let params = grid.params.binding(0);
         let groups = workgroups_for(count, WORKGROUP_SIZE);

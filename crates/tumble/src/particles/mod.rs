@@ -22,6 +22,7 @@
 mod cpu;
 pub mod explain;
 mod gpu;
+mod host_memory;
 pub mod rigid;
 mod rigid_cpu;
 mod rigid_gpu;
@@ -138,6 +139,14 @@ impl ParticleConfig {
 
     /// Checks the parameters; every error names the field and what it must be.
     pub fn validate(&self) -> Result<(), ParticleError> {
+        // First: a demo config for too many particles also has too many cells, and the count
+        // is what the user asked for.
+        if self.count > MAX_PARTICLES {
+            return Err(ParticleError::TooManyParticles {
+                count: self.count,
+                max: MAX_PARTICLES,
+            });
+        }
         if !(self.radius.is_finite() && self.radius > 0.0) {
             return Err(ParticleError::Radius(self.radius));
         }
@@ -173,19 +182,14 @@ impl ParticleConfig {
         {
             return Err(ParticleError::NotFinite);
         }
-        if self.count > MAX_PARTICLES {
-            return Err(ParticleError::TooManyParticles {
-                count: self.count,
-                max: MAX_PARTICLES,
-            });
-        }
         Ok(())
     }
 
     /// The block layout of [`demo`](Self::demo): particles on a lattice one diameter apart,
     /// jittered by up to 1 % of the radius (deterministically) so that stacks topple, in the
-    /// upper middle of the box, at rest.
-    pub fn initial_particles(&self) -> Vec<Particle> {
+    /// upper middle of the box, at rest. An iterator, so that the caller chooses how to
+    /// allocate (fallibly, for [`ParticleSystem::new`]).
+    pub fn initial_particles(&self) -> impl ExactSizeIterator<Item = Particle> + '_ {
         let side = (self.count as f64).cbrt().ceil().max(1.0) as usize;
         let spacing = self.cell_size();
         let [cells_x, cells_y, cells_z] = self.grid.map(|cells| cells as f32 * spacing);
@@ -194,30 +198,28 @@ impl ParticleConfig {
             self.origin[1] + cells_y - side as f32 * spacing - self.radius,
             self.origin[2] + 0.5 * (cells_z - side as f32 * spacing) + self.radius,
         ];
-        (0..self.count)
-            .map(|index| {
-                let lattice = [index % side, (index / side) % side, index / (side * side)];
-                let jitter = |axis: usize| {
-                    // A small integer hash of (index, axis): deterministic, no dependency.
-                    let mut bits = (index as u32).wrapping_mul(0x9E37_79B9) ^ (axis as u32 + 1);
-                    bits ^= bits >> 15;
-                    bits = bits.wrapping_mul(0x2C1B_3C6D);
-                    bits ^= bits >> 12;
-                    ((bits & 0xffff) as f32 / 65535.0 - 0.5) * 0.02 * self.radius
-                };
-                let position = [0, 1, 2].map(|axis| {
-                    let coordinate = start[axis] + lattice[axis] as f32 * spacing + jitter(axis);
-                    // Keep inside the box whatever the count.
-                    let low = self.origin[axis] + self.radius;
-                    let high = self.origin[axis] + self.grid[axis] as f32 * spacing - self.radius;
-                    coordinate.clamp(low, high.max(low))
-                });
-                Particle {
-                    position: [position[0], position[1], position[2], 0.0],
-                    velocity: [0.0; 4],
-                }
-            })
-            .collect()
+        (0..self.count).map(move |index| {
+            let lattice = [index % side, (index / side) % side, index / (side * side)];
+            let jitter = |axis: usize| {
+                // A small integer hash of (index, axis): deterministic, no dependency.
+                let mut bits = (index as u32).wrapping_mul(0x9E37_79B9) ^ (axis as u32 + 1);
+                bits ^= bits >> 15;
+                bits = bits.wrapping_mul(0x2C1B_3C6D);
+                bits ^= bits >> 12;
+                ((bits & 0xffff) as f32 / 65535.0 - 0.5) * 0.02 * self.radius
+            };
+            let position = [0, 1, 2].map(|axis| {
+                let coordinate = start[axis] + lattice[axis] as f32 * spacing + jitter(axis);
+                // Keep inside the box whatever the count.
+                let low = self.origin[axis] + self.radius;
+                let high = self.origin[axis] + self.grid[axis] as f32 * spacing - self.radius;
+                coordinate.clamp(low, high.max(low))
+            });
+            Particle {
+                position: [position[0], position[1], position[2], 0.0],
+                velocity: [0.0; 4],
+            }
+        })
     }
 
     /// Resolution (N) of the fixed-point force sums of the symmetric search: a power of two
@@ -325,6 +327,24 @@ pub enum ParticleError {
     NotFinite,
     #[error("{count} particles is more than the {max} a system can hold")]
     TooManyParticles { count: usize, max: usize },
+    #[error(
+        "{count} particles need {bytes} bytes ({needed_gb:.1} GB) of host memory, but \
+         {available} bytes ({available_gb:.1} GB) are available (free memory, reclaimable \
+         cache and swap); use fewer particles",
+        needed_gb = gigabytes(.bytes),
+        available_gb = gigabytes(.available)
+    )]
+    HostMemory {
+        count: usize,
+        bytes: u64,
+        available: u64,
+    },
+    #[error(
+        "the host refused to allocate the {bytes} bytes ({gb:.1} GB) that {count} particles \
+         need; use fewer particles",
+        gb = gigabytes(.bytes)
+    )]
+    HostAllocation { count: usize, bytes: u64 },
     #[error("{given} initial particles were given for a system of {expected}")]
     ParticleCount { given: usize, expected: usize },
     #[error("a body must have at least one particle (its shape is empty at this radius)")]
@@ -345,6 +365,11 @@ pub enum ParticleError {
     Gpu(#[from] GpuError),
 }
 
+/// For messages: 1 GB = 10⁹ bytes.
+fn gigabytes(bytes: &u64) -> f64 {
+    *bytes as f64 / 1e9
+}
+
 /// The particle system on one device.
 #[derive(Debug)]
 pub struct ParticleSystem {
@@ -363,11 +388,23 @@ impl ParticleSystem {
     /// A system with the config's [`initial_particles`](ParticleConfig::initial_particles).
     pub fn new(config: ParticleConfig, device: ParticleDevice) -> Result<Self, ParticleError> {
         config.validate()?;
-        // Before building a possibly huge host array: does the GPU have room?
-        if let ParticleDevice::Gpu(context) = &device {
-            gpu::check_capacity(&config, context)?;
-        }
-        let particles = config.initial_particles();
+        // Before building a possibly huge host array: does the device have room? The host
+        // holds the initial particles, and on the CPU the executor's arrays too.
+        let executor_bytes = match &device {
+            ParticleDevice::Gpu(context) => {
+                gpu::check_capacity(&config, context)?;
+                0
+            }
+            ParticleDevice::Cpu => cpu::CpuParticles::bytes(&config),
+        };
+        let bytes = config.count as u64 * size_of::<Particle>() as u64 + executor_bytes;
+        host_memory::check(config.count, bytes, host_memory::available())?;
+        let refused = |_| ParticleError::HostAllocation {
+            count: config.count,
+            bytes,
+        };
+        let mut particles = host_memory::try_with_capacity(config.count).map_err(refused)?;
+        particles.extend(config.initial_particles());
         Self::with_particles(config, device, &particles)
     }
 
@@ -384,18 +421,30 @@ impl ParticleSystem {
                 expected: config.count,
             });
         }
+        let mut profiler = Profiler::new("particles step");
         let executor = match device {
             ParticleDevice::Cpu => {
-                Executor::Cpu(Box::new(cpu::CpuParticles::new(&config, particles)))
+                let bytes = cpu::CpuParticles::bytes(&config);
+                host_memory::check(config.count, bytes, host_memory::available())?;
+                let cpu = cpu::CpuParticles::new(&config, particles).map_err(|_| {
+                    ParticleError::HostAllocation {
+                        count: config.count,
+                        bytes,
+                    }
+                })?;
+                Executor::Cpu(Box::new(cpu))
             }
             ParticleDevice::Gpu(context) => Executor::Gpu(Box::new(gpu::GpuParticles::new(
-                &config, context, particles,
+                &config,
+                context,
+                particles,
+                &mut profiler,
             )?)),
         };
         Ok(Self {
             config,
             executor,
-            profiler: Profiler::new("particles step"),
+            profiler,
         })
     }
 
