@@ -6,11 +6,13 @@
 //! sees it (an orthographic view along the light over the bodies' bounds) into the shadow map.
 //! Then, with [`Quality::depth_prepass`], a pass draws the depth of every surface. The meshes
 //! pass draws every mesh instanced once (solid triangles, or its edges as lines in wireframe
-//! mode) and contact segments as lines, the ground pass the ground grids (after the meshes, so
-//! that the ground hidden by bodies is never shaded; before them in [`DrawOrder::Submitted`]),
-//! and the overlay pass the text on top. The first of them clears. Lit surfaces look their
-//! point up in the shadow map. When the step ran on this device, a compute pass first writes
-//! the bodies' instance models from the physics' pose buffers (pose.wgsl).
+//! mode) and contact segments as lines, then joints and the drag as lines over it all (at the
+//! near plane's depth, so that the ground drawn after them leaves them be), the ground pass
+//! the ground grids (after the meshes, so that the ground hidden by bodies is never shaded;
+//! before them in [`DrawOrder::Submitted`]), and the overlay pass the text on top. The first
+//! of them clears. Lit surfaces look their point up in the shadow map. When the step ran on
+//! this device, a compute pass first writes the bodies' instance models from the physics'
+//! pose buffers (pose.wgsl).
 //! Triangle meshes are drawn from both sides, as the physics collides with both.
 //! Each pass is timed on the GPU where the device has timestamp queries and
 //! [`Renderer::time_passes`] asked for it.
@@ -143,6 +145,8 @@ pub struct Renderer {
     solid_pipeline: wgpu::RenderPipeline,
     two_sided_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
+    /// Lines over the scene ([`MeshKey::over_scene`]), drawn after every other mesh.
+    over_scene_pipeline: wgpu::RenderPipeline,
     grid_pipeline: wgpu::RenderPipeline,
     text_pipeline: wgpu::RenderPipeline,
     /// Writes instance models from the physics' device buffers; made on first use, so that a
@@ -385,6 +389,7 @@ impl Renderer {
         };
         let pipeline = |label: &str,
                         shader: &wgpu::ShaderModule,
+                        vertex: &str,
                         fragment: &str,
                         buffers: &[Option<wgpu::VertexBufferLayout>],
                         topology: wgpu::PrimitiveTopology,
@@ -394,7 +399,7 @@ impl Renderer {
                 layout: Some(&layout),
                 vertex: wgpu::VertexState {
                     module: shader,
-                    entry_point: Some("vs_main"),
+                    entry_point: Some(vertex),
                     compilation_options: Default::default(),
                     buffers,
                 },
@@ -419,6 +424,7 @@ impl Renderer {
         let solid_pipeline = pipeline(
             "solid",
             &mesh_shader,
+            "vs_main",
             "fs_solid",
             &mesh_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -429,6 +435,7 @@ impl Renderer {
         let two_sided_pipeline = pipeline(
             "two-sided",
             &mesh_shader,
+            "vs_main",
             "fs_two_sided",
             &mesh_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -437,6 +444,17 @@ impl Renderer {
         let line_pipeline = pipeline(
             "lines",
             &mesh_shader,
+            "vs_main",
+            "fs_line",
+            &mesh_buffers,
+            wgpu::PrimitiveTopology::LineList,
+            None,
+        );
+        // Joints and the drag: their anchors lie inside the bodies they join (draw.rs).
+        let over_scene_pipeline = pipeline(
+            "constraints",
+            &mesh_shader,
+            "vs_over_scene",
             "fs_line",
             &mesh_buffers,
             wgpu::PrimitiveTopology::LineList,
@@ -446,6 +464,7 @@ impl Renderer {
         let grid_pipeline = pipeline(
             "grid",
             &grid_shader,
+            "vs_main",
             "fs_main",
             &grid_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -559,6 +578,7 @@ impl Renderer {
             solid_pipeline,
             two_sided_pipeline,
             line_pipeline,
+            over_scene_pipeline,
             grid_pipeline,
             text_pipeline,
             pose_pipeline: None,
@@ -789,9 +809,16 @@ impl Renderer {
             }
             ColourPass::Meshes => {
                 pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
-                for (key, range) in &self.draws {
+                // What is drawn over the scene comes after the scene it is drawn over.
+                let scene = self.draws.iter().filter(|(key, _)| !key.over_scene());
+                let over = self.draws.iter().filter(|(key, _)| key.over_scene());
+                for (key, range) in scene.chain(over) {
                     let mesh = &self.meshes[key];
                     let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
+                        _ if key.over_scene() => match &mesh.lines {
+                            Some(lines) => (&self.over_scene_pipeline, lines),
+                            None => continue,
+                        },
                         (Some(triangles), false) if matches!(key, MeshKey::TriMesh(_)) => {
                             (&self.two_sided_pipeline, triangles)
                         }
@@ -1072,7 +1099,8 @@ fn mesh_data(key: MeshKey, list: &DrawList) -> MeshData {
             radius,
             half_height,
         } => MeshData::capsule(f32::from_bits(radius), f32::from_bits(half_height)),
-        MeshKey::Segment => MeshData::segment(),
+        MeshKey::Segment | MeshKey::ConstraintSegment => MeshData::segment(),
+        MeshKey::ConstraintPoint => MeshData::cross(),
         MeshKey::Hull(hash) => MeshData::hull(&list.hulls[&hash]),
         MeshKey::TriMesh(hash) => MeshData::trimesh(&list.trimeshes[&hash]),
     }

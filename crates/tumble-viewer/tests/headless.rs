@@ -3,15 +3,18 @@
 //! where its centre projects with the same camera matrix the renderer uses), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
 //! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
-//! overlay's panel with it, none without), a world stepped on the GPU drawn from the step's
-//! device buffers, each pass timed on the GPU, and a pile of boxes drawn alike with every
-//! quality knob (quality.rs).
+//! overlay's panel with it, none without), joints drawn over the bodies they join with the
+//! contacts and constraints on (two hinged boxes, a ragdoll), a world stepped on the GPU drawn
+//! from the step's device buffers, each pass timed on the GPU, and a pile of boxes drawn alike
+//! with every quality knob (quality.rs).
 
 use tumble::math::Vec3;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::shape::TriMesh;
-use tumble::{BodyDesc, Shape, StepConfig, World};
-use tumble_viewer::draw::{BACKGROUND, DrawList, DrawSettings, TRIMESH_COLOUR, body_colour};
+use tumble::{BodyDesc, JointDesc, JointKind, Shape, StepConfig, World};
+use tumble_viewer::draw::{
+    BACKGROUND, DrawList, DrawSettings, JOINT_COLOUR, TRIMESH_COLOUR, body_colour,
+};
 use tumble_viewer::headless::{Image, Offscreen};
 use tumble_viewer::overlay::{TEXT_COLOUR, help_lines, panel_rect, profile_lines};
 use tumble_viewer::quality::{DrawOrder, Quality};
@@ -255,19 +258,127 @@ fn a_box_shadows_the_floor_under_it() {
     );
 }
 
-/// Pixels inside (left, top, right, bottom) that have the overlay text's colour.
-fn text_pixels(image: &Image, (left, top, right, bottom): (u32, u32, u32, u32)) -> usize {
-    let text = TEXT_COLOUR.map(|c| (encode_srgb(c) * 255.0).round() as i32);
+/// Pixels inside (left, top, right, bottom) of the unlit linear `colour` (text, lines).
+fn pixels_of(
+    image: &Image,
+    colour: [f32; 3],
+    (left, top, right, bottom): (u32, u32, u32, u32),
+) -> usize {
+    let encoded = colour.map(|c| (encode_srgb(c) * 255.0).round() as i32);
     let mut count = 0;
     for y in top..bottom {
         for x in left..right {
             let pixel = image.pixel(x, y);
-            if (0..3).all(|c| (i32::from(pixel[c]) - text[c]).abs() <= 2) {
+            if (0..3).all(|c| (i32::from(pixel[c]) - encoded[c]).abs() <= 2) {
                 count += 1;
             }
         }
     }
     count
+}
+
+/// Pixels inside the rectangle that have the overlay text's colour.
+fn text_pixels(image: &Image, rect: (u32, u32, u32, u32)) -> usize {
+    pixels_of(image, TEXT_COLOUR, rect)
+}
+
+/// The 3 x 3 pixels around `at`: a line through a point may be rasterized a pixel beside it.
+fn around((x, y): (u32, u32)) -> (u32, u32, u32, u32) {
+    (x.saturating_sub(1), y.saturating_sub(1), x + 2, y + 2)
+}
+
+const WHOLE: (u32, u32, u32, u32) = (0, 0, WIDTH, HEIGHT);
+
+fn contacts_and_constraints() -> DrawSettings {
+    DrawSettings {
+        contacts: true,
+        ..DrawSettings::default()
+    }
+}
+
+#[test]
+fn joints_are_drawn_over_the_bodies_they_join() {
+    // Two boxes hinged at the point between them, seen from the front; not stepped.
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let (centre_a, anchor) = (Vec3::new(-1.0, 2.0, 0.0), Vec3::new(0.0, 2.0, 0.0));
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let a = world
+        .add_body(BodyDesc::dynamic(cube.clone()).position(centre_a))
+        .unwrap();
+    let b = world
+        .add_body(BodyDesc::dynamic(cube).position(Vec3::new(1.0, 2.0, 0.0)))
+        .unwrap();
+    let hinge = JointKind::Hinge {
+        axis: Vec3::Z,
+        limits: None,
+        motor: None,
+    };
+    world
+        .add_joint(JointDesc::new(hinge, a, b, anchor))
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(0.0, 2.5, 5.0), Vec3::new(0.0, 2.0, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut render = |settings| {
+        offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap()
+    };
+    let (without, with) = (
+        render(DrawSettings::default()),
+        render(contacts_and_constraints()),
+    );
+    // The line from A's centre to the anchor runs inside A, behind its front face: drawn
+    // over it with the constraints, and only then.
+    let inside_a = project(&camera, centre_a.lerp(anchor, 0.25));
+    assert_hue(
+        without.pixel(inside_a.0, inside_a.1),
+        inside_a,
+        body_colour(a.index() as usize),
+    );
+    assert_eq!(pixels_of(&without, JOINT_COLOUR, WHOLE), 0);
+    assert!(
+        pixels_of(&with, JOINT_COLOUR, around(inside_a)) > 0,
+        "no joint line at {inside_a:?}"
+    );
+    // The anchor's cross, in the gap between the boxes, where the ground is behind it.
+    let at = project(&camera, anchor);
+    assert!(
+        pixels_of(&with, JOINT_COLOUR, around(at)) > 0,
+        "no anchor at {at:?}"
+    );
+}
+
+#[test]
+fn the_ragdolls_show_their_joints() {
+    let mut world = tumble::scene::builtin("ragdolls", 0.01)
+        .unwrap()
+        .build()
+        .unwrap();
+    let joints = world.joints().count();
+    assert!(joints >= 10, "{joints} joints");
+    for _ in 0..30 {
+        world.step();
+    }
+    let camera = Camera::framing(&world, WIDTH as f32 / HEIGHT as f32);
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut joint_pixels = |settings| {
+        let image = offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap();
+        pixels_of(&image, JOINT_COLOUR, WHOLE)
+    };
+    assert_eq!(joint_pixels(DrawSettings::default()), 0);
+    // A line or two of pixels along each limb at least.
+    let drawn = joint_pixels(contacts_and_constraints());
+    assert!(
+        drawn > 2 * joints,
+        "{drawn} joint pixels for {joints} joints"
+    );
 }
 
 #[test]
