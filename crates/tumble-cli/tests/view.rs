@@ -195,10 +195,36 @@ fn the_particle_demo_is_drawn_headless() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    // Batch colours only mean something for a rigid-body world: refused by name.
-    let refused = [&args[..], &["--png", png, "--batches"]].concat();
-    let message = one_line_error(&tumble_without_display(&refused, &[]));
-    assert!(message.contains("--batches"), "{message}");
+    // Batch colours, contacts and joints only mean something for a rigid-body world:
+    // refused by name.
+    for flag in ["--batches", "--contacts"] {
+        let refused = [&args[..], &["--png", png, flag]].concat();
+        let message = one_line_error(&tumble_without_display(&refused, &[]));
+        assert!(message.contains(flag), "{message}");
+    }
+}
+
+#[test]
+fn contacts_and_constraints_are_drawn_headless() {
+    // One ragdoll (ten joints), fallen onto the ground: contacts and joints to draw.
+    let dir = scratch("view-contacts");
+    let picture = |name: &str, flags: &[&str]| {
+        let png = dir.join(name);
+        let args = ["view", "ragdolls", "--scale", "0.01", "--steps", "30"];
+        let size = ["--size", "96x64", "--png", png.to_str().unwrap()];
+        let output = tumble_without_display(&[&args[..], &size, flags].concat(), &[]);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        std::fs::read(&png).expect("the picture is written")
+    };
+    let plain = picture("plain.png", &[]);
+    let with = picture("contacts.png", &["--contacts"]);
+    assert_eq!(&with[..8], b"\x89PNG\r\n\x1a\n");
+    // The same world and camera: only what --contacts adds differs.
+    assert_ne!(plain, with, "--contacts drew nothing");
 }
 
 #[test]

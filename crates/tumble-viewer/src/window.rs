@@ -225,9 +225,10 @@ pub(crate) fn show(
     if options.device == StepDevice::Gpu {
         input.solver = Executor::Gpu;
     }
-    // --overlay opens the window with that overlay on, as if its key had been pressed.
+    // --overlay and --contacts open the window with them on, as if their key had been pressed.
     input.help = options.overlay == OverlayKind::Help;
     input.profile = options.overlay == OverlayKind::Profile;
+    input.contacts = options.contacts;
     let mut app = App {
         name: name.to_owned(),
         shown,
