@@ -602,6 +602,78 @@ mod tests {
         assert_eq!(with.links[&MeshKey::Segment].len(), points);
     }
 
+    #[test]
+    fn a_compound_is_an_instance_per_child_at_the_childs_world_pose() {
+        use tumble::math::Quat;
+        use tumble::shape::CompoundChild;
+        // A box and a sphere beside it: the centre of mass is off the children's origin, so
+        // the compound is stored in another frame (compound.rs), which the drawing must undo.
+        let (box_at, sphere_at) = (Vec3::new(-0.3, 0.0, 0.0), Vec3::new(0.9, 0.2, 0.0));
+        let box_rotation = Quat::from_rotation_z(0.4);
+        let compound = Shape::compound(vec![
+            CompoundChild {
+                shape: Shape::cuboid(Vec3::new(0.5, 0.25, 0.25)),
+                pose: Transform::new(box_at, box_rotation),
+            },
+            CompoundChild {
+                shape: Shape::sphere(0.3),
+                pose: Transform::new(sphere_at, Quat::IDENTITY),
+            },
+        ])
+        .unwrap();
+        let (position, rotation) = (Vec3::new(2.0, 1.0, -1.0), Quat::from_rotation_y(0.7));
+        let mut world = World::new(StepConfig::default()).unwrap();
+        let body = world
+            .add_body(
+                BodyDesc::dynamic(compound)
+                    .position(position)
+                    .rotation(rotation),
+            )
+            .unwrap();
+        let moved = world.pose(body).unwrap().position - position;
+        assert!(moved.length() > 0.05, "not re-framed: {moved}");
+        let list = DrawList::build(&world, DrawSettings::default());
+        assert_eq!(list.instances.values().map(Vec::len).sum::<usize>(), 2);
+        let given = Transform::new(position, rotation);
+        for (key, child, child_rotation, scale) in [
+            (
+                MeshKey::Cube,
+                box_at,
+                box_rotation,
+                Vec3::new(0.5, 0.25, 0.25),
+            ),
+            (MeshKey::Sphere, sphere_at, Quat::IDENTITY, Vec3::splat(0.3)),
+        ] {
+            let model = Mat4::from_cols_array_2d(&list.instances[&key][0].model);
+            let (drawn_scale, drawn_rotation, drawn_at) = model.to_scale_rotation_translation();
+            let expected_at = given.transform_point(child);
+            assert!(
+                (drawn_at - expected_at).length() < 1e-5,
+                "{key:?}: {drawn_at} {expected_at}"
+            );
+            assert!(
+                (drawn_scale - scale).length() < 1e-5,
+                "{key:?}: {drawn_scale}"
+            );
+            let expected_rotation = rotation * child_rotation;
+            assert!(
+                drawn_rotation.dot(expected_rotation).abs() > 1.0 - 1e-5,
+                "{key:?}: {drawn_rotation} {expected_rotation}"
+            );
+            // The link rebuilds the same model from the body's pose, as the GPU path does.
+            let link = list.links[&key][0];
+            assert_eq!(link.body, body.index());
+            let pose = world.pose(body).unwrap();
+            let from_link = Mat4::from_rotation_translation(pose.rotation, pose.position)
+                * Mat4::from_cols_array_2d(&link.local);
+            assert!(from_link.abs_diff_eq(model, 1e-5), "{key:?}");
+        }
+        // Both children in the body's colour.
+        let colour = body_colour(body.index() as usize);
+        assert_eq!(list.instances[&MeshKey::Cube][0].colour[..3], colour);
+        assert_eq!(list.instances[&MeshKey::Sphere][0].colour[..3], colour);
+    }
+
     /// The ends of each `key` instance's unit segment in the world, and its colour.
     fn segments(list: &DrawList, key: MeshKey) -> Vec<(Vec3, Vec3, [f32; 3])> {
         list.instances.get(&key).map_or(Vec::new(), |instances| {

@@ -1,6 +1,7 @@
 //! Headless renders on whatever adapter wgpu finds (lavapipe where there is no GPU): one box on
 //! a plane (the picture is not blank, shows the background where nothing is, and shows the box
-//! where its centre projects with the same camera matrix the renderer uses), one box on a
+//! where its centre projects with the same camera matrix the renderer uses), a convex hull
+//! and a compound drawn where their poses project (the compound child by child), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
 //! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
 //! overlay's panel with it, none without), joints drawn over the bodies they join with the
@@ -123,6 +124,104 @@ fn box_on_a_plane() {
         image.pixel(at.0, at.1),
         at,
         body_colour(cube.index() as usize),
+    );
+}
+
+#[test]
+fn a_convex_hull_is_drawn_where_its_pose_projects() {
+    // A wedge (a triangular prism), tilted: its centre of mass is off the points' origin, so
+    // the body sits in the hull's own frame (convex_hull.rs), as a barrel of the scenes does.
+    let mut points = Vec::new();
+    for z in [-0.6, 0.6] {
+        points.extend([
+            Vec3::new(-0.7, 0.0, z),
+            Vec3::new(0.7, 0.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ]);
+    }
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let hull = world
+        .add_body(
+            BodyDesc::dynamic(Shape::convex_hull(&points).unwrap())
+                .position(Vec3::new(0.3, 0.4, 0.0))
+                .rotation(tumble::math::Quat::from_rotation_y(0.5)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
+        .unwrap();
+    assert_background(image.pixel(0, 0), (0, 0));
+    // Its centre of mass, inside it, lands on a lit face of it.
+    let centre = world.pose(hull).unwrap().position;
+    let at = project(&camera, centre);
+    assert_hue(
+        image.pixel(at.0, at.1),
+        at,
+        body_colour(hull.index() as usize),
+    );
+    // Above the wedge's ridge, the floor and the sky: not the hull.
+    let above = project(&camera, centre + Vec3::new(0.0, 1.2, 0.0));
+    assert_background(image.pixel(above.0, above.1), above);
+}
+
+#[test]
+fn a_compound_is_drawn_child_by_child_where_its_pose_projects() {
+    use tumble::math::{Quat, Transform};
+    use tumble::shape::CompoundChild;
+    // A dumbbell: two balls on a rod, turned about the vertical.
+    let ball = |x: f32| CompoundChild {
+        shape: Shape::sphere(0.35),
+        pose: Transform::new(Vec3::new(x, 0.0, 0.0), Quat::IDENTITY),
+    };
+    let rod = CompoundChild {
+        shape: Shape::capsule(0.08, 0.6),
+        pose: Transform::new(
+            Vec3::ZERO,
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        ),
+    };
+    let dumbbell = Shape::compound(vec![ball(-0.9), rod, ball(0.9)]).unwrap();
+    let (position, rotation) = (Vec3::new(0.0, 0.5, 0.0), Quat::from_rotation_y(0.4));
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let body = world
+        .add_body(
+            BodyDesc::dynamic(dumbbell)
+                .position(position)
+                .rotation(rotation),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(0.5, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
+        .unwrap();
+    assert_background(image.pixel(0, 0), (0, 0));
+    let colour = body_colour(body.index() as usize);
+    let pose = Transform::new(position, rotation);
+    // Each ball where its centre projects (its point nearest the camera, which is lit)...
+    for x in [-0.9, 0.9] {
+        let centre = pose.transform_point(Vec3::new(x, 0.0, 0.0));
+        let front = centre + (camera.eye() - centre).normalize() * 0.3;
+        let at = project(&camera, front);
+        assert_hue(image.pixel(at.0, at.1), at, colour);
+    }
+    // ... and above the thin rod's middle, nothing of it: the floor, not the body.
+    let above_rod = project(&camera, pose.transform_point(Vec3::new(0.0, 0.3, 0.0)));
+    let seen =
+        chromaticity([0, 1, 2].map(|c| decode_srgb(image.pixel(above_rod.0, above_rod.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the body's colour above its rod at {above_rod:?}"
     );
 }
 
