@@ -674,6 +674,99 @@ mod tests {
         assert_eq!(list.instances[&MeshKey::Sphere][0].colour[..3], colour);
     }
 
+    /// The colours of the contact markers: the cubes that belong to no body, in order.
+    fn marker_colours(list: &DrawList) -> Vec<[f32; 3]> {
+        list.instances[&MeshKey::Cube]
+            .iter()
+            .zip(&list.links[&MeshKey::Cube])
+            .filter(|(_, link)| link.body == NO_BODY)
+            .map(|(instance, _)| [0, 1, 2].map(|c| instance.colour[c]))
+            .collect()
+    }
+
+    #[test]
+    fn batches_colour_each_contact_by_its_batch_and_one_batch_shows_alone() {
+        // A tower of three boxes on the ground: the middle contacts share a box, so they are
+        // solved in different batches.
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for level in 0..3 {
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(
+                        0.0,
+                        0.5 + level as f32,
+                        0.0,
+                    )),
+                )
+                .unwrap();
+        }
+        world.step();
+        // Each manifold's batch and point count, in the order markers are drawn.
+        let manifolds: Vec<(usize, usize)> = world
+            .contacts()
+            .zip(world.contact_batches())
+            .map(|((_, _, contact), (_, _, batch))| {
+                (batch as usize, contact.manifold.points().len())
+            })
+            .collect();
+        let mut batches: Vec<usize> = manifolds.iter().map(|&(batch, _)| batch).collect();
+        batches.sort_unstable();
+        batches.dedup();
+        assert!(batches.len() >= 2, "{manifolds:?}");
+        let build = |batches| {
+            DrawList::build(
+                &world,
+                DrawSettings {
+                    batches,
+                    ..Default::default()
+                },
+            )
+        };
+
+        // All batches: every marker in its manifold's batch colour, the bodies in grey.
+        let all = build(BatchView::All);
+        let expected: Vec<[f32; 3]> = manifolds
+            .iter()
+            .flat_map(|&(batch, points)| std::iter::repeat_n(body_colour(batch), points))
+            .collect();
+        assert_eq!(marker_colours(&all), expected);
+        let bodies = all.instances[&MeshKey::Cube]
+            .iter()
+            .zip(&all.links[&MeshKey::Cube])
+            .filter(|(_, link)| link.body != NO_BODY);
+        for (instance, _) in bodies {
+            assert_eq!(instance.colour[..3], BATCH_BODY_COLOUR);
+        }
+        // The normals keep their colour.
+        let normals = &all.instances[&MeshKey::Segment];
+        assert_eq!(normals.len(), expected.len());
+        assert!(
+            normals
+                .iter()
+                .all(|n| n.colour[..3] == CONTACT_NORMAL_COLOUR)
+        );
+
+        // One batch: only its manifolds' markers and normals.
+        for &shown in &batches {
+            let one = build(BatchView::One(shown));
+            let points: usize = manifolds
+                .iter()
+                .filter(|&&(batch, _)| batch == shown)
+                .map(|&(_, points)| points)
+                .sum();
+            assert!(points > 0);
+            assert_eq!(marker_colours(&one), vec![body_colour(shown); points]);
+            assert_eq!(one.instances[&MeshKey::Segment].len(), points);
+        }
+        // A batch with no contacts in it draws no markers (the bodies stay).
+        let none = build(BatchView::One(batches[batches.len() - 1] + 1));
+        assert!(marker_colours(&none).is_empty());
+        assert!(!none.instances.contains_key(&MeshKey::Segment));
+    }
+
     /// The ends of each `key` instance's unit segment in the world, and its colour.
     fn segments(list: &DrawList, key: MeshKey) -> Vec<(Vec3, Vec3, [f32; 3])> {
         list.instances.get(&key).map_or(Vec::new(), |instances| {
