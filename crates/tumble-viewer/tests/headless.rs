@@ -1,6 +1,7 @@
 //! Headless renders on whatever adapter wgpu finds (lavapipe where there is no GPU): one box on
 //! a plane (the picture is not blank, shows the background where nothing is, and shows the box
-//! where its centre projects with the same camera matrix the renderer uses), a convex hull
+//! where its centre projects with the same camera matrix the renderer uses; in wireframe, its
+//! edges there and not its faces), a convex hull
 //! and a compound drawn where their poses project (the compound child by child), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
 //! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
@@ -124,6 +125,75 @@ fn box_on_a_plane() {
         image.pixel(at.0, at.1),
         at,
         body_colour(cube.index() as usize),
+    );
+}
+
+/// Pixels of the picture with the hue of the linear `colour`.
+fn pixels_of_hue(image: &Image, colour: [f32; 3]) -> usize {
+    let expected = chromaticity(colour);
+    image
+        .rgba
+        .chunks_exact(4)
+        .filter(|p| chromaticity([0, 1, 2].map(|c| decode_srgb(p[c]))).dot(expected) > 0.995)
+        .count()
+}
+
+#[test]
+fn wireframe_draws_the_edges_and_not_the_faces() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut render = |wireframe| {
+        let settings = DrawSettings {
+            wireframe,
+            ..DrawSettings::default()
+        };
+        offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap()
+    };
+    let (solid, wireframe) = (render(false), render(true));
+    let colour = body_colour(cube.index() as usize);
+
+    // The front face's middle: the box solid, the floor behind it in wireframe.
+    let front = project(&camera, Vec3::new(0.0, 0.5, 0.5));
+    assert_hue(solid.pixel(front.0, front.1), front, colour);
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(wireframe.pixel(front.0, front.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the front face is filled in wireframe at {front:?}"
+    );
+    // The edges, in the box's colour unlit, where they project: the front face's top and
+    // bottom edges' middles and a vertical edge's.
+    for edge in [
+        Vec3::new(0.0, 1.0, 0.5),
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::new(0.5, 0.5, 0.5),
+    ] {
+        let at = project(&camera, edge);
+        assert!(
+            pixels_of(&wireframe, colour, around(at)) > 0,
+            "no edge at {at:?} ({edge})"
+        );
+    }
+    // Lines, not faces: a fraction of the solid box's pixels.
+    let (filled, lines) = (
+        pixels_of_hue(&solid, colour),
+        pixels_of_hue(&wireframe, colour),
+    );
+    println!("the box: {filled} pixels solid, {lines} in wireframe");
+    assert!(
+        lines > 0 && 3 * lines < filled,
+        "{lines} line pixels, {filled} solid"
     );
 }
 
