@@ -1,5 +1,6 @@
 //! `tumble view`: headless pictures from the command line, and clear one-line errors when
-//! there is neither a display nor --png, or no adapter matches.
+//! there is neither a display nor --png, no adapter matches, or the picture is larger than the
+//! adapter renders.
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
@@ -95,6 +96,32 @@ fn unknown_adapter_is_a_clear_error() {
     );
     let message = one_line_error(&output);
     assert!(message.contains("TUMBLE_ADAPTER"), "{message}");
+    assert!(!png.exists());
+}
+
+#[test]
+fn a_picture_larger_than_the_adapter_renders_is_a_clear_error() {
+    let dir = scratch("view-too-large");
+    let png = dir.join("out.png");
+    let output = tumble_without_display(
+        &[
+            "view",
+            "falling-boxes",
+            "--scale",
+            "0.01",
+            "--size",
+            "100000x100000",
+            "--png",
+            png.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let message = one_line_error(&output);
+    assert!(
+        message.contains("cannot render a 100000x100000 image (largest: "),
+        "{message}"
+    );
+    assert!(message.contains("use a smaller --size"), "{message}");
     assert!(!png.exists());
 }
 

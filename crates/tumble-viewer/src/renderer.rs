@@ -26,6 +26,7 @@ use tumble::pipeline::world::DevicePoses;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
+use crate::context::GpuContext;
 use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey, NO_BODY, PoseLink};
 use crate::error::ViewError;
 use crate::font::{CELL_HEIGHT, CELL_WIDTH, GLYPH_COUNT, GLYPH_HEIGHT, GLYPH_WIDTH};
@@ -199,9 +200,27 @@ enum ColourPass {
 }
 
 impl Renderer {
-    /// Pipelines for colour targets of `format` (an sRGB format: shading is in linear RGB),
-    /// drawing with `quality`'s choices.
+    /// Pipelines on `context`'s device for colour targets of `format` (an sRGB format: shading
+    /// is in linear RGB), drawing with `quality`'s choices. An adapter that cannot make them (a
+    /// shadow map over its largest texture, a target format it cannot render to, a shader or
+    /// pipeline it rejects) is an error, not a panic.
     pub fn new(
+        context: &GpuContext,
+        format: wgpu::TextureFormat,
+        quality: Quality,
+    ) -> Result<Self, ViewError> {
+        let limit = context.device.limits().max_texture_dimension_2d;
+        if quality.shadow_map_size > limit {
+            return Err(ViewError::ShadowMapTooLarge {
+                adapter: context.describe(),
+                size: quality.shadow_map_size,
+                limit,
+            });
+        }
+        context.creating(|| Self::create(&context.device, &context.queue, format, quality))
+    }
+
+    fn create(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         format: wgpu::TextureFormat,
@@ -1160,6 +1179,40 @@ mod tests {
     use tumble::{BodyDesc, Shape, StepConfig, World};
 
     #[test]
+    fn an_adapter_that_cannot_make_the_renderer_is_an_error() {
+        let context = crate::GpuContext::headless().expect("an adapter");
+        let srgb = wgpu::TextureFormat::Rgba8UnormSrgb;
+        let limit = context.device.limits().max_texture_dimension_2d;
+        let quality = Quality {
+            shadow_map_size: limit + 1,
+            ..Quality::default()
+        };
+        match Renderer::new(&context, srgb, quality) {
+            Err(ViewError::ShadowMapTooLarge {
+                size, limit: said, ..
+            }) => {
+                assert_eq!((size, said), (limit + 1, limit));
+            }
+            other => panic!("{:?}", other.err()),
+        }
+        // A colour format nothing renders to: the pipelines fail validation, which wgpu's
+        // default handler would have made a panic.
+        match Renderer::new(
+            &context,
+            wgpu::TextureFormat::Rgb9e5Ufloat,
+            Quality::default(),
+        ) {
+            Err(error @ ViewError::CreateRenderer { .. }) => {
+                let message = error.to_string();
+                assert!(message.contains(&context.describe()), "{message}");
+            }
+            other => panic!("{:?}", other.err()),
+        }
+        // The device stays usable: a renderer it can make is made.
+        assert!(Renderer::new(&context, srgb, Quality::default()).is_ok());
+    }
+
+    #[test]
     fn the_pose_pass_makes_its_bind_group_once_while_its_buffers_stay() {
         let mut world = World::new(StepConfig::default()).unwrap();
         world
@@ -1181,11 +1234,11 @@ mod tests {
             .unwrap();
         let context = crate::GpuContext::headless().expect("an adapter");
         let mut renderer = Renderer::new(
-            &context.device,
-            &context.queue,
+            &context,
             wgpu::TextureFormat::Rgba8UnormSrgb,
             Quality::default(),
-        );
+        )
+        .unwrap();
         let camera = Camera::look_at(Vec3::new(0.0, 4.0, 8.0), Vec3::ZERO);
         let mut bind_groups = Vec::new();
         for _ in 0..3 {

@@ -332,7 +332,7 @@ impl App<'_> {
         }
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&context.device, &config);
-        let renderer = Renderer::new(&context.device, &context.queue, config.format, self.quality);
+        let renderer = Renderer::new(&context, config.format, self.quality)?;
         let depth = depth_view(&context.device, width, height);
         println!("drawing on {}", context.describe());
         Ok(WindowView {
