@@ -2,7 +2,8 @@
 # Smoke test of `tumble view`'s window on a virtual X display (Xvfb), with no GPU and no
 # desktop: opens falling-boxes in a window, pauses it, drags a box with the mouse (the title
 # names the dragged body), presses the talk's keys, checks a screenshot is not blank, quits
-# with q and checks the exit status. Runnable by hand; about 30 s on Mesa's lavapipe.
+# with q and checks the exit status. Runnable by hand; about 10 s on Mesa's lavapipe (2 shared
+# cores) once tumble is built.
 #
 #   scripts/window-smoke.sh [path/to/tumble]     (default: builds target/debug/tumble)
 #

@@ -1,5 +1,6 @@
 //! `tumble view`: headless pictures from the command line, and clear one-line errors when
-//! there is neither a display nor --png, or no adapter matches.
+//! there is neither a display nor --png, no adapter matches, or the picture is larger than the
+//! adapter renders.
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
@@ -95,6 +96,32 @@ fn unknown_adapter_is_a_clear_error() {
     );
     let message = one_line_error(&output);
     assert!(message.contains("TUMBLE_ADAPTER"), "{message}");
+    assert!(!png.exists());
+}
+
+#[test]
+fn a_picture_larger_than_the_adapter_renders_is_a_clear_error() {
+    let dir = scratch("view-too-large");
+    let png = dir.join("out.png");
+    let output = tumble_without_display(
+        &[
+            "view",
+            "falling-boxes",
+            "--scale",
+            "0.01",
+            "--size",
+            "100000x100000",
+            "--png",
+            png.to_str().unwrap(),
+        ],
+        &[],
+    );
+    let message = one_line_error(&output);
+    assert!(
+        message.contains("cannot render a 100000x100000 image (largest: "),
+        "{message}"
+    );
+    assert!(message.contains("use a smaller --size"), "{message}");
     assert!(!png.exists());
 }
 
@@ -195,10 +222,36 @@ fn the_particle_demo_is_drawn_headless() {
         "{}",
         String::from_utf8_lossy(&output.stderr)
     );
-    // Batch colours only mean something for a rigid-body world: refused by name.
-    let refused = [&args[..], &["--png", png, "--batches"]].concat();
-    let message = one_line_error(&tumble_without_display(&refused, &[]));
-    assert!(message.contains("--batches"), "{message}");
+    // Batch colours, contacts and joints only mean something for a rigid-body world:
+    // refused by name.
+    for flag in ["--batches", "--contacts"] {
+        let refused = [&args[..], &["--png", png, flag]].concat();
+        let message = one_line_error(&tumble_without_display(&refused, &[]));
+        assert!(message.contains(flag), "{message}");
+    }
+}
+
+#[test]
+fn contacts_and_constraints_are_drawn_headless() {
+    // One ragdoll (ten joints), fallen onto the ground: contacts and joints to draw.
+    let dir = scratch("view-contacts");
+    let picture = |name: &str, flags: &[&str]| {
+        let png = dir.join(name);
+        let args = ["view", "ragdolls", "--scale", "0.01", "--steps", "30"];
+        let size = ["--size", "96x64", "--png", png.to_str().unwrap()];
+        let output = tumble_without_display(&[&args[..], &size, flags].concat(), &[]);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        std::fs::read(&png).expect("the picture is written")
+    };
+    let plain = picture("plain.png", &[]);
+    let with = picture("contacts.png", &["--contacts"]);
+    assert_eq!(&with[..8], b"\x89PNG\r\n\x1a\n");
+    // The same world and camera: only what --contacts adds differs.
+    assert_ne!(plain, with, "--contacts drew nothing");
 }
 
 #[test]

@@ -2,8 +2,8 @@
 //!
 //! Headless, the viewer draws on the physics' own device
 //! ([`tumble::gpu::GpuContext::shared`]): one device per process, so when the step runs on the
-//! GPU (`--device gpu`) the renderer reads the poses from the step's buffers. The renderer only
-//! borrows a `wgpu::Device` and `wgpu::Queue` (see [`crate::Renderer::new`]).
+//! GPU (`--device gpu`) the renderer reads the poses from the step's buffers. The renderer draws
+//! on the device and queue of the context it is given (see [`crate::Renderer::new`]).
 //!
 //! A window needs an adapter that can present to its surface, and the surface must come from
 //! the same `wgpu::Instance` as the device; the physics' shared context makes its own instance
@@ -81,6 +81,33 @@ impl GpuContext {
             self.queue.clone(),
             self.info.clone(),
         )
+    }
+
+    /// Runs `make` (creating textures, buffers, shaders, pipelines), turning every error the
+    /// device reports meanwhile into [`ViewError::CreateRenderer`] instead of wgpu's default
+    /// handler, which panics.
+    pub(crate) fn creating<T>(&self, make: impl FnOnce() -> T) -> Result<T, ViewError> {
+        use wgpu::ErrorFilter;
+        let scopes = [
+            ErrorFilter::Validation,
+            ErrorFilter::OutOfMemory,
+            ErrorFilter::Internal,
+        ]
+        .map(|filter| self.device.push_error_scope(filter));
+        let made = make();
+        // Scopes pop in the reverse order of their pushes.
+        let errors: Vec<wgpu::Error> = scopes
+            .into_iter()
+            .rev()
+            .filter_map(|scope| pollster::block_on(scope.pop()))
+            .collect();
+        match errors.first() {
+            None => Ok(made),
+            Some(error) => Err(ViewError::CreateRenderer {
+                adapter: self.describe(),
+                reason: error.to_string(),
+            }),
+        }
     }
 
     /// "name (backend, device type)", for messages.

@@ -1,5 +1,5 @@
-//! What to draw, read from a [`World`]: instances grouped by mesh, contact markers, ground
-//! quads. Built on the CPU each frame; the renderer uploads and draws it.
+//! What to draw, read from a [`World`]: instances grouped by mesh, contact markers, joints and
+//! the mouse drag, ground quads. Built on the CPU each frame; the renderer uploads and draws it.
 
 use crate::input::BatchView;
 use std::collections::BTreeMap;
@@ -23,6 +23,11 @@ pub const TRIMESH_COLOUR: [f32; 3] = [0.30, 0.26, 0.18];
 /// Contact points and their normals (linear RGB).
 pub const CONTACT_POINT_COLOUR: [f32; 3] = [1.0, 0.15, 0.05];
 pub const CONTACT_NORMAL_COLOUR: [f32; 3] = [1.0, 0.9, 0.1];
+/// Joints: lines from each body's centre to its anchor and between the two anchors, a cross at
+/// each anchor (linear RGB). A channel at 0, which no lit body colour has, so it stands out.
+pub const JOINT_COLOUR: [f32; 3] = [0.0, 0.8, 1.0];
+/// The mouse drag: a line from the dragged point to its target, a cross at the target.
+pub const DRAG_COLOUR: [f32; 3] = [1.0, 0.0, 1.0];
 
 /// One instance of a mesh: where it is and its colour.
 // repr(C) + Pod: uploaded as is into the instance buffer the mesh shader reads.
@@ -101,6 +106,19 @@ pub enum MeshKey {
     /// A static triangle mesh, named by a hash of its vertices' bits and its triangles (equal
     /// meshes share one); [`DrawList::trimeshes`] holds its geometry.
     TriMesh(u64),
+    /// The unit segment drawn over the scene ([`MeshKey::over_scene`]): joints and the drag.
+    ConstraintSegment,
+    /// Three unit segments from -1 to 1 along the axes, drawn over the scene: a constraint's
+    /// anchor points.
+    ConstraintPoint,
+}
+
+impl MeshKey {
+    /// Drawn over everything else, not hidden by it: a joint's anchors lie inside the bodies
+    /// it joins, where the depth test would hide every line and cross of it.
+    pub fn over_scene(self) -> bool {
+        matches!(self, Self::ConstraintSegment | Self::ConstraintPoint)
+    }
 }
 
 /// A finite square of an infinite plane, drawn as a grid.
@@ -118,6 +136,7 @@ pub struct GroundQuad {
 /// How to draw, from the viewer's keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct DrawSettings {
+    /// Contacts and constraints (`c`): contact points and normals, joints and the drag.
     pub contacts: bool,
     pub wireframe: bool,
     /// Colour bodies by constraint batch (the talk's "colored batches").
@@ -337,8 +356,12 @@ impl DrawList {
                 );
             }
         }
+        let marker_size = 0.15 * smallest.min(1.0);
         if settings.contacts || settings.batches != BatchView::Off {
-            list.add_contacts(world, 0.15 * smallest.min(1.0), settings.batches);
+            list.add_contacts(world, marker_size, settings.batches);
+        }
+        if settings.contacts {
+            list.add_constraints(world, 2.0 * marker_size);
         }
         list
     }
@@ -383,6 +406,67 @@ impl DrawList {
                 );
             }
         }
+    }
+
+    /// Joints and the mouse drag, drawn over the scene ([`MeshKey::over_scene`]), with crosses
+    /// of half-size `cross_size` (m). For each unbroken joint, as Box2D draws one: a line from
+    /// each body's centre to its anchor, one between the two anchors (the joint's error: none
+    /// while it holds) and a cross at each anchor. For the drag: a line from the dragged point
+    /// to its target and a cross at the target. Broken joints act no more and are left out.
+    fn add_constraints(&mut self, world: &World, cross_size: f32) {
+        // Joints name their bodies by slot.
+        let centres: BTreeMap<u32, Vec3> = world
+            .bodies()
+            .filter_map(|handle| Some((handle.index(), world.pose(handle).ok()?.position)))
+            .collect();
+        for (handle, joint) in world.joints().filter(|(_, joint)| !joint.broken) {
+            let Ok((anchor_a, anchor_b)) = world.joint_anchors(handle) else {
+                continue;
+            };
+            for (body, anchor) in [(joint.body_a, anchor_a), (joint.body_b, anchor_b)] {
+                if let Some(&centre) = centres.get(&body) {
+                    self.push_constraint_line(centre, anchor, JOINT_COLOUR);
+                }
+                self.push_constraint_point(anchor, cross_size, JOINT_COLOUR);
+            }
+            self.push_constraint_line(anchor_a, anchor_b, JOINT_COLOUR);
+        }
+        if let Some((point, target)) = world.drag_anchors() {
+            self.push_constraint_line(point, target, DRAG_COLOUR);
+            self.push_constraint_point(target, cross_size, DRAG_COLOUR);
+        }
+    }
+
+    /// A line from `from` to `to` over the scene; none where they coincide (nothing to see, and
+    /// the segment's matrix would be singular).
+    fn push_constraint_line(&mut self, from: Vec3, to: Vec3, colour: [f32; 3]) {
+        let along = to - from;
+        if along == Vec3::ZERO {
+            return;
+        }
+        // Maps the segment's +Y onto `along`; u and v only keep the matrix regular.
+        let (u, v) = tangent_basis(along.normalize());
+        let model = Mat4::from_cols(
+            u.extend(0.0),
+            along.extend(0.0),
+            v.extend(0.0),
+            from.extend(1.0),
+        );
+        self.push(
+            MeshKey::ConstraintSegment,
+            Instance::new(model, colour),
+            PoseLink::NONE,
+        );
+    }
+
+    fn push_constraint_point(&mut self, at: Vec3, half_size: f32, colour: [f32; 3]) {
+        let model =
+            Mat4::from_scale_rotation_translation(Vec3::splat(half_size), glam::Quat::IDENTITY, at);
+        self.push(
+            MeshKey::ConstraintPoint,
+            Instance::new(model, colour),
+            PoseLink::NONE,
+        );
     }
 }
 
@@ -516,6 +600,310 @@ mod tests {
             points
         );
         assert_eq!(with.links[&MeshKey::Segment].len(), points);
+    }
+
+    #[test]
+    fn a_compound_is_an_instance_per_child_at_the_childs_world_pose() {
+        use tumble::math::Quat;
+        use tumble::shape::CompoundChild;
+        // A box and a sphere beside it: the centre of mass is off the children's origin, so
+        // the compound is stored in another frame (compound.rs), which the drawing must undo.
+        let (box_at, sphere_at) = (Vec3::new(-0.3, 0.0, 0.0), Vec3::new(0.9, 0.2, 0.0));
+        let box_rotation = Quat::from_rotation_z(0.4);
+        let compound = Shape::compound(vec![
+            CompoundChild {
+                shape: Shape::cuboid(Vec3::new(0.5, 0.25, 0.25)),
+                pose: Transform::new(box_at, box_rotation),
+            },
+            CompoundChild {
+                shape: Shape::sphere(0.3),
+                pose: Transform::new(sphere_at, Quat::IDENTITY),
+            },
+        ])
+        .unwrap();
+        let (position, rotation) = (Vec3::new(2.0, 1.0, -1.0), Quat::from_rotation_y(0.7));
+        let mut world = World::new(StepConfig::default()).unwrap();
+        let body = world
+            .add_body(
+                BodyDesc::dynamic(compound)
+                    .position(position)
+                    .rotation(rotation),
+            )
+            .unwrap();
+        let moved = world.pose(body).unwrap().position - position;
+        assert!(moved.length() > 0.05, "not re-framed: {moved}");
+        let list = DrawList::build(&world, DrawSettings::default());
+        assert_eq!(list.instances.values().map(Vec::len).sum::<usize>(), 2);
+        let given = Transform::new(position, rotation);
+        for (key, child, child_rotation, scale) in [
+            (
+                MeshKey::Cube,
+                box_at,
+                box_rotation,
+                Vec3::new(0.5, 0.25, 0.25),
+            ),
+            (MeshKey::Sphere, sphere_at, Quat::IDENTITY, Vec3::splat(0.3)),
+        ] {
+            let model = Mat4::from_cols_array_2d(&list.instances[&key][0].model);
+            let (drawn_scale, drawn_rotation, drawn_at) = model.to_scale_rotation_translation();
+            let expected_at = given.transform_point(child);
+            assert!(
+                (drawn_at - expected_at).length() < 1e-5,
+                "{key:?}: {drawn_at} {expected_at}"
+            );
+            assert!(
+                (drawn_scale - scale).length() < 1e-5,
+                "{key:?}: {drawn_scale}"
+            );
+            let expected_rotation = rotation * child_rotation;
+            assert!(
+                drawn_rotation.dot(expected_rotation).abs() > 1.0 - 1e-5,
+                "{key:?}: {drawn_rotation} {expected_rotation}"
+            );
+            // The link rebuilds the same model from the body's pose, as the GPU path does.
+            let link = list.links[&key][0];
+            assert_eq!(link.body, body.index());
+            let pose = world.pose(body).unwrap();
+            let from_link = Mat4::from_rotation_translation(pose.rotation, pose.position)
+                * Mat4::from_cols_array_2d(&link.local);
+            assert!(from_link.abs_diff_eq(model, 1e-5), "{key:?}");
+        }
+        // Both children in the body's colour.
+        let colour = body_colour(body.index() as usize);
+        assert_eq!(list.instances[&MeshKey::Cube][0].colour[..3], colour);
+        assert_eq!(list.instances[&MeshKey::Sphere][0].colour[..3], colour);
+    }
+
+    /// The colours of the contact markers: the cubes that belong to no body, in order.
+    fn marker_colours(list: &DrawList) -> Vec<[f32; 3]> {
+        list.instances[&MeshKey::Cube]
+            .iter()
+            .zip(&list.links[&MeshKey::Cube])
+            .filter(|(_, link)| link.body == NO_BODY)
+            .map(|(instance, _)| [0, 1, 2].map(|c| instance.colour[c]))
+            .collect()
+    }
+
+    #[test]
+    fn batches_colour_each_contact_by_its_batch_and_one_batch_shows_alone() {
+        // A tower of three boxes on the ground: the middle contacts share a box, so they are
+        // solved in different batches.
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for level in 0..3 {
+            world
+                .add_body(
+                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(
+                        0.0,
+                        0.5 + level as f32,
+                        0.0,
+                    )),
+                )
+                .unwrap();
+        }
+        world.step();
+        // Each manifold's batch and point count, in the order markers are drawn.
+        let manifolds: Vec<(usize, usize)> = world
+            .contacts()
+            .zip(world.contact_batches())
+            .map(|((_, _, contact), (_, _, batch))| {
+                (batch as usize, contact.manifold.points().len())
+            })
+            .collect();
+        let mut batches: Vec<usize> = manifolds.iter().map(|&(batch, _)| batch).collect();
+        batches.sort_unstable();
+        batches.dedup();
+        assert!(batches.len() >= 2, "{manifolds:?}");
+        let build = |batches| {
+            DrawList::build(
+                &world,
+                DrawSettings {
+                    batches,
+                    ..Default::default()
+                },
+            )
+        };
+
+        // All batches: every marker in its manifold's batch colour, the bodies in grey.
+        let all = build(BatchView::All);
+        let expected: Vec<[f32; 3]> = manifolds
+            .iter()
+            .flat_map(|&(batch, points)| std::iter::repeat_n(body_colour(batch), points))
+            .collect();
+        assert_eq!(marker_colours(&all), expected);
+        let bodies = all.instances[&MeshKey::Cube]
+            .iter()
+            .zip(&all.links[&MeshKey::Cube])
+            .filter(|(_, link)| link.body != NO_BODY);
+        for (instance, _) in bodies {
+            assert_eq!(instance.colour[..3], BATCH_BODY_COLOUR);
+        }
+        // The normals keep their colour.
+        let normals = &all.instances[&MeshKey::Segment];
+        assert_eq!(normals.len(), expected.len());
+        assert!(
+            normals
+                .iter()
+                .all(|n| n.colour[..3] == CONTACT_NORMAL_COLOUR)
+        );
+
+        // One batch: only its manifolds' markers and normals.
+        for &shown in &batches {
+            let one = build(BatchView::One(shown));
+            let points: usize = manifolds
+                .iter()
+                .filter(|&&(batch, _)| batch == shown)
+                .map(|&(_, points)| points)
+                .sum();
+            assert!(points > 0);
+            assert_eq!(marker_colours(&one), vec![body_colour(shown); points]);
+            assert_eq!(one.instances[&MeshKey::Segment].len(), points);
+        }
+        // A batch with no contacts in it draws no markers (the bodies stay).
+        let none = build(BatchView::One(batches[batches.len() - 1] + 1));
+        assert!(marker_colours(&none).is_empty());
+        assert!(!none.instances.contains_key(&MeshKey::Segment));
+    }
+
+    /// The ends of each `key` instance's unit segment in the world, and its colour.
+    fn segments(list: &DrawList, key: MeshKey) -> Vec<(Vec3, Vec3, [f32; 3])> {
+        list.instances.get(&key).map_or(Vec::new(), |instances| {
+            instances
+                .iter()
+                .map(|instance| {
+                    let model = Mat4::from_cols_array_2d(&instance.model);
+                    let colour = [0, 1, 2].map(|c| instance.colour[c]);
+                    (
+                        model.transform_point3(Vec3::ZERO),
+                        model.transform_point3(Vec3::Y),
+                        colour,
+                    )
+                })
+                .collect()
+        })
+    }
+
+    fn near(a: Vec3, b: Vec3) -> bool {
+        (a - b).length() < 1e-5
+    }
+
+    #[test]
+    fn constraints_draw_joints_and_the_drag() {
+        // Two boxes hinged at the point between them, and a box on its own to drag.
+        let mut world = World::new(StepConfig::default()).unwrap();
+        let (centre_a, centre_b, anchor) = (
+            Vec3::new(-1.0, 2.0, 0.0),
+            Vec3::new(1.0, 2.0, 0.0),
+            Vec3::new(0.0, 2.0, 0.0),
+        );
+        let cube = Shape::cuboid(Vec3::splat(0.5));
+        let a = world
+            .add_body(BodyDesc::dynamic(cube.clone()).position(centre_a))
+            .unwrap();
+        let b = world
+            .add_body(BodyDesc::dynamic(cube.clone()).position(centre_b))
+            .unwrap();
+        let hinge = tumble::JointKind::Hinge {
+            axis: Vec3::Z,
+            limits: None,
+            motor: None,
+        };
+        world
+            .add_joint(tumble::JointDesc::new(hinge, a, b, anchor))
+            .unwrap();
+        let dragged = world
+            .add_body(BodyDesc::dynamic(cube).position(Vec3::new(0.0, 0.5, 3.0)))
+            .unwrap();
+        let target = Vec3::new(0.0, 3.0, 3.0);
+        world
+            .set_drag_target(dragged, Vec3::new(0.0, 0.5, 0.0), target, 100.0)
+            .unwrap();
+        let constraint_keys = [MeshKey::ConstraintSegment, MeshKey::ConstraintPoint];
+
+        // Off: neither joints nor the drag (nor with batches shown, which colour contacts).
+        for batches in [BatchView::Off, BatchView::All] {
+            let off = DrawList::build(
+                &world,
+                DrawSettings {
+                    batches,
+                    ..Default::default()
+                },
+            );
+            assert!(
+                constraint_keys
+                    .iter()
+                    .all(|key| !off.instances.contains_key(key))
+            );
+        }
+
+        let on = DrawList::build(
+            &world,
+            DrawSettings {
+                contacts: true,
+                ..Default::default()
+            },
+        );
+        // Each box's centre to the anchor (the anchors coincide: no line between them), and
+        // the dragged point (the top of its box) to the target.
+        let lines = segments(&on, MeshKey::ConstraintSegment);
+        assert_eq!(lines.len(), 3, "{lines:?}");
+        for (from, to, colour) in [
+            (centre_a, anchor, JOINT_COLOUR),
+            (centre_b, anchor, JOINT_COLOUR),
+            (Vec3::new(0.0, 1.0, 3.0), target, DRAG_COLOUR),
+        ] {
+            assert!(
+                lines
+                    .iter()
+                    .any(|&(f, t, c)| near(f, from) && near(t, to) && c == colour),
+                "no line {from} -> {to} in {lines:?}"
+            );
+        }
+        // A cross at each of the joint's two anchors and at the drag's target.
+        let crosses: Vec<(Vec3, [f32; 3])> = segments(&on, MeshKey::ConstraintPoint)
+            .into_iter()
+            .map(|(centre, _, colour)| (centre, colour))
+            .collect();
+        assert_eq!(
+            crosses,
+            [
+                (anchor, JOINT_COLOUR),
+                (anchor, JOINT_COLOUR),
+                (target, DRAG_COLOUR)
+            ]
+        );
+        // They belong to no body (a GPU step does not move them) and are drawn over the scene.
+        for key in constraint_keys {
+            assert!(on.links[&key].iter().all(|link| link.body == NO_BODY));
+            assert!(key.over_scene());
+        }
+        assert!(!MeshKey::Segment.over_scene() && !MeshKey::Cube.over_scene());
+
+        // Once the hinge stretches, the line between its anchors shows how far.
+        world
+            .set_velocity(a, Vec3::new(0.0, -5.0, 0.0), Vec3::ZERO)
+            .unwrap();
+        world.step();
+        let (anchor_a, anchor_b) = world
+            .joint_anchors(world.joints().next().unwrap().0)
+            .unwrap();
+        assert_ne!(anchor_a, anchor_b);
+        let stepped = DrawList::build(
+            &world,
+            DrawSettings {
+                contacts: true,
+                ..Default::default()
+            },
+        );
+        let lines = segments(&stepped, MeshKey::ConstraintSegment);
+        assert!(
+            lines
+                .iter()
+                .any(|&(f, t, _)| near(f, anchor_a) && near(t, anchor_b)),
+            "no line between the anchors {anchor_a} and {anchor_b}: {lines:?}"
+        );
     }
 
     #[test]

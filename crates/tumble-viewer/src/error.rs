@@ -27,6 +27,20 @@ pub enum ViewError {
         height: u32,
         limit: u32,
     },
+    #[error(
+        "the adapter {adapter:?} cannot hold a {size}x{size} shadow map (largest: {limit}); \
+         use a smaller --quality shadow-size"
+    )]
+    ShadowMapTooLarge {
+        adapter: String,
+        size: u32,
+        limit: u32,
+    },
+    #[error(
+        "the adapter {adapter:?} cannot make the renderer: {reason}; pick another with \
+         TUMBLE_ADAPTER or WGPU_BACKEND"
+    )]
+    CreateRenderer { adapter: String, reason: String },
     #[error("the GPU reported an error while rendering on {adapter:?}: {reason}")]
     Render { adapter: String, reason: String },
     #[error("reading the picture back from the GPU failed: {0}")]

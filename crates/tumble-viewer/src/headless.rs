@@ -89,7 +89,9 @@ impl Offscreen {
         Self::with_quality(context, width, height, Quality::default())
     }
 
-    /// An offscreen target drawn with `quality`'s choices.
+    /// An offscreen target drawn with `quality`'s choices; [`ViewError::TooLarge`] past the
+    /// device's largest texture, and an error too where the device cannot make the renderer
+    /// or the targets ([`Renderer::new`]).
     pub fn with_quality(
         context: &GpuContext,
         width: u32,
@@ -105,36 +107,40 @@ impl Offscreen {
                 limit,
             });
         }
-        let device = &context.device;
-        let color = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("offscreen colour"),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let padded_row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("offscreen readback"),
-            size: u64::from(padded_row) * u64::from(height),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
-        let mut renderer = Renderer::new(device, &context.queue, FORMAT, quality);
+        let mut renderer = Renderer::new(context, FORMAT, quality)?;
         renderer.time_passes();
+        let device = &context.device;
+        let padded_row = (4 * width).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        // Within the largest texture, a picture may still be more memory than the device has.
+        let (color, depth, readback) = context.creating(|| {
+            let color = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("offscreen colour"),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let readback = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("offscreen readback"),
+                size: u64::from(padded_row) * u64::from(height),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            });
+            (color, depth_view(device, width, height), readback)
+        })?;
         Ok(Self {
             last_times: FrameTimes::default(),
             renderer,
             color_view: color.create_view(&Default::default()),
             color,
-            depth: depth_view(device, width, height),
+            depth,
             readback,
             padded_row,
             width,

@@ -104,7 +104,7 @@ tumble view keys:
   i            start / stop the simulation
   s            single step (stops the simulation)
   p            profile: stage timings, pair and contact counts, batch histogram
-  c            draw contact points and normals
+  c            contacts and constraints: points, normals, joints, the drag
   b            constraint batches: all in colours / one batch at a time / off
   u            solver (and its batching) on CPU / GPU
   d            batcher: greedy colors / the talk's rounds

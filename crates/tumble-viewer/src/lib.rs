@@ -93,6 +93,10 @@ pub struct ViewOptions {
     /// Headless: colour the bodies by constraint batch (the talk's "colored batches").
     #[arg(long)]
     pub batches: bool,
+    /// Draw the contacts and constraints (contact points and normals, joints, the drag): in
+    /// the pictures, or in a window as if `c` were pressed.
+    #[arg(long)]
+    pub contacts: bool,
     /// Draw an overlay over the top-left corner: the profile (stage times of the steps so far,
     /// counts, batch histogram) or the key list; in a window, as if `p` or `h` were pressed.
     #[arg(long, value_enum, default_value = "off")]
@@ -154,6 +158,7 @@ fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError
     // that frames of a video line up.
     let mut camera = options.camera;
     let settings = DrawSettings {
+        contacts: options.contacts,
         batches: if options.batches {
             BatchView::All
         } else {

@@ -1,7 +1,8 @@
 //! Meshes of the shapes, built on the CPU once and instanced: a box of half extent 1 (scaled per
 //! instance), a sphere of radius 1 (scaled), a capsule per distinct radius and half height (a
-//! capsule does not scale: its caps would turn into ellipsoids), a unit segment for lines, and
-//! one mesh per convex hull and per triangle mesh, in the shape's own frame.
+//! capsule does not scale: its caps would turn into ellipsoids), a unit segment for lines, a
+//! cross for points, and one mesh per convex hull and per triangle mesh, in the shape's own
+//! frame.
 
 use std::f32::consts::PI;
 
@@ -186,6 +187,19 @@ impl MeshData {
             triangles: Vec::new(),
             lines: vec![0, 1],
         }
+    }
+
+    /// Three segments from -1 to 1 along the axes, lines only: a point that reads as one from
+    /// every side (a constraint's anchor).
+    pub fn cross() -> Self {
+        let mut mesh = MeshData::default();
+        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+            let base = mesh.vertices.len() as u32;
+            mesh.push(-axis, axis);
+            mesh.push(axis, axis);
+            mesh.lines.extend([base, base + 1]);
+        }
+        mesh
     }
 
     fn push(&mut self, position: Vec3, normal: Vec3) {

@@ -1,5 +1,5 @@
-// Instanced meshes: boxes, spheres, capsules, hulls, triangle meshes (solid or wireframe) and
-// contact segments (lines).
+// Instanced meshes: boxes, spheres, capsules, hulls, triangle meshes (solid or wireframe),
+// contact segments, and joints and the drag over the scene (lines).
 // Vertex layout: `Vertex` in mesh.rs; instance layout: `Instance` in draw.rs.
 
 struct VertexIn {
@@ -23,6 +23,10 @@ struct VertexOut {
 
 @vertex
 fn vs_main(in: VertexIn) -> VertexOut {
+    return transform(in);
+}
+
+fn transform(in: VertexIn) -> VertexOut {
     let model = mat4x4<f32>(in.model_0, in.model_1, in.model_2, in.model_3);
     // The model is R S (rotation times axis scale), so normals transform by its inverse
     // transpose R S⁻¹, whose column i is the model's column i divided by s_i² = |column i|².
@@ -36,6 +40,15 @@ fn vs_main(in: VertexIn) -> VertexOut {
     out.normal = c0 * (in.normal.x / dot(c0, c0)) + c1 * (in.normal.y / dot(c1, c1))
         + c2 * (in.normal.z / dot(c2, c2));
     out.colour = in.colour.rgb;
+    return out;
+}
+
+// Joints and the drag, drawn over the scene: at the near plane's depth (0), which passes the
+// depth test everywhere and, written, keeps the ground drawn after them from covering them.
+@vertex
+fn vs_over_scene(in: VertexIn) -> VertexOut {
+    var out = transform(in);
+    out.clip.z = 0.0;
     return out;
 }
 

@@ -29,10 +29,7 @@ use crate::{ImageSize, StepDevice, ViewOptions};
 /// Shows the particle demo of `config`, stepped on `options.device`: headless when `--png` or
 /// `--frames` is given (writing those pictures), else in a window.
 pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(), ViewError> {
-    // Batch colours come from a rigid-body world; the demo has no constraints.
-    if options.batches {
-        return Err(ViewError::NotForParticles { flag: "--batches" });
-    }
+    refuse_rigid_body_flags(options)?;
     if options.png.is_none() && options.frames.is_none() {
         return view_in_window(config, options);
     }
@@ -44,9 +41,7 @@ pub fn view_particles(config: ParticleConfig, options: &ViewOptions) -> Result<(
 /// Steps the rigid particle bodies of `config` (the `bunnies` scene) as [`view_particles`]
 /// does the demo, headless only.
 pub fn view_bunnies(config: RigidConfig, options: &ViewOptions) -> Result<(), ViewError> {
-    if options.batches {
-        return Err(ViewError::NotForParticles { flag: "--batches" });
-    }
+    refuse_rigid_body_flags(options)?;
     if options.png.is_none() && options.frames.is_none() {
         return Err(ViewError::HeadlessOnly {
             scene: "bunnies".into(),
@@ -55,6 +50,16 @@ pub fn view_bunnies(config: RigidConfig, options: &ViewOptions) -> Result<(), Vi
     view_headless(options, |device| {
         RigidSystem::new(&config, device).map(Demo::Rigid)
     })
+}
+
+/// Batch colours, contacts and joints come from a rigid-body world's solver; the particle
+/// systems have none of them (their bodies' particles push by springs, with no constraints).
+fn refuse_rigid_body_flags(options: &ViewOptions) -> Result<(), ViewError> {
+    match (options.batches, options.contacts) {
+        (true, _) => Err(ViewError::NotForParticles { flag: "--batches" }),
+        (_, true) => Err(ViewError::NotForParticles { flag: "--contacts" }),
+        _ => Ok(()),
+    }
 }
 
 /// Either particle system, as the pictures need it.

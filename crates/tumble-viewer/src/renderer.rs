@@ -6,11 +6,13 @@
 //! sees it (an orthographic view along the light over the bodies' bounds) into the shadow map.
 //! Then, with [`Quality::depth_prepass`], a pass draws the depth of every surface. The meshes
 //! pass draws every mesh instanced once (solid triangles, or its edges as lines in wireframe
-//! mode) and contact segments as lines, the ground pass the ground grids (after the meshes, so
-//! that the ground hidden by bodies is never shaded; before them in [`DrawOrder::Submitted`]),
-//! and the overlay pass the text on top. The first of them clears. Lit surfaces look their
-//! point up in the shadow map. When the step ran on this device, a compute pass first writes
-//! the bodies' instance models from the physics' pose buffers (pose.wgsl).
+//! mode) and contact segments as lines, then joints and the drag as lines over it all (at the
+//! near plane's depth, so that the ground drawn after them leaves them be), the ground pass
+//! the ground grids (after the meshes, so that the ground hidden by bodies is never shaded;
+//! before them in [`DrawOrder::Submitted`]), and the overlay pass the text on top. The first
+//! of them clears. Lit surfaces look their point up in the shadow map. When the step ran on
+//! this device, a compute pass first writes the bodies' instance models from the physics'
+//! pose buffers (pose.wgsl).
 //! Triangle meshes are drawn from both sides, as the physics collides with both.
 //! Each pass is timed on the GPU where the device has timestamp queries and
 //! [`Renderer::time_passes`] asked for it.
@@ -24,6 +26,7 @@ use tumble::pipeline::world::DevicePoses;
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
+use crate::context::GpuContext;
 use crate::draw::{BACKGROUND, DrawList, GroundQuad, Instance, MeshKey, NO_BODY, PoseLink};
 use crate::error::ViewError;
 use crate::font::{CELL_HEIGHT, CELL_WIDTH, GLYPH_COUNT, GLYPH_HEIGHT, GLYPH_WIDTH};
@@ -143,6 +146,8 @@ pub struct Renderer {
     solid_pipeline: wgpu::RenderPipeline,
     two_sided_pipeline: wgpu::RenderPipeline,
     line_pipeline: wgpu::RenderPipeline,
+    /// Lines over the scene ([`MeshKey::over_scene`]), drawn after every other mesh.
+    over_scene_pipeline: wgpu::RenderPipeline,
     grid_pipeline: wgpu::RenderPipeline,
     text_pipeline: wgpu::RenderPipeline,
     /// Writes instance models from the physics' device buffers; made on first use, so that a
@@ -195,9 +200,27 @@ enum ColourPass {
 }
 
 impl Renderer {
-    /// Pipelines for colour targets of `format` (an sRGB format: shading is in linear RGB),
-    /// drawing with `quality`'s choices.
+    /// Pipelines on `context`'s device for colour targets of `format` (an sRGB format: shading
+    /// is in linear RGB), drawing with `quality`'s choices. An adapter that cannot make them (a
+    /// shadow map over its largest texture, a target format it cannot render to, a shader or
+    /// pipeline it rejects) is an error, not a panic.
     pub fn new(
+        context: &GpuContext,
+        format: wgpu::TextureFormat,
+        quality: Quality,
+    ) -> Result<Self, ViewError> {
+        let limit = context.device.limits().max_texture_dimension_2d;
+        if quality.shadow_map_size > limit {
+            return Err(ViewError::ShadowMapTooLarge {
+                adapter: context.describe(),
+                size: quality.shadow_map_size,
+                limit,
+            });
+        }
+        context.creating(|| Self::create(&context.device, &context.queue, format, quality))
+    }
+
+    fn create(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         format: wgpu::TextureFormat,
@@ -385,6 +408,7 @@ impl Renderer {
         };
         let pipeline = |label: &str,
                         shader: &wgpu::ShaderModule,
+                        vertex: &str,
                         fragment: &str,
                         buffers: &[Option<wgpu::VertexBufferLayout>],
                         topology: wgpu::PrimitiveTopology,
@@ -394,7 +418,7 @@ impl Renderer {
                 layout: Some(&layout),
                 vertex: wgpu::VertexState {
                     module: shader,
-                    entry_point: Some("vs_main"),
+                    entry_point: Some(vertex),
                     compilation_options: Default::default(),
                     buffers,
                 },
@@ -419,6 +443,7 @@ impl Renderer {
         let solid_pipeline = pipeline(
             "solid",
             &mesh_shader,
+            "vs_main",
             "fs_solid",
             &mesh_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -429,6 +454,7 @@ impl Renderer {
         let two_sided_pipeline = pipeline(
             "two-sided",
             &mesh_shader,
+            "vs_main",
             "fs_two_sided",
             &mesh_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -437,6 +463,17 @@ impl Renderer {
         let line_pipeline = pipeline(
             "lines",
             &mesh_shader,
+            "vs_main",
+            "fs_line",
+            &mesh_buffers,
+            wgpu::PrimitiveTopology::LineList,
+            None,
+        );
+        // Joints and the drag: their anchors lie inside the bodies they join (draw.rs).
+        let over_scene_pipeline = pipeline(
+            "constraints",
+            &mesh_shader,
+            "vs_over_scene",
             "fs_line",
             &mesh_buffers,
             wgpu::PrimitiveTopology::LineList,
@@ -446,6 +483,7 @@ impl Renderer {
         let grid_pipeline = pipeline(
             "grid",
             &grid_shader,
+            "vs_main",
             "fs_main",
             &grid_buffers,
             wgpu::PrimitiveTopology::TriangleList,
@@ -559,6 +597,7 @@ impl Renderer {
             solid_pipeline,
             two_sided_pipeline,
             line_pipeline,
+            over_scene_pipeline,
             grid_pipeline,
             text_pipeline,
             pose_pipeline: None,
@@ -789,9 +828,16 @@ impl Renderer {
             }
             ColourPass::Meshes => {
                 pass.set_vertex_buffer(1, self.instances.buffer.slice(..));
-                for (key, range) in &self.draws {
+                // What is drawn over the scene comes after the scene it is drawn over.
+                let scene = self.draws.iter().filter(|(key, _)| !key.over_scene());
+                let over = self.draws.iter().filter(|(key, _)| key.over_scene());
+                for (key, range) in scene.chain(over) {
                     let mesh = &self.meshes[key];
                     let (pipeline, indices) = match (&mesh.triangles, self.wireframe) {
+                        _ if key.over_scene() => match &mesh.lines {
+                            Some(lines) => (&self.over_scene_pipeline, lines),
+                            None => continue,
+                        },
                         (Some(triangles), false) if matches!(key, MeshKey::TriMesh(_)) => {
                             (&self.two_sided_pipeline, triangles)
                         }
@@ -1072,7 +1118,8 @@ fn mesh_data(key: MeshKey, list: &DrawList) -> MeshData {
             radius,
             half_height,
         } => MeshData::capsule(f32::from_bits(radius), f32::from_bits(half_height)),
-        MeshKey::Segment => MeshData::segment(),
+        MeshKey::Segment | MeshKey::ConstraintSegment => MeshData::segment(),
+        MeshKey::ConstraintPoint => MeshData::cross(),
         MeshKey::Hull(hash) => MeshData::hull(&list.hulls[&hash]),
         MeshKey::TriMesh(hash) => MeshData::trimesh(&list.trimeshes[&hash]),
     }
@@ -1132,6 +1179,40 @@ mod tests {
     use tumble::{BodyDesc, Shape, StepConfig, World};
 
     #[test]
+    fn an_adapter_that_cannot_make_the_renderer_is_an_error() {
+        let context = crate::GpuContext::headless().expect("an adapter");
+        let srgb = wgpu::TextureFormat::Rgba8UnormSrgb;
+        let limit = context.device.limits().max_texture_dimension_2d;
+        let quality = Quality {
+            shadow_map_size: limit + 1,
+            ..Quality::default()
+        };
+        match Renderer::new(&context, srgb, quality) {
+            Err(ViewError::ShadowMapTooLarge {
+                size, limit: said, ..
+            }) => {
+                assert_eq!((size, said), (limit + 1, limit));
+            }
+            other => panic!("{:?}", other.err()),
+        }
+        // A colour format nothing renders to: the pipelines fail validation, which wgpu's
+        // default handler would have made a panic.
+        match Renderer::new(
+            &context,
+            wgpu::TextureFormat::Rgb9e5Ufloat,
+            Quality::default(),
+        ) {
+            Err(error @ ViewError::CreateRenderer { .. }) => {
+                let message = error.to_string();
+                assert!(message.contains(&context.describe()), "{message}");
+            }
+            other => panic!("{:?}", other.err()),
+        }
+        // The device stays usable: a renderer it can make is made.
+        assert!(Renderer::new(&context, srgb, Quality::default()).is_ok());
+    }
+
+    #[test]
     fn the_pose_pass_makes_its_bind_group_once_while_its_buffers_stay() {
         let mut world = World::new(StepConfig::default()).unwrap();
         world
@@ -1153,11 +1234,11 @@ mod tests {
             .unwrap();
         let context = crate::GpuContext::headless().expect("an adapter");
         let mut renderer = Renderer::new(
-            &context.device,
-            &context.queue,
+            &context,
             wgpu::TextureFormat::Rgba8UnormSrgb,
             Quality::default(),
-        );
+        )
+        .unwrap();
         let camera = Camera::look_at(Vec3::new(0.0, 4.0, 8.0), Vec3::ZERO);
         let mut bind_groups = Vec::new();
         for _ in 0..3 {

@@ -225,9 +225,10 @@ pub(crate) fn show(
     if options.device == StepDevice::Gpu {
         input.solver = Executor::Gpu;
     }
-    // --overlay opens the window with that overlay on, as if its key had been pressed.
+    // --overlay and --contacts open the window with them on, as if their key had been pressed.
     input.help = options.overlay == OverlayKind::Help;
     input.profile = options.overlay == OverlayKind::Profile;
+    input.contacts = options.contacts;
     let mut app = App {
         name: name.to_owned(),
         shown,
@@ -331,7 +332,7 @@ impl App<'_> {
         }
         config.present_mode = wgpu::PresentMode::AutoVsync;
         surface.configure(&context.device, &config);
-        let renderer = Renderer::new(&context.device, &context.queue, config.format, self.quality);
+        let renderer = Renderer::new(&context, config.format, self.quality)?;
         let depth = depth_view(&context.device, width, height);
         println!("drawing on {}", context.describe());
         Ok(WindowView {

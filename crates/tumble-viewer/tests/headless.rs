@@ -1,17 +1,22 @@
 //! Headless renders on whatever adapter wgpu finds (lavapipe where there is no GPU): one box on
 //! a plane (the picture is not blank, shows the background where nothing is, and shows the box
-//! where its centre projects with the same camera matrix the renderer uses), one box on a
+//! where its centre projects with the same camera matrix the renderer uses; in wireframe, its
+//! edges there and not its faces), a convex hull
+//! and a compound drawn where their poses project (the compound child by child), one box on a
 //! floor made of two triangles (the floor shows where it projects, the background around it),
 //! a box above a plane (its shadow darkens the floor), the overlays (text pixels in the
-//! overlay's panel with it, none without), a world stepped on the GPU drawn from the step's
-//! device buffers, each pass timed on the GPU, and a pile of boxes drawn alike with every
-//! quality knob (quality.rs).
+//! overlay's panel with it, none without), joints drawn over the bodies they join with the
+//! contacts and constraints on (two hinged boxes, a ragdoll), a world stepped on the GPU drawn
+//! from the step's device buffers, each pass timed on the GPU, and a pile of boxes drawn alike
+//! with every quality knob (quality.rs).
 
 use tumble::math::Vec3;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::shape::TriMesh;
-use tumble::{BodyDesc, Shape, StepConfig, World};
-use tumble_viewer::draw::{BACKGROUND, DrawList, DrawSettings, TRIMESH_COLOUR, body_colour};
+use tumble::{BodyDesc, JointDesc, JointKind, Shape, StepConfig, World};
+use tumble_viewer::draw::{
+    BACKGROUND, DrawList, DrawSettings, JOINT_COLOUR, TRIMESH_COLOUR, body_colour,
+};
 use tumble_viewer::headless::{Image, Offscreen};
 use tumble_viewer::overlay::{TEXT_COLOUR, help_lines, panel_rect, profile_lines};
 use tumble_viewer::quality::{DrawOrder, Quality};
@@ -120,6 +125,173 @@ fn box_on_a_plane() {
         image.pixel(at.0, at.1),
         at,
         body_colour(cube.index() as usize),
+    );
+}
+
+/// Pixels of the picture with the hue of the linear `colour`.
+fn pixels_of_hue(image: &Image, colour: [f32; 3]) -> usize {
+    let expected = chromaticity(colour);
+    image
+        .rgba
+        .chunks_exact(4)
+        .filter(|p| chromaticity([0, 1, 2].map(|c| decode_srgb(p[c]))).dot(expected) > 0.995)
+        .count()
+}
+
+#[test]
+fn wireframe_draws_the_edges_and_not_the_faces() {
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let cube = world
+        .add_body(
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut render = |wireframe| {
+        let settings = DrawSettings {
+            wireframe,
+            ..DrawSettings::default()
+        };
+        offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap()
+    };
+    let (solid, wireframe) = (render(false), render(true));
+    let colour = body_colour(cube.index() as usize);
+
+    // The front face's middle: the box solid, the floor behind it in wireframe.
+    let front = project(&camera, Vec3::new(0.0, 0.5, 0.5));
+    assert_hue(solid.pixel(front.0, front.1), front, colour);
+    let seen = chromaticity([0, 1, 2].map(|c| decode_srgb(wireframe.pixel(front.0, front.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the front face is filled in wireframe at {front:?}"
+    );
+    // The edges, in the box's colour unlit, where they project: the front face's top and
+    // bottom edges' middles and a vertical edge's.
+    for edge in [
+        Vec3::new(0.0, 1.0, 0.5),
+        Vec3::new(0.0, 0.0, 0.5),
+        Vec3::new(0.5, 0.5, 0.5),
+    ] {
+        let at = project(&camera, edge);
+        assert!(
+            pixels_of(&wireframe, colour, around(at)) > 0,
+            "no edge at {at:?} ({edge})"
+        );
+    }
+    // Lines, not faces: a fraction of the solid box's pixels.
+    let (filled, lines) = (
+        pixels_of_hue(&solid, colour),
+        pixels_of_hue(&wireframe, colour),
+    );
+    println!("the box: {filled} pixels solid, {lines} in wireframe");
+    assert!(
+        lines > 0 && 3 * lines < filled,
+        "{lines} line pixels, {filled} solid"
+    );
+}
+
+#[test]
+fn a_convex_hull_is_drawn_where_its_pose_projects() {
+    // A wedge (a triangular prism), tilted: its centre of mass is off the points' origin, so
+    // the body sits in the hull's own frame (convex_hull.rs), as a barrel of the scenes does.
+    let mut points = Vec::new();
+    for z in [-0.6, 0.6] {
+        points.extend([
+            Vec3::new(-0.7, 0.0, z),
+            Vec3::new(0.7, 0.0, z),
+            Vec3::new(0.0, 1.0, z),
+        ]);
+    }
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let hull = world
+        .add_body(
+            BodyDesc::dynamic(Shape::convex_hull(&points).unwrap())
+                .position(Vec3::new(0.3, 0.4, 0.0))
+                .rotation(tumble::math::Quat::from_rotation_y(0.5)),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
+        .unwrap();
+    assert_background(image.pixel(0, 0), (0, 0));
+    // Its centre of mass, inside it, lands on a lit face of it.
+    let centre = world.pose(hull).unwrap().position;
+    let at = project(&camera, centre);
+    assert_hue(
+        image.pixel(at.0, at.1),
+        at,
+        body_colour(hull.index() as usize),
+    );
+    // Above the wedge's ridge, the floor and the sky: not the hull.
+    let above = project(&camera, centre + Vec3::new(0.0, 1.2, 0.0));
+    assert_background(image.pixel(above.0, above.1), above);
+}
+
+#[test]
+fn a_compound_is_drawn_child_by_child_where_its_pose_projects() {
+    use tumble::math::{Quat, Transform};
+    use tumble::shape::CompoundChild;
+    // A dumbbell: two balls on a rod, turned about the vertical.
+    let ball = |x: f32| CompoundChild {
+        shape: Shape::sphere(0.35),
+        pose: Transform::new(Vec3::new(x, 0.0, 0.0), Quat::IDENTITY),
+    };
+    let rod = CompoundChild {
+        shape: Shape::capsule(0.08, 0.6),
+        pose: Transform::new(
+            Vec3::ZERO,
+            Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        ),
+    };
+    let dumbbell = Shape::compound(vec![ball(-0.9), rod, ball(0.9)]).unwrap();
+    let (position, rotation) = (Vec3::new(0.0, 0.5, 0.0), Quat::from_rotation_y(0.4));
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let body = world
+        .add_body(
+            BodyDesc::dynamic(dumbbell)
+                .position(position)
+                .rotation(rotation),
+        )
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(0.5, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let image = offscreen
+        .render(&context, &world, &camera, DrawSettings::default(), &[])
+        .unwrap();
+    assert_background(image.pixel(0, 0), (0, 0));
+    let colour = body_colour(body.index() as usize);
+    let pose = Transform::new(position, rotation);
+    // Each ball where its centre projects (its point nearest the camera, which is lit)...
+    for x in [-0.9, 0.9] {
+        let centre = pose.transform_point(Vec3::new(x, 0.0, 0.0));
+        let front = centre + (camera.eye() - centre).normalize() * 0.3;
+        let at = project(&camera, front);
+        assert_hue(image.pixel(at.0, at.1), at, colour);
+    }
+    // ... and above the thin rod's middle, nothing of it: the floor, not the body.
+    let above_rod = project(&camera, pose.transform_point(Vec3::new(0.0, 0.3, 0.0)));
+    let seen =
+        chromaticity([0, 1, 2].map(|c| decode_srgb(image.pixel(above_rod.0, above_rod.1)[c])));
+    assert!(
+        seen.dot(chromaticity(colour)) < 0.99,
+        "the body's colour above its rod at {above_rod:?}"
     );
 }
 
@@ -255,19 +427,127 @@ fn a_box_shadows_the_floor_under_it() {
     );
 }
 
-/// Pixels inside (left, top, right, bottom) that have the overlay text's colour.
-fn text_pixels(image: &Image, (left, top, right, bottom): (u32, u32, u32, u32)) -> usize {
-    let text = TEXT_COLOUR.map(|c| (encode_srgb(c) * 255.0).round() as i32);
+/// Pixels inside (left, top, right, bottom) of the unlit linear `colour` (text, lines).
+fn pixels_of(
+    image: &Image,
+    colour: [f32; 3],
+    (left, top, right, bottom): (u32, u32, u32, u32),
+) -> usize {
+    let encoded = colour.map(|c| (encode_srgb(c) * 255.0).round() as i32);
     let mut count = 0;
     for y in top..bottom {
         for x in left..right {
             let pixel = image.pixel(x, y);
-            if (0..3).all(|c| (i32::from(pixel[c]) - text[c]).abs() <= 2) {
+            if (0..3).all(|c| (i32::from(pixel[c]) - encoded[c]).abs() <= 2) {
                 count += 1;
             }
         }
     }
     count
+}
+
+/// Pixels inside the rectangle that have the overlay text's colour.
+fn text_pixels(image: &Image, rect: (u32, u32, u32, u32)) -> usize {
+    pixels_of(image, TEXT_COLOUR, rect)
+}
+
+/// The 3 x 3 pixels around `at`: a line through a point may be rasterized a pixel beside it.
+fn around((x, y): (u32, u32)) -> (u32, u32, u32, u32) {
+    (x.saturating_sub(1), y.saturating_sub(1), x + 2, y + 2)
+}
+
+const WHOLE: (u32, u32, u32, u32) = (0, 0, WIDTH, HEIGHT);
+
+fn contacts_and_constraints() -> DrawSettings {
+    DrawSettings {
+        contacts: true,
+        ..DrawSettings::default()
+    }
+}
+
+#[test]
+fn joints_are_drawn_over_the_bodies_they_join() {
+    // Two boxes hinged at the point between them, seen from the front; not stepped.
+    let mut world = World::new(StepConfig::default()).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let (centre_a, anchor) = (Vec3::new(-1.0, 2.0, 0.0), Vec3::new(0.0, 2.0, 0.0));
+    let cube = Shape::cuboid(Vec3::splat(0.5));
+    let a = world
+        .add_body(BodyDesc::dynamic(cube.clone()).position(centre_a))
+        .unwrap();
+    let b = world
+        .add_body(BodyDesc::dynamic(cube).position(Vec3::new(1.0, 2.0, 0.0)))
+        .unwrap();
+    let hinge = JointKind::Hinge {
+        axis: Vec3::Z,
+        limits: None,
+        motor: None,
+    };
+    world
+        .add_joint(JointDesc::new(hinge, a, b, anchor))
+        .unwrap();
+    let camera = Camera::look_at(Vec3::new(0.0, 2.5, 5.0), Vec3::new(0.0, 2.0, 0.0));
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut render = |settings| {
+        offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap()
+    };
+    let (without, with) = (
+        render(DrawSettings::default()),
+        render(contacts_and_constraints()),
+    );
+    // The line from A's centre to the anchor runs inside A, behind its front face: drawn
+    // over it with the constraints, and only then.
+    let inside_a = project(&camera, centre_a.lerp(anchor, 0.25));
+    assert_hue(
+        without.pixel(inside_a.0, inside_a.1),
+        inside_a,
+        body_colour(a.index() as usize),
+    );
+    assert_eq!(pixels_of(&without, JOINT_COLOUR, WHOLE), 0);
+    assert!(
+        pixels_of(&with, JOINT_COLOUR, around(inside_a)) > 0,
+        "no joint line at {inside_a:?}"
+    );
+    // The anchor's cross, in the gap between the boxes, where the ground is behind it.
+    let at = project(&camera, anchor);
+    assert!(
+        pixels_of(&with, JOINT_COLOUR, around(at)) > 0,
+        "no anchor at {at:?}"
+    );
+}
+
+#[test]
+fn the_ragdolls_show_their_joints() {
+    let mut world = tumble::scene::builtin("ragdolls", 0.01)
+        .unwrap()
+        .build()
+        .unwrap();
+    let joints = world.joints().count();
+    assert!(joints >= 10, "{joints} joints");
+    for _ in 0..30 {
+        world.step();
+    }
+    let camera = Camera::framing(&world, WIDTH as f32 / HEIGHT as f32);
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    let mut joint_pixels = |settings| {
+        let image = offscreen
+            .render(&context, &world, &camera, settings, &[])
+            .unwrap();
+        pixels_of(&image, JOINT_COLOUR, WHOLE)
+    };
+    assert_eq!(joint_pixels(DrawSettings::default()), 0);
+    // A line or two of pixels along each limb at least.
+    let drawn = joint_pixels(contacts_and_constraints());
+    assert!(
+        drawn > 2 * joints,
+        "{drawn} joint pixels for {joints} joints"
+    );
 }
 
 #[test]

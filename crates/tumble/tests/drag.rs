@@ -105,6 +105,37 @@ fn a_drag_weaker_than_the_weight_cannot_lift_the_box() {
 }
 
 #[test]
+fn the_drag_anchors_are_the_dragged_point_and_the_target() {
+    let mut world = world_with_ground(0.5, 0.0);
+    let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));
+    assert_eq!(world.drag_anchors(), None);
+    let corner = Vec3::splat(0.5);
+    let target = Vec3::new(1.0, 2.0, 0.0);
+    world
+        .set_drag_target(body, corner, target, 10.0 * G)
+        .unwrap();
+    assert_eq!(
+        world.drag_anchors(),
+        Some((Vec3::new(0.5, 1.0, 0.5), target))
+    );
+    // The point moves with the body; the target stays.
+    for _ in 0..10 {
+        world.step();
+    }
+    let (point, pulled_to) = world.drag_anchors().unwrap();
+    assert_eq!(point, dragged_point(&world, body, corner));
+    assert_eq!(pulled_to, target);
+    world.clear_drag();
+    assert_eq!(world.drag_anchors(), None);
+    // Removing the dragged body ends its drag.
+    world
+        .set_drag_target(body, corner, target, 10.0 * G)
+        .unwrap();
+    world.remove_body(body).unwrap();
+    assert_eq!(world.drag_anchors(), None);
+}
+
+#[test]
 fn bad_drags_are_errors() {
     let mut world = world_with_ground(0.5, 0.0);
     let body = unit_box(&mut world, Vec3::new(0.0, 0.5, 0.0));

@@ -621,6 +621,16 @@ impl World {
         Ok(())
     }
 
+    /// While a drag is set: the dragged point, on the body at its current pose, and the target
+    /// it is pulled towards, both in the world frame (m). Their distance is how far the drag
+    /// trails; a viewer draws the line between them.
+    pub fn drag_anchors(&self) -> Option<(Vec3, Vec3)> {
+        self.drag.map(|drag| {
+            let pose = self.poses[drag.body as usize].transform();
+            (pose.transform_point(drag.local_anchor), drag.target)
+        })
+    }
+
     /// Lets go of the dragged body.
     pub fn clear_drag(&mut self) {
         self.drag = None;
