@@ -22,6 +22,8 @@ pub struct GpuVec<T: bytemuck::Pod> {
     len: usize,
     capacity: usize,
     staging: Option<wgpu::Buffer>,
+    /// Elements the last [`GpuVec::encode_download`] copies into `staging`.
+    staged: usize,
     element: PhantomData<T>,
 }
 
@@ -48,6 +50,7 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             len: 0,
             capacity,
             staging: None,
+            staged: 0,
             element: PhantomData,
         })
     }
@@ -163,9 +166,23 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         context: &GpuContext,
         out: &mut Vec<T>,
     ) -> Result<(), GpuError> {
-        out.clear();
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("download"),
+            });
+        self.encode_download(context, &mut encoder);
+        context.queue.submit([encoder.finish()]);
+        self.read_download(context, out)
+    }
+
+    /// Records the copy of the `len` elements into the vector's staging buffer at the end of
+    /// `encoder`, so that a stage's kernels and its read-backs are one submission and one
+    /// wait; once it is submitted, [`read_download`](Self::read_download) hands them over.
+    pub fn encode_download(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        self.staged = self.len;
         if self.len == 0 {
-            return Ok(());
+            return;
         }
         let bytes = Self::bytes(self.len);
         if self
@@ -185,16 +202,26 @@ impl<T: bytemuck::Pod> GpuVec<T> {
                 mapped_at_creation: false,
             })
         });
-        let mut encoder = context
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("download"),
-            });
         encoder.copy_buffer_to_buffer(&self.buffer, 0, staging, 0, bytes);
-        context.queue.submit([encoder.finish()]);
-        read_mapped(context, staging, bytes, self.label, |bytes| {
-            out.extend_from_slice(bytemuck::cast_slice(bytes));
-        })
+    }
+
+    /// The elements that the last [`encode_download`](Self::encode_download) copied, into
+    /// `out`, after its submission: waits for it (which costs nothing when the submission's
+    /// wait came first).
+    pub fn read_download(&self, context: &GpuContext, out: &mut Vec<T>) -> Result<(), GpuError> {
+        out.clear();
+        let Some(staging) = self.staging.as_ref().filter(|_| self.staged > 0) else {
+            return Ok(());
+        };
+        read_mapped(
+            context,
+            staging,
+            Self::bytes(self.staged),
+            self.label,
+            |bytes| {
+                out.extend_from_slice(bytemuck::cast_slice(bytes));
+            },
+        )
     }
 }
 

@@ -677,20 +677,40 @@ impl GpuStages {
         // and a few more, and the rest only when some constraint is still unbatched after them.
         let rounds = self.batching_rounds;
         let batching = &mut self.batching;
-        run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-            batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
-        })?;
+        run_passes(
+            context,
+            &mut self.profiler,
+            profiler,
+            &BATCHING,
+            |encoder, timer| {
+                encode_pass(encoder, timer, BATCHING.kernel, |pass| {
+                    batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
+                })?;
+                batching.encode_read_back(context, encoder);
+                Ok(())
+            },
+        )?;
         let start = Instant::now();
-        let complete = self.batching.read_back(context, coloring)?;
+        let complete = self.batching.finish_read_back(context, coloring)?;
         record_copy(profiler, BATCHING.download, elapsed_ms(start));
         if !complete {
-            let batching = &self.batching;
-            run_pass(context, &mut self.profiler, profiler, &BATCHING, |pass| {
-                batching.encode_rest(pass, rounds);
-                Ok(())
-            })?;
+            let batching = &mut self.batching;
+            run_passes(
+                context,
+                &mut self.profiler,
+                profiler,
+                &BATCHING,
+                |encoder, timer| {
+                    encode_pass(encoder, timer, BATCHING.kernel, |pass| {
+                        batching.encode_rest(pass, rounds);
+                        Ok(())
+                    })?;
+                    batching.encode_read_back(context, encoder);
+                    Ok(())
+                },
+            )?;
             let start = Instant::now();
-            let complete = self.batching.read_back(context, coloring)?;
+            let complete = self.batching.finish_read_back(context, coloring)?;
             debug_assert!(complete, "every round and the finish ran");
             record_copy(profiler, BATCHING.download, elapsed_ms(start));
         }
@@ -855,7 +875,7 @@ impl GpuStages {
             }
         };
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
-        let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
+        let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
         let joint_rows = &mut self.joint_rows;
         let (device_offsets, device_joint_offsets) =
@@ -865,44 +885,68 @@ impl GpuStages {
         } else {
             &SOLVER
         };
-        run_pass(context, &mut self.profiler, profiler, spans, |pass| {
-            if !joint_order.is_empty() {
-                joint_rows.encode_gather(context, pass);
-            }
-            let joint_rows = &*joint_rows;
-            batched.encode_gather(
-                context,
-                pass,
-                &rows.constraints,
-                &joint_rows.batched,
-                &joint_rows.impulses,
-            );
-            let device_batched = DeviceBatched {
-                contacts: &batched.constraints,
-                contact_offsets: device_offsets,
-                joints: &joint_rows.batched,
-                joint_offsets: device_joint_offsets,
-                host_contact_offsets: offsets,
-                host_joint_offsets: joint_offsets,
-                has_overflow,
-            };
-            match jacobi {
-                Some(jacobi) => {
-                    jacobi.encode(pass, device_bodies, &device_batched, settings, restitution)
-                }
-                None => solver.encode(pass, device_bodies, &device_batched, settings, restitution),
-            };
-            batched.encode_read_impulses(pass);
-            Ok(())
-        })?;
+        let solver_bodies = &mut self.solver_bodies;
+        run_passes(
+            context,
+            &mut self.profiler,
+            profiler,
+            spans,
+            |encoder, timer| {
+                encode_pass(encoder, timer, spans.kernel, |pass| {
+                    if !joint_order.is_empty() {
+                        joint_rows.encode_gather(context, pass);
+                    }
+                    let joint_rows = &*joint_rows;
+                    batched.encode_gather(
+                        context,
+                        pass,
+                        &rows.constraints,
+                        &joint_rows.batched,
+                        &joint_rows.impulses,
+                    );
+                    let device_batched = DeviceBatched {
+                        contacts: &batched.constraints,
+                        contact_offsets: device_offsets,
+                        joints: &joint_rows.batched,
+                        joint_offsets: device_joint_offsets,
+                        host_contact_offsets: offsets,
+                        host_joint_offsets: joint_offsets,
+                        has_overflow,
+                    };
+                    match jacobi {
+                        Some(jacobi) => jacobi.encode(
+                            pass,
+                            solver_bodies,
+                            &device_batched,
+                            settings,
+                            restitution,
+                        ),
+                        None => solver.encode(
+                            pass,
+                            solver_bodies,
+                            &device_batched,
+                            settings,
+                            restitution,
+                        ),
+                    };
+                    batched.encode_read_impulses(pass);
+                    Ok(())
+                })?;
+                // The read-backs ride in the kernels' submission: one wait for the stage.
+                solver_bodies.encode_download(context, encoder);
+                batched.impulses.encode_download(context, encoder);
+                batched.joint_impulses.encode_download(context, encoder);
+                Ok(())
+            },
+        )?;
         let start = Instant::now();
         self.solver_bodies
-            .download_into(context, &mut self.downloaded_bodies)?;
+            .read_download(context, &mut self.downloaded_bodies)?;
         bodies.copy_from_slice(&self.downloaded_bodies);
-        self.batched.impulses.download_into(context, impulses)?;
+        self.batched.impulses.read_download(context, impulses)?;
         self.batched
             .joint_impulses
-            .download_into(context, joint_impulses)?;
+            .read_download(context, joint_impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.solved_this_step = true;
         Ok(())

@@ -255,14 +255,38 @@ impl GpuBatching {
         context: &GpuContext,
         coloring: &mut Coloring,
     ) -> Result<bool, GpuError> {
-        self.colors.download_into(context, &mut self.host_colors)?;
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("batching read-back"),
+            });
+        self.encode_read_back(context, &mut encoder);
+        context.queue.submit([encoder.finish()]);
+        self.finish_read_back(context, coloring)
+    }
+
+    /// The copies of [`Self::read_back`], recorded at the end of the batching's own encoder so
+    /// that the kernels and the read-back are one submission; [`Self::finish_read_back`] then
+    /// reads them.
+    pub fn encode_read_back(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        self.colors.encode_download(context, encoder);
+        self.tally.encode_download(context, encoder);
+    }
+
+    /// [`Self::read_back`] after [`Self::encode_read_back`]'s submission.
+    pub fn finish_read_back(
+        &mut self,
+        context: &GpuContext,
+        coloring: &mut Coloring,
+    ) -> Result<bool, GpuError> {
+        self.colors.read_download(context, &mut self.host_colors)?;
         if self.host_colors.contains(&UNBATCHED) {
             return Ok(false);
         }
         coloring.rounds = if self.host_colors.is_empty() {
             0
         } else {
-            self.tally.download_into(context, &mut self.host_tally)?;
+            self.tally.read_download(context, &mut self.host_tally)?;
             self.host_tally[0][2] as usize
         };
         coloring.colors.clear();
