@@ -28,7 +28,7 @@ use crate::dynamics::body::BODY_WGSL;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+    Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
 use crate::stages::constraints::{
@@ -54,8 +54,17 @@ const BINDINGS: [Binding; 6] = [
 /// a workgroup's threads over a batch about as much. The CPU's threshold (2 blocks of 64) applied to the GPU, and
 /// measured there: on an H100, falling-boxes' solver kernels took 1.8–2.7 ms a step at 3k
 /// bodies and 3.1 ms at 30k with 128, 2.0 and 3.3 ms with 512, 3.2 and 6.8 ms with 2048 (a
-/// workgroup then walks batches of a thousand), the results bitwise the same.
+/// workgroup then walks batches of a thousand), the results bitwise the same (workgroups of 256
+/// then; not measured again with [`SOLVER_WORKGROUP`]).
 pub const SMALL_BATCH: u32 = 128;
+
+/// Threads per workgroup of the kernels of `solver.wgsl`. A thread solves one constraint and
+/// waits on memory most of the time, and a batch holds a few hundred to a few thousand
+/// constraints: in workgroups of 64 a batch spreads over four times as many multiprocessors
+/// as in workgroups of 256. Measured on an H200 (falling-boxes, the same results bitwise):
+/// the solver's kernels took 1.25–1.86 ms a step at 3k bodies and 5.9–6.2 ms at 100k with 64,
+/// 1.41–2.12 and 6.4–7.1 with 128, 1.88–2.50 and 9.4–10.0 with 256.
+pub const SOLVER_WORKGROUP: u32 = 64;
 
 /// Mirrors `SolverParams` in `solver.wgsl`.
 #[repr(C)]
@@ -77,6 +86,7 @@ const _: () = assert!(size_of::<SolverParams>() == 48);
 /// The solver's WGSL: body and constraint structs, integration helpers, kernels.
 pub fn wgsl() -> Source {
     Source::new()
+        .constant_u32("SOLVER_WORKGROUP", SOLVER_WORKGROUP)
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
@@ -408,7 +418,7 @@ impl SolverEncoder {
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
         };
-        let body_groups = workgroups_for(bodies.len(), WORKGROUP_SIZE);
+        let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
         let stage_groups: Vec<u32> = stages
             .iter()
             .map(|stage| {
@@ -420,7 +430,7 @@ impl SolverEncoder {
                         host_joint_offsets,
                         stage.first as usize,
                     );
-                    workgroups_for(size as usize, WORKGROUP_SIZE)
+                    workgroups_for(size as usize, SOLVER_WORKGROUP)
                 }
             })
             .collect();

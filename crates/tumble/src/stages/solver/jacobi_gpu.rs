@@ -15,7 +15,7 @@
 //! deterministic, since each thread writes its own slots and each body sums its slots in a
 //! fixed order.
 
-use super::gpu::{DeviceBatched, HostArrays, SolverParams};
+use super::gpu::{DeviceBatched, HostArrays, SOLVER_WORKGROUP, SolverParams};
 use super::jacobi::{Adjacency, VelocityDelta};
 use super::{Batched, SolverBody, SolverSettings};
 use crate::gpu::buffer::GpuVec;
@@ -269,7 +269,7 @@ impl JacobiEncoder {
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
         };
-        let body_groups = workgroups_for(bodies.len(), WORKGROUP_SIZE);
+        let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
         let contact_groups = workgroups_for(self.contact_count, WORKGROUP_SIZE);
         let joint_groups = workgroups_for(self.joint_count, WORKGROUP_SIZE);
         let joints = self.joint_kernels.as_ref().filter(|_| self.joint_count > 0);

@@ -370,7 +370,7 @@ fn sweep(kind: u32, local: u32, thread: u32) {
     if params.sequential == WALK {
         for (var batch = params.first_batch; batch < params.end_batch; batch++) {
             for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                index += WORKGROUP_SIZE) {
+                index += SOLVER_WORKGROUP) {
                 apply_sweep(kind, index);
             }
             storageBarrier();
@@ -415,7 +415,7 @@ fn sweep_mixed(kind: u32, local: u32, thread: u32) {
         var step = 1u;
         if params.sequential == WALK {
             start = local;
-            step = WORKGROUP_SIZE;
+            step = SOLVER_WORKGROUP;
         } else if params.sequential == 0u {
             start = thread;
             stop = min(thread + 1u, size);
@@ -432,72 +432,72 @@ fn sweep_mixed(kind: u32, local: u32, thread: u32) {
     }
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn warm_start(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(WARM_START, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+    sweep(WARM_START, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn solve(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(SOLVE, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+    sweep(SOLVE, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn restitution(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+    sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn warm_start_mixed(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep_mixed(WARM_START, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+    sweep_mixed(WARM_START, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn solve_mixed(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep_mixed(SOLVE, local, flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local);
+    sweep_mixed(SOLVE, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
 }
 
 // Gravity into the velocities of the dynamic bodies.
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn integrate_velocities(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    let index = flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local;
     if index < params.body_count && bodies[index].inverse_mass > 0.0 {
         bodies[index].linear_velocity += params.gravity * params.h;
     }
 }
 
 // The velocities of the dynamic bodies into their delta positions and rotations.
-@compute @workgroup_size(WORKGROUP_SIZE)
+@compute @workgroup_size(SOLVER_WORKGROUP)
 fn integrate_positions(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    let index = flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local;
     if index >= params.body_count {
         return;
     }
