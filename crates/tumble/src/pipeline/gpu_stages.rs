@@ -676,43 +676,27 @@ impl GpuStages {
         // Most of the 64 rounds find nothing left: encode as many as the last step needed
         // and a few more, and the rest only when some constraint is still unbatched after them.
         let rounds = self.batching_rounds;
-        let batching = &mut self.batching;
-        run_passes(
+        let complete = batching_pass(
             context,
-            &mut self.profiler,
-            profiler,
-            &BATCHING,
-            |encoder, timer| {
-                encode_pass(encoder, timer, BATCHING.kernel, |pass| {
-                    batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
-                })?;
-                batching.encode_read_back(context, encoder);
-                Ok(())
+            (&mut self.profiler, profiler),
+            &mut self.batching,
+            coloring,
+            |batching, pass| {
+                batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
             },
         )?;
-        let start = Instant::now();
-        let complete = self.batching.finish_read_back(context, coloring)?;
-        record_copy(profiler, BATCHING.download, elapsed_ms(start));
         if !complete {
-            let batching = &mut self.batching;
-            run_passes(
+            let complete = batching_pass(
                 context,
-                &mut self.profiler,
-                profiler,
-                &BATCHING,
-                |encoder, timer| {
-                    encode_pass(encoder, timer, BATCHING.kernel, |pass| {
-                        batching.encode_rest(pass, rounds);
-                        Ok(())
-                    })?;
-                    batching.encode_read_back(context, encoder);
+                (&mut self.profiler, profiler),
+                &mut self.batching,
+                coloring,
+                |batching, pass| {
+                    batching.encode_rest(pass, rounds);
                     Ok(())
                 },
             )?;
-            let start = Instant::now();
-            let complete = self.batching.finish_read_back(context, coloring)?;
             debug_assert!(complete, "every round and the finish ran");
-            record_copy(profiler, BATCHING.download, elapsed_ms(start));
         }
         self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
         Ok(())
@@ -1018,6 +1002,34 @@ fn run_passes(
     gpu_profiler.collect(context, profiler)
 }
 
+/// One submission of batching kernels (`encode`) with the colors' read-back: whether every
+/// constraint has a color ([`GpuBatching::finish_read_back`]).
+fn batching_pass(
+    context: &GpuContext,
+    (gpu_profiler, profiler): (&mut GpuProfiler, &mut Profiler),
+    batching: &mut GpuBatching,
+    coloring: &mut Coloring,
+    encode: impl FnOnce(&mut GpuBatching, &mut wgpu::ComputePass<'_>) -> Result<(), GpuError>,
+) -> Result<bool, GpuError> {
+    run_passes(
+        context,
+        gpu_profiler,
+        profiler,
+        &BATCHING,
+        |encoder, timer| {
+            encode_pass(encoder, timer, BATCHING.kernel, |pass| {
+                encode(batching, pass)
+            })?;
+            batching.encode_read_back(context, encoder);
+            Ok(())
+        },
+    )?;
+    let start = Instant::now();
+    let complete = batching.finish_read_back(context, coloring)?;
+    record_copy(profiler, BATCHING.download, elapsed_ms(start));
+    Ok(complete)
+}
+
 /// Uploads poses and velocities once a step, and the colliders when they changed.
 fn upload_bodies(
     context: &GpuContext,
@@ -1053,6 +1065,47 @@ mod tests {
     use crate::pipeline::config::{Softness, StepConfig};
     use crate::stages::constraints::world_inverse_inertia;
     use crate::{BodyDesc, Shape, World};
+
+    /// The batching stage encodes the rounds the last batching needed and a few more: a chain
+    /// that needs more than encoded takes the second pass and gives the CPU's colors all the
+    /// same, and the next step encodes what it needed.
+    #[test]
+    fn batching_rounds_follow_what_the_last_batching_needed() {
+        let mut gpu = GpuStages::new(
+            GpuContext::shared()
+                .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
+        )
+        .unwrap();
+        // A chain of bodies, ranked by index (all "ordered"): each round batches one link.
+        let links = 12u32;
+        let chain = || (0..links).map(|i| (i, i + 1));
+        let mut cpu = Coloring::default();
+        crate::stages::batching::color_constraints(
+            chain(),
+            links as usize + 1,
+            links as usize,
+            Batcher::Rounds,
+            &mut cpu,
+        );
+        assert_eq!(cpu.rounds, links as usize, "one link a round");
+        let mut profiler = Profiler::default();
+        for first_rounds in [1, links as usize, MAX_ROUNDS] {
+            gpu.batching_rounds = first_rounds;
+            let mut colored = Coloring::default();
+            gpu.color_constraints(
+                &mut profiler,
+                chain(),
+                links as usize + 1,
+                links as usize,
+                Batcher::Rounds,
+                &mut colored,
+            )
+            .unwrap();
+            assert_eq!(colored.colors, cpu.colors, "from {first_rounds} rounds");
+            assert_eq!(colored.rounds, cpu.rounds, "from {first_rounds} rounds");
+            assert_eq!(gpu.batching_rounds, links as usize + BATCHING_ROUND_SLACK);
+        }
+    }
 
     /// The rows read from the GPU narrowphase's output are the rows read from the host's copy
     /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
