@@ -361,6 +361,46 @@ fn bunnies_run_at_a_tiny_scale_on_both_devices() {
     assert_user_error(&["run", "bunnies", "--scale", "1e9"], "bodies");
 }
 
+/// Bunnies beyond the host's memory (scale 300: 68 GB, most of it the grid's cells; at 1000
+/// the grid has too many cells): one error line naming the bunnies and the bytes, a failing
+/// exit, no abort. The child's address space is capped (RLIMIT_AS, 2 GiB) so that on a
+/// machine with the 68 GB free the allocator refuses instead of the arrays being made.
+#[cfg(target_os = "linux")]
+#[test]
+fn bunnies_beyond_host_memory_are_an_error() {
+    use std::os::unix::process::CommandExt;
+    let args = ["run", "bunnies", "--scale", "300", "--device", "cpu"];
+    let mut command = Command::new(env!("CARGO_BIN_EXE_tumble"));
+    command.args(args);
+    // SAFETY: setrlimit is async-signal-safe and touches nothing of the parent.
+    unsafe {
+        command.pre_exec(|| {
+            let mut limit = libc::rlimit {
+                rlim_cur: 0,
+                rlim_max: 0,
+            };
+            // The soft limit only, within the hard one.
+            if libc::getrlimit(libc::RLIMIT_AS, &mut limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            limit.rlim_cur = limit.rlim_max.min(2 << 30);
+            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let output = command.output().expect("tumble runs");
+    let message = stderr(&output);
+    assert!(!output.status.success(), "{args:?} succeeded");
+    assert!(!message.contains("panicked"), "{args:?}: {message}");
+    assert_eq!(message.trim_end().lines().count(), 1, "{message}");
+    assert!(
+        message.contains("1228800 bodies of 292454400 particles") && message.contains("bytes"),
+        "{message}"
+    );
+}
+
 /// `tumble run particles` on both devices: the profile shows the pipeline's stages (on the GPU
 /// as timestamped kernel passes, with the copies), the JSON summary its fields, and the two
 /// devices end in the same state.

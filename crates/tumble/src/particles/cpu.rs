@@ -5,7 +5,7 @@ use std::collections::TryReserveError;
 
 use rayon::prelude::*;
 
-use crate::particles::host_memory::try_with_capacity;
+use crate::particles::host_memory::{try_filled, try_to_vec, try_with_capacity};
 use crate::particles::{EMPTY_CELL, NeighbourSearch, Particle, ParticleConfig, ParticleParams};
 use crate::profile::Profiler;
 
@@ -214,7 +214,7 @@ pub(crate) struct Grid {
 impl Grid {
     /// A grid with room for `count` particles in `cells` cells: its stages then allocate
     /// nothing.
-    fn with_capacity(count: usize, cells: usize) -> Result<Self, TryReserveError> {
+    pub(crate) fn with_capacity(count: usize, cells: usize) -> Result<Self, TryReserveError> {
         Ok(Self {
             pairs: try_with_capacity(count)?,
             cell_start: try_with_capacity(cells)?,
@@ -325,10 +325,8 @@ impl CpuParticles {
     /// is returned, never an abort, and a step allocates nothing.
     pub fn new(config: &ParticleConfig, particles: &[Particle]) -> Result<Self, TryReserveError> {
         let count = particles.len();
-        let mut state = try_with_capacity(count)?;
-        state.extend_from_slice(particles);
-        let mut updated = try_with_capacity(count)?;
-        updated.resize(count, Particle::default());
+        let state = try_to_vec(particles)?;
+        let updated = try_filled(count, Particle::default())?;
         let forces = match config.search {
             NeighbourSearch::Full27 => Vec::new(),
             NeighbourSearch::Symmetric14 => try_with_capacity(count)?,

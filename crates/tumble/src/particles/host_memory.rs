@@ -33,15 +33,20 @@ fn available_in(meminfo: &str) -> Option<u64> {
     Some((kilobytes("MemAvailable")? + swap) * 1024)
 }
 
+/// What is available, when `bytes` is more than it (known): the request must be refused.
+pub(crate) fn shortfall(bytes: u64, available: Option<u64>) -> Option<u64> {
+    available.filter(|&available| bytes > available)
+}
+
 /// Refuses `bytes` of host memory for `count` particles when more than `available` (known).
 pub(crate) fn check(count: usize, bytes: u64, available: Option<u64>) -> Result<(), ParticleError> {
-    match available {
-        Some(available) if bytes > available => Err(ParticleError::HostMemory {
+    match shortfall(bytes, available) {
+        Some(available) => Err(ParticleError::HostMemory {
             count,
             bytes,
             available,
         }),
-        _ => Ok(()),
+        None => Ok(()),
     }
 }
 
@@ -52,6 +57,25 @@ pub(crate) fn try_with_capacity<T>(
 ) -> Result<Vec<T>, std::collections::TryReserveError> {
     let mut vector = Vec::new();
     vector.try_reserve_exact(len)?;
+    Ok(vector)
+}
+
+/// `len` copies of `value`, or the allocator's refusal (never an abort).
+pub(crate) fn try_filled<T: Clone>(
+    len: usize,
+    value: T,
+) -> Result<Vec<T>, std::collections::TryReserveError> {
+    let mut vector = try_with_capacity(len)?;
+    vector.resize(len, value);
+    Ok(vector)
+}
+
+/// A copy of `items`, or the allocator's refusal (never an abort).
+pub(crate) fn try_to_vec<T: Clone>(
+    items: &[T],
+) -> Result<Vec<T>, std::collections::TryReserveError> {
+    let mut vector = try_with_capacity(items.len())?;
+    vector.extend_from_slice(items);
     Ok(vector)
 }
 

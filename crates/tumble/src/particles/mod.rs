@@ -345,6 +345,29 @@ pub enum ParticleError {
         gb = gigabytes(.bytes)
     )]
     HostAllocation { count: usize, bytes: u64 },
+    #[error(
+        "{bodies} bodies of {particles} particles in all need {bytes} bytes ({needed_gb:.1} GB) \
+         of host memory, but {available} bytes ({available_gb:.1} GB) are available (free \
+         memory, reclaimable cache and swap); use fewer bodies",
+        needed_gb = gigabytes(.bytes),
+        available_gb = gigabytes(.available)
+    )]
+    BodyHostMemory {
+        bodies: usize,
+        particles: usize,
+        bytes: u64,
+        available: u64,
+    },
+    #[error(
+        "the host refused to allocate the {bytes} bytes ({gb:.1} GB) that {bodies} bodies of \
+         {particles} particles in all need; use fewer bodies",
+        gb = gigabytes(.bytes)
+    )]
+    BodyHostAllocation {
+        bodies: usize,
+        particles: usize,
+        bytes: u64,
+    },
     #[error("{given} initial particles were given for a system of {expected}")]
     ParticleCount { given: usize, expected: usize },
     #[error("a body must have at least one particle (its shape is empty at this radius)")]

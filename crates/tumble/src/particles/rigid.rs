@@ -15,9 +15,12 @@
 //!
 //! Both executors run the same arithmetic on the same `#[repr(C)]` data.
 
+use std::collections::TryReserveError;
+
 use bytemuck::{Pod, Zeroable};
 
-use crate::particles::{ParticleConfig, ParticleDevice, ParticleError};
+use crate::particles::host_memory::{self, try_with_capacity};
+use crate::particles::{MAX_PARTICLES, ParticleConfig, ParticleDevice, ParticleError};
 use crate::profile::Profiler;
 
 use super::{rigid_cpu, rigid_gpu};
@@ -294,13 +297,29 @@ impl RigidConfig {
         let radius = BUNNY_PARTICLE_RADIUS;
         let shape = voxelize(&Solid::bunny(BUNNY_LENGTH), radius, 1.0)?;
         let count = count.max(1);
-        // Checked before anything is allocated for them.
+        // Checked before anything is allocated for them: the counts, then the host memory of
+        // the list of bodies (the system's arrays are checked when it is built).
         if count > MAX_BODIES {
             return Err(ParticleError::TooManyBodies {
                 count,
                 max: MAX_BODIES,
             });
         }
+        let particles = count.saturating_mul(shape.offsets.len());
+        if particles > MAX_PARTICLES {
+            return Err(ParticleError::TooManyParticles {
+                count: particles,
+                max: MAX_PARTICLES,
+            });
+        }
+        let bytes = count as u64 * size_of::<(usize, RigidBody)>() as u64;
+        check_host_memory(count, particles, bytes)?;
+        let mut bodies =
+            try_with_capacity(count).map_err(|_| ParticleError::BodyHostAllocation {
+                bodies: count,
+                particles,
+                bytes,
+            })?;
         // Any turn of a bunny fits in a cube this wide: its farthest particle, both ways.
         let reach = shape
             .offsets
@@ -314,21 +333,19 @@ impl RigidConfig {
         let cell = 2.0 * radius;
         let side = (columns as f32 * spacing / cell).ceil() as u32 + 2;
         let height = (layers as f32 * spacing / cell).ceil() as u32 + 4;
-        let bodies = (0..count)
-            .map(|index| {
-                let (x, z, y) = (
-                    index % columns,
-                    (index / columns) % columns,
-                    index / (columns * columns),
-                );
-                let centre = [
-                    cell + (x as f32 + 0.5) * spacing,
-                    4.0 * cell + (y as f32 + 0.5) * spacing,
-                    cell + (z as f32 + 0.5) * spacing,
-                ];
-                (0, RigidBody::at(centre, turn(index)))
-            })
-            .collect();
+        bodies.extend((0..count).map(|index| {
+            let (x, z, y) = (
+                index % columns,
+                (index / columns) % columns,
+                index / (columns * columns),
+            );
+            let centre = [
+                cell + (x as f32 + 0.5) * spacing,
+                4.0 * cell + (y as f32 + 0.5) * spacing,
+                cell + (z as f32 + 0.5) * spacing,
+            ];
+            (0, RigidBody::at(centre, turn(index)))
+        }));
         Ok(Self {
             particles: ParticleConfig {
                 count: 0,
@@ -351,28 +368,44 @@ impl RigidConfig {
         })
     }
 
-    /// Checks the scene and flattens it: the particle config with its count, each particle's
-    /// body-frame offset with its body's index in `w`, and each body's constants.
-    fn flatten(&self) -> Result<Flat, ParticleError> {
+    /// The particle config with the count of the bodies' particles, checked, before anything
+    /// is allocated for them (so that a scene too large is refused first).
+    fn sized(&self) -> Result<ParticleConfig, ParticleError> {
         if self.bodies.len() > MAX_BODIES {
             return Err(ParticleError::TooManyBodies {
                 count: self.bodies.len(),
                 max: MAX_BODIES,
             });
         }
-        // The total first, so that a scene too large is refused before its arrays are made.
         let total = self.bodies.iter().fold(0usize, |total, &(shape, _)| {
             let particles = self.shapes.get(shape).map_or(0, |s| s.offsets.len());
             total.saturating_add(particles)
         });
-        if total > super::MAX_PARTICLES {
+        if total > MAX_PARTICLES {
             return Err(ParticleError::TooManyParticles {
                 count: total,
-                max: super::MAX_PARTICLES,
+                max: MAX_PARTICLES,
             });
         }
-        let mut offsets = Vec::with_capacity(total);
-        let mut info = Vec::with_capacity(self.bodies.len());
+        let particles = ParticleConfig {
+            count: total,
+            ..self.particles.clone()
+        };
+        particles.validate()?;
+        Ok(particles)
+    }
+
+    /// Checks the bodies and flattens the scene, sized by [`sized`](Self::sized): each
+    /// particle's body-frame offset with its body's index in `w`, and each body's constants.
+    /// `refused` is the error when the allocator refuses an array.
+    fn flatten(
+        &self,
+        particles: ParticleConfig,
+        refused: impl Fn(TryReserveError) -> ParticleError,
+    ) -> Result<Flat, ParticleError> {
+        let mut offsets = try_with_capacity(particles.count).map_err(&refused)?;
+        let mut info = try_with_capacity(self.bodies.len()).map_err(&refused)?;
+        let mut bodies = try_with_capacity(self.bodies.len()).map_err(&refused)?;
         for (index, (shape, body)) in self.bodies.iter().enumerate() {
             let shape = self.shapes.get(*shape).ok_or(ParticleError::ShapeIndex {
                 body: index,
@@ -415,17 +448,27 @@ impl RigidConfig {
                     .map(|o| [o[0], o[1], o[2], index as f32]),
             );
         }
-        let particles = ParticleConfig {
-            count: offsets.len(),
-            ..self.particles.clone()
-        };
-        particles.validate()?;
+        bodies.extend(self.bodies.iter().map(|(_, body)| *body));
         Ok(Flat {
             particles,
             offsets,
             info,
-            bodies: self.bodies.iter().map(|(_, body)| *body).collect(),
+            bodies,
         })
+    }
+}
+
+/// Refuses `bytes` of host memory for `bodies` bodies of `particles` particles in all when
+/// more than the host has available (see [`host_memory`]).
+fn check_host_memory(bodies: usize, particles: usize, bytes: u64) -> Result<(), ParticleError> {
+    match host_memory::shortfall(bytes, host_memory::available()) {
+        Some(available) => Err(ParticleError::BodyHostMemory {
+            bodies,
+            particles,
+            bytes,
+            available,
+        }),
+        None => Ok(()),
     }
 }
 
@@ -438,6 +481,13 @@ pub(super) struct Flat {
 }
 
 impl Flat {
+    /// Host memory [`RigidConfig::flatten`] allocates for `bodies` bodies of `particles`
+    /// particles in all (bytes): an offset per particle, the constants and state per body.
+    fn bytes(bodies: usize, particles: usize) -> u64 {
+        let per_body = size_of::<BodyInfo>() + size_of::<RigidBody>();
+        bodies as u64 * per_body as u64 + particles as u64 * size_of::<[f32; 4]>() as u64
+    }
+
     pub fn rigid_params(&self) -> RigidParams {
         RigidParams {
             body_count: self.bodies.len() as u32,
@@ -509,14 +559,42 @@ enum Executor {
 
 impl RigidSystem {
     pub fn new(config: &RigidConfig, device: ParticleDevice) -> Result<Self, ParticleError> {
-        let flat = config.flatten()?;
-        let masses = config
-            .bodies
-            .iter()
-            .map(|&(shape, _)| (config.shapes[shape].mass, config.shapes[shape].inertia))
-            .collect();
+        let sized = config.sized()?;
+        let (bodies, particles) = (config.bodies.len(), sized.count);
+        // Before building possibly huge host arrays: does the host have room for all of them?
+        // The flattened scene and the bodies' masses on either device, and on the CPU the
+        // executor's arrays too; on the GPU, first whether its buffers fit the device.
+        let executor_bytes = match &device {
+            ParticleDevice::Cpu => {
+                rigid_cpu::CpuRigid::bytes(bodies, particles, sized.cell_count())
+            }
+            ParticleDevice::Gpu(context) => {
+                super::gpu::check_capacity(&sized, context)?;
+                0
+            }
+        };
+        let bytes = Flat::bytes(bodies, particles)
+            + bodies as u64 * size_of::<(f64, [[f64; 3]; 3])>() as u64
+            + executor_bytes;
+        check_host_memory(bodies, particles, bytes)?;
+        let refused = |_| ParticleError::BodyHostAllocation {
+            bodies,
+            particles,
+            bytes,
+        };
+        let flat = config.flatten(sized, refused)?;
+        let mut masses = try_with_capacity(bodies).map_err(refused)?;
+        masses.extend(
+            config
+                .bodies
+                .iter()
+                .map(|&(shape, _)| (config.shapes[shape].mass, config.shapes[shape].inertia)),
+        );
         let executor = match device {
-            ParticleDevice::Cpu => Executor::Cpu(Box::new(rigid_cpu::CpuRigid::new(&flat))),
+            ParticleDevice::Cpu => {
+                let cpu = rigid_cpu::CpuRigid::new(&flat).map_err(refused)?;
+                Executor::Cpu(Box::new(cpu))
+            }
             ParticleDevice::Gpu(context) => {
                 Executor::Gpu(Box::new(rigid_gpu::GpuRigid::new(&flat, context)?))
             }

@@ -1,9 +1,12 @@
 //! CPU executor of the rigid particle bodies (rayon), the twin of `rigid_gpu.rs`: the same
 //! stages and the same arithmetic in the same order as `rigid_*.wgsl`.
 
+use std::collections::TryReserveError;
+
 use rayon::prelude::*;
 
 use crate::particles::cpu::{Grid, Vector, add, neighbour_force, scale, wall_force, xyz};
+use crate::particles::host_memory::{try_filled, try_to_vec, try_with_capacity};
 use crate::particles::rigid::{BodyInfo, Flat, RigidBody, cross, rotate};
 use crate::particles::{Particle, ParticleParams};
 use crate::profile::Profiler;
@@ -131,19 +134,34 @@ pub(super) struct CpuRigid {
 }
 
 impl CpuRigid {
-    pub fn new(flat: &Flat) -> Self {
+    /// Host memory [`new`](Self::new) allocates for `bodies` bodies of `particles` particles
+    /// in all in `cells` grid cells (bytes): its copies of the offsets, the body constants
+    /// and states; the world particles twice (body and sorted order), the forces twice, a
+    /// (cell, particle) pair each; a start and an end per cell.
+    pub fn bytes(bodies: usize, particles: usize, cells: u64) -> u64 {
+        let per_body = size_of::<BodyInfo>() + size_of::<RigidBody>();
+        let per_particle = size_of::<[f32; 4]>()
+            + 2 * size_of::<Particle>()
+            + 2 * size_of::<[f32; 4]>()
+            + size_of::<(u32, u32)>();
+        bodies as u64 * per_body as u64 + particles as u64 * per_particle as u64 + cells * 2 * 4
+    }
+
+    /// Allocates every array a step uses, with `try_reserve_exact`: the allocator's refusal
+    /// is returned, never an abort, and a step allocates nothing.
+    pub fn new(flat: &Flat) -> Result<Self, TryReserveError> {
         let count = flat.offsets.len();
-        Self {
+        Ok(Self {
             params: flat.particles.params(),
-            offsets: flat.offsets.clone(),
-            info: flat.info.clone(),
-            bodies: flat.bodies.clone(),
-            particles: vec![Particle::default(); count],
-            grid: Grid::default(),
-            sorted: Vec::with_capacity(count),
-            sorted_forces: vec![[0.0; 4]; count],
-            forces: vec![[0.0; 4]; count],
-        }
+            offsets: try_to_vec(&flat.offsets)?,
+            info: try_to_vec(&flat.info)?,
+            bodies: try_to_vec(&flat.bodies)?,
+            particles: try_filled(count, Particle::default())?,
+            grid: Grid::with_capacity(count, flat.particles.cell_count() as usize)?,
+            sorted: try_with_capacity(count)?,
+            sorted_forces: try_filled(count, [0.0; 4])?,
+            forces: try_filled(count, [0.0; 4])?,
+        })
     }
 
     pub fn bodies(&self) -> &[RigidBody] {

@@ -9,7 +9,7 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
-use crate::particles::gpu::{COMMON_WGSL, GpuGrid, SEARCH_WGSL, begin_pass, check_capacity};
+use crate::particles::gpu::{COMMON_WGSL, GpuGrid, SEARCH_WGSL, begin_pass};
 use crate::particles::rigid::{Flat, RigidBody};
 use crate::particles::rigid_cpu::BODY_LANES;
 use crate::particles::{EMPTY_CELL, Particle};
@@ -59,8 +59,8 @@ pub(super) struct GpuRigid {
 
 impl GpuRigid {
     pub fn new(flat: &Flat, context: GpuContext) -> Result<Self, GpuError> {
+        // The buffers' sizes were checked against the device by RigidSystem::new.
         let config = &flat.particles;
-        check_capacity(config, &context)?;
         let count = config.count;
         let bodies = GpuVec::from_slice(&context, "rigid bodies", &flat.bodies)?;
         let infos = GpuVec::from_slice(&context, "rigid body constants", &flat.info)?;
