@@ -9,41 +9,15 @@
 
 #![cfg(target_os = "linux")]
 
+mod address_space;
+
+use address_space::{address_space, limit_address_space};
+
 use tumble::particles::rigid::{BUNNY_LENGTH, BUNNY_PARTICLE_RADIUS};
 use tumble::particles::{
     MAX_PARTICLES, ParticleDevice, ParticleError, RigidBody, RigidConfig, RigidSystem, Solid,
     voxelize,
 };
-
-/// The process' address space now (bytes), from /proc/self/status.
-fn address_space() -> u64 {
-    let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
-    let line = status
-        .lines()
-        .find_map(|line| line.strip_prefix("VmSize:"))
-        .expect("a VmSize line");
-    let kilobytes: u64 = line.trim().trim_end_matches("kB").trim().parse().unwrap();
-    kilobytes * 1024
-}
-
-/// Sets the soft address-space limit (bytes) and returns the previous limits.
-fn limit_address_space(bytes: u64) -> libc::rlimit {
-    let mut previous = libc::rlimit {
-        rlim_cur: 0,
-        rlim_max: 0,
-    };
-    // SAFETY: getrlimit and setrlimit read and write the rlimit passed; no other thread of
-    // this process allocates meanwhile (the only test of the file; rayon's workers are idle).
-    unsafe {
-        assert_eq!(libc::getrlimit(libc::RLIMIT_AS, &mut previous), 0);
-        let capped = libc::rlimit {
-            rlim_cur: bytes.min(previous.rlim_max),
-            rlim_max: previous.rlim_max,
-        };
-        assert_eq!(libc::setrlimit(libc::RLIMIT_AS, &capped), 0);
-    }
-    previous
-}
 
 /// (bodies, particles, bytes, message) of a host-memory error, or a panic naming what came
 /// instead.
