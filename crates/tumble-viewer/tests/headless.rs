@@ -13,7 +13,7 @@
 use tumble::math::Vec3;
 use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::shape::TriMesh;
-use tumble::{BodyDesc, JointDesc, JointKind, Shape, StepConfig, World};
+use tumble::{BodyDesc, BodyHandle, JointDesc, JointKind, Shape, StepConfig, World};
 use tumble_viewer::draw::{
     BACKGROUND, DrawList, DrawSettings, JOINT_COLOUR, TRIMESH_COLOUR, body_colour,
 };
@@ -85,8 +85,9 @@ fn chromaticity(rgb: [f32; 3]) -> Vec3 {
     Vec3::from_array(rgb).normalize()
 }
 
-#[test]
-fn box_on_a_plane() {
+/// A unit box resting on a ground plane, and a camera slightly above it and in front of it: the
+/// top corners of the picture look at the sky.
+fn box_on_the_ground() -> (World, BodyHandle, Camera) {
     let mut world = World::new(StepConfig::default()).unwrap();
     world
         .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
@@ -96,8 +97,13 @@ fn box_on_a_plane() {
             BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
         )
         .unwrap();
-    // Slightly above the box and in front of it: the top corners of the picture look at the sky.
     let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    (world, cube, camera)
+}
+
+#[test]
+fn box_on_a_plane() {
+    let (world, cube, camera) = box_on_the_ground();
 
     let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
     let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
@@ -140,16 +146,7 @@ fn pixels_of_hue(image: &Image, colour: [f32; 3]) -> usize {
 
 #[test]
 fn wireframe_draws_the_edges_and_not_the_faces() {
-    let mut world = World::new(StepConfig::default()).unwrap();
-    world
-        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-        .unwrap();
-    let cube = world
-        .add_body(
-            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0)),
-        )
-        .unwrap();
-    let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
+    let (world, cube, camera) = box_on_the_ground();
     let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
     let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
     let mut render = |wireframe| {
