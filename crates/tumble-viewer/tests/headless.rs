@@ -85,6 +85,15 @@ fn chromaticity(rgb: [f32; 3]) -> Vec3 {
     Vec3::from_array(rgb).normalize()
 }
 
+/// `world` from `camera`, drawn headless with the default settings.
+fn render(world: &World, camera: &Camera) -> Image {
+    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
+    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
+    offscreen
+        .render(&context, world, camera, DrawSettings::default(), &[])
+        .unwrap()
+}
+
 /// A unit box resting on a ground plane, and a camera slightly above it and in front of it: the
 /// top corners of the picture look at the sky.
 fn box_on_the_ground() -> (World, BodyHandle, Camera) {
@@ -105,11 +114,7 @@ fn box_on_the_ground() -> (World, BodyHandle, Camera) {
 fn box_on_a_plane() {
     let (world, cube, camera) = box_on_the_ground();
 
-    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
-    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
-    let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default(), &[])
-        .unwrap();
+    let image = render(&world, &camera);
     assert_eq!(image.rgba.len(), (4 * WIDTH * HEIGHT) as usize);
 
     // Not blank: many distinct colours (sky, ground, grid lines, three lit box faces).
@@ -218,11 +223,7 @@ fn a_convex_hull_is_drawn_where_its_pose_projects() {
         )
         .unwrap();
     let camera = Camera::look_at(Vec3::new(1.0, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
-    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
-    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
-    let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default(), &[])
-        .unwrap();
+    let image = render(&world, &camera);
     assert_background(image.pixel(0, 0), (0, 0));
     // Its centre of mass, inside it, lands on a lit face of it.
     let centre = world.pose(hull).unwrap().position;
@@ -267,11 +268,7 @@ fn a_compound_is_drawn_child_by_child_where_its_pose_projects() {
         )
         .unwrap();
     let camera = Camera::look_at(Vec3::new(0.5, 1.5, 4.0), Vec3::new(0.0, 0.5, 0.0));
-    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
-    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
-    let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default(), &[])
-        .unwrap();
+    let image = render(&world, &camera);
     assert_background(image.pixel(0, 0), (0, 0));
     let colour = body_colour(body.index() as usize);
     let pose = Transform::new(position, rotation);
@@ -347,11 +344,7 @@ fn box_on_a_triangle_mesh_floor() {
         .unwrap();
     let camera = Camera::look_at(Vec3::new(3.0, 5.0, 7.0), Vec3::ZERO);
 
-    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
-    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
-    let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default(), &[])
-        .unwrap();
+    let image = render(&world, &camera);
 
     // The floor where its points project, in front of the box and behind it.
     for point in [
@@ -396,11 +389,7 @@ fn a_box_shadows_the_floor_under_it() {
     // From high above, so the floor in the box's shadow is in view beside the box.
     let camera = Camera::look_at(Vec3::new(0.0, 8.0, 0.5), Vec3::ZERO);
 
-    let context = GpuContext::headless().expect("an adapter (install mesa-vulkan-drivers)");
-    let mut offscreen = Offscreen::new(&context, WIDTH, HEIGHT).unwrap();
-    let image = offscreen
-        .render(&context, &world, &camera, DrawSettings::default(), &[])
-        .unwrap();
+    let image = render(&world, &camera);
 
     // The light's ray through the box's centre meets the floor here; a grid cell's middle
     // near it (grid lines sit on whole metres) is in the shadow of the whole box.
