@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Runs the test binaries of scripts/build-device-tests.sh on the GPU machine (one call of the
+# Runs the test modules of scripts/build-device-tests.sh on the GPU machine (one call of the
 # `device` tool, carrying .gl and .devbin) and says which failed.
 set -uo pipefail
 if compgen -G ".gl/*.deb" > /dev/null; then
@@ -8,12 +8,12 @@ if compgen -G ".gl/*.deb" > /dev/null; then
 fi
 export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json WGPU_BACKEND=vulkan
 failed=0
-for test in .devbin/tests/*; do
-  output=$("$test" --test-threads 1 2>&1)
-  echo "== $(basename "$test"): $(echo "$output" | grep '^test result' | tail -1)"
+while read -r module; do
+  output=$(.devbin/tests/engine --test-threads 1 "$module::" 2>&1)
+  echo "== $module: $(echo "$output" | grep '^test result' | tail -1)"
   if ! echo "$output" | grep -q '^test result: ok'; then
     echo "$output" | grep -E -A2 'panicked' | cut -c1-300 | head -20
     failed=1
   fi
-done
+done < .devbin/tests/modules
 exit $failed

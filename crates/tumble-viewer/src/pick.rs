@@ -14,7 +14,7 @@ use tumble::{BodyHandle, QueryFilter, World};
 use crate::camera::Camera;
 
 /// The drag's largest force, in weights of the grabbed body: enough to lift it briskly, not
-/// enough to fling it (tumble's tests/drag.rs: at 10 weights a box's top reaches a target 1.5 m
+/// enough to fling it (tumble's tests/engine/drag.rs: at 10 weights a box's top reaches a target 1.5 m
 /// up within 1 cm in 0.3 s, without overshooting).
 pub const DRAG_FORCE_PER_WEIGHT: f32 = 10.0;
 /// Weight per kilogram (N / kg) the drag's force is sized by in a world with weaker or no

@@ -105,7 +105,7 @@ pub fn reduce(candidates: &[ContactPoint], normal: Vec3) -> Manifold {
         // Strictly deepest, with no slack for rounding as the scores have: a box sliding over
         // a mesh digs its leading edge in by micrometres, and a 1e-5 m (even 1e-6 m) tie rule
         // that kept a corner by index instead yawed it by 0.02 rad/s against 0.0015
-        // (tests/trimesh_floor.rs).
+        // (tests/engine/trimesh_floor.rs).
         if candidate.separation < candidates[deepest].separation {
             deepest = index;
         }

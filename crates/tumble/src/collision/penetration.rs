@@ -41,7 +41,7 @@ use crate::math::Vec3;
 /// local minimum (a face of `M` whose foot point is inside it but which is not the nearest),
 /// and the nearest face can be small: seen from the origin it may cover no sample direction,
 /// its basin only rays between samples. Measured on about 10 000 overlapping random pairs of
-/// the oracle test (`tests/convex_oracle.rs` run with 20 000 pairs of each kind: hulls of
+/// the oracle test (`tests/engine/convex_oracle.rs` run with 20 000 pairs of each kind: hulls of
 /// 6–20 points, boxes, capsules, spheres), the depth missed EPA's by more than 0.1 % on 0.8 %
 /// of pairs with 3 starts and 42 directions (0.2 % with 162), on 0.02 % with 8 (none), on
 /// none with 12 (1 in 5000 with 162: its lowest samples crowd closer together), on none with

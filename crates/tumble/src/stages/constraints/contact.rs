@@ -33,7 +33,7 @@ use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::pair_bodies;
 
 // Layout: the structs below are repr(C) + Pod with WGSL twins in `contact_constraint.wgsl`
-// (checked by tests/gpu_layout.rs), so both executors solve the same array. WGSL aligns a
+// (checked by tests/engine/gpu_layout.rs), so both executors solve the same array. WGSL aligns a
 // vec3 to 16 bytes, so each vec3 shares its 16 bytes with a scalar (`arm_a` + `mass`, ...)
 // instead of padding wherever a scalar can fill the slot.
 

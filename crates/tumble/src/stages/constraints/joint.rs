@@ -54,7 +54,7 @@ pub struct AngularRow {
 }
 
 // Layout: `JointFrame` and `JointConstraint` are repr(C) + Pod with WGSL twins in
-// `joint_constraint.wgsl` (checked by tests/gpu_layout.rs), so both executors solve the same
+// `joint_constraint.wgsl` (checked by tests/engine/gpu_layout.rs), so both executors solve the same
 // array. Each vec3 shares its 16 bytes with a scalar, as in the contact rows; the joint kind
 // is a number and its options flags, since a Rust enum has no WGSL twin. The inverse inertias
 // stay glam `Mat3`s (36 bytes, columns packed), which WGSL reads as `array<f32, 9>`: its

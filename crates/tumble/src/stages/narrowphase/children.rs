@@ -24,7 +24,7 @@
 //! under it, 10 to 20 points whose friction rows share the load differently from the plane's 4
 //! corners: measured, a box sliding over 0.5 m cells picked up 0.05 rad/s of yaw and drifted
 //! sideways off the plane's path, with 10 or 60 solver iterations alike
-//! (`tests/trimesh_floor.rs`). Merged, the floor holds it by the same 4 corners a plane does.
+//! (`tests/engine/trimesh_floor.rs`). Merged, the floor holds it by the same 4 corners a plane does.
 //!
 //! # Warm starting across triangles
 //!

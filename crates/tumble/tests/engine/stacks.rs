@@ -1,6 +1,6 @@
 //! Stacks stand: a tower of 10 boxes and a pyramid with a base of 10 rest for 10 s with less
 //! than 1 cm of drift (a PGS solver with warm starting and 10 iterations must hold them).
-mod common;
+use crate::common;
 use common::*;
 use tumble::BodyHandle;
 use tumble::math::Vec3;

@@ -1,6 +1,6 @@
 //! Bitonic sort parity against the CPU twin (order by key, then value).
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;

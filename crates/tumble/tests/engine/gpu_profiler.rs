@@ -1,6 +1,6 @@
 //! GPU timestamps land in the hierarchical report as GPU lines when the adapter has them.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{Random, context};
 use tumble::gpu::GpuVec;

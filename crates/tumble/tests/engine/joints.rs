@@ -1,7 +1,7 @@
 //! Joints against closed forms: a pendulum's length and small-angle period, a hinge limit under
 //! load (both sign conventions), a hanging chain, a hinge motor's speed and torque limit, a
 //! fixed joint, and the break threshold. Every test prints what it measured.
-mod common;
+use crate::common;
 use common::*;
 use std::f32::consts::PI;
 use tumble::math::{Quat, Vec3};

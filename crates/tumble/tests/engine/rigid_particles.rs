@@ -2,7 +2,7 @@
 //! closed forms, a bunny coming to rest, momentum in a collision, determinism, GPU against
 //! CPU, and bad input.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::context;
 use tumble::particles::rigid::{BUNNY_LENGTH, BUNNY_PARTICLE_RADIUS};

@@ -1,6 +1,6 @@
 //! Radix sort parity (u32 and u64 keys) against the CPU twin, and stability.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;

@@ -3,7 +3,7 @@
 //! (compound–compound) and on a triangle-mesh floor; rays and sphere casts hit the nearest
 //! child; a compound off its centroid dumps and loads back bitwise; a compound with a hull
 //! child rests on a mesh floor.
-mod common;
+use crate::common;
 use common::*;
 use tumble::collision::ray::{Ray, cast_ray, cast_sphere};
 use tumble::math::{Quat, Transform, Vec3, vec3};

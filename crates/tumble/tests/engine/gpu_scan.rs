@@ -1,7 +1,7 @@
 //! Prefix scan parity: GPU against the CPU twin, exactly, on random u32 (sums wrap), on both
 //! paths of the kernel (the subgroup one where the adapter has subgroups: lavapipe has).
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;

@@ -1,7 +1,7 @@
 //! Convex hulls in the world: a hull rests on a plane, a stack of three stands, a box given as
 //! a hull collides as the box does, and a hull whose points are off their centroid dumps and
 //! loads back bitwise; hulls land on triangle meshes.
-mod common;
+use crate::common;
 use common::*;
 use tumble::collision::contact::collide;
 use tumble::collision::manifold::Manifold;
@@ -178,8 +178,8 @@ fn off_centre_hull_dumps_and_loads_bitwise() {
 }
 
 /// Hulls and triangle meshes share a world in either order of adding, and a barrel dropped
-/// on a mesh lands on it (one triangle here; `tests/trimesh_floor.rs` has the tessellated
-/// floor and `tests/landscape.rs` the hills).
+/// on a mesh lands on it (one triangle here; `tests/engine/trimesh_floor.rs` has the tessellated
+/// floor and `tests/engine/landscape.rs` the hills).
 #[test]
 fn hulls_and_meshes_collide() {
     use tumble::shape::TriMesh;

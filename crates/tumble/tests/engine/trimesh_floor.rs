@@ -1,6 +1,6 @@
 //! A floor made of many triangles holds bodies as a plane does: no sinking, no bumps on the
 //! seams between triangles (internal edges), the same friction.
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::{Quat, Vec3};
 use tumble::shape::TriMesh;

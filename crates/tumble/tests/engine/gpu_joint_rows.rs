@@ -2,7 +2,7 @@
 //! CPU's `build_joint_constraints` on random joints of every kind, and worlds whose joint rows
 //! are built on the device following the CPU world.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{Random, context};
 use tumble::dynamics::body::{BodyMass, BodyPose};
@@ -312,7 +312,7 @@ fn positions(world: &World) -> Vec<Vec3> {
 const CHAINED: [Stage; 3] = [Stage::Constraints, Stage::Batching, Stage::Solver];
 
 /// The ragdolls with their joint rows built on the GPU follow the CPU world, by the yardstick
-/// of tests/gpu_joints.rs (the CPU's own response to one ulp of input noise: a CPU world with
+/// of tests/engine/gpu_joints.rs (the CPU's own response to one ulp of input noise: a CPU world with
 /// gravity one ulp stronger), at every step of the fall and the pile: with the rows alone on
 /// the GPU (read back for the CPU solver, so only the rows differ: their inertias by a few
 /// roundings) and with the rows kept on the device for the GPU batching and solver.

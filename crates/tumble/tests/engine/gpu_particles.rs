@@ -1,7 +1,7 @@
 //! The uniform-grid particle system: GPU against its CPU twin, determinism, energy in a
 //! closed damped box, and bad configurations.
 
-mod gpu_common;
+use crate::gpu_common;
 
 // Each test holds `context()` (the GPU turn) for its whole run and never asks for it twice.
 

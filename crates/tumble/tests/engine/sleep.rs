@@ -1,7 +1,7 @@
 //! Islands and sleeping: a resting tower falls asleep and costs no solver work asleep, wakes
 //! when hit or when its support goes, follows a run without sleeping, and a dump of a world
 //! with sleeping islands resumes bitwise.
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::Vec3;
 use tumble::scene::Scene;

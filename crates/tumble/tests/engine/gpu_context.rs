@@ -1,7 +1,7 @@
 //! The shared context finds an adapter (lavapipe or llvmpipe on a machine without a GPU) and
 //! `GpuVec` round-trips data, growing as needed.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::context;
 use tumble::gpu::{GpuContext, GpuVec};

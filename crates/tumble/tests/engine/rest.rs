@@ -1,5 +1,5 @@
 //! A box resting on a plane stays: no sinking, no jitter, no drift.
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::Vec3;
 

@@ -2,8 +2,8 @@
 //! and the drag are solved in the same batches as the contacts instead of falling back to the
 //! CPU solver; and worlds whose whole step runs on the GPU, with a drag and breakable joints.
 
-mod common;
-mod gpu_common;
+use crate::common;
+use crate::gpu_common;
 
 use common::{G, unit_box, world_with_ground};
 use tumble::math::Vec3;
@@ -58,7 +58,7 @@ fn positions(world: &World) -> Vec<Vec3> {
 
 /// The ragdolls fall, hit the plane and pile up: a pile amplifies any rounding difference
 /// until the two worlds part (contacts come and go), so the GPU world is held to the
-/// yardstick of the tests/gpu_solver.rs parity tests, the CPU's own response to one ulp of
+/// yardstick of the tests/engine/gpu_solver.rs parity tests, the CPU's own response to one ulp of
 /// input noise: at every step, the GPU world lies no further from the CPU world than eight
 /// times as far as a CPU world whose gravity is one ulp stronger, or within 1e-5 m.
 #[test]
@@ -167,7 +167,7 @@ fn corner(world: &World, body: BodyHandle) -> Vec3 {
     world.pose(body).unwrap().transform_point(Vec3::splat(0.5))
 }
 
-/// The drag of tests/drag.rs (a box's corner lifted off the ground to 2 m, then carried round
+/// The drag of tests/engine/drag.rs (a box's corner lifted off the ground to 2 m, then carried round
 /// a circle at 1 m/s) in a world whose whole step runs on the GPU: the box follows the target
 /// as on the CPU, and the GPU world keeps to the CPU world by the yardstick of the ragdoll
 /// test above, the CPU's own response to one ulp of input noise, at every step and over the
@@ -236,7 +236,7 @@ fn a_drag_on_the_gpu_world_follows_the_target_as_on_the_cpu() {
         worst_off <= 8.0 * worst_noise,
         "the GPU world strayed {worst_off} m from the CPU's, the nudged CPU world {worst_noise} m"
     );
-    // tests/drag.rs's bounds: it lifted, and it kept up.
+    // tests/engine/drag.rs's bounds: it lifted, and it kept up.
     assert!(
         lifted_error < 0.005,
         "the corner hangs {lifted_error} m from the target"

@@ -1,7 +1,7 @@
 //! Reduce parity: min, max and sum of u32 and f32, bitwise equal to the CPU twin (which
 //! follows the GPU's order of combination).
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;

@@ -1,7 +1,7 @@
 //! Stages mixed between CPU and GPU (`World::set_stage_devices`): a world with a stage on the
 //! GPU follows the all-CPU world within the stage parity tests' tolerances.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use tumble::math::{Quat, Vec3};
 use tumble::pipeline::devices::{Executor, Stage, StageDevices};

@@ -1,7 +1,7 @@
 //! GPU solver parity: the soft step on random contact and joint sets, GPU against the CPU's
 //! `solve`, over the same batches; and the same for the Jacobi solver (`jacobi::solve`).
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{Random, context};
 use tumble::collision::manifold::ContactPoint;

@@ -1,6 +1,6 @@
 //! Coulomb friction against closed forms: a block on an incline sticks or slides at
 //! g(sin θ − μ cos θ); a block sliding at v0 stops after v0² / (2 μ g).
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::{Quat, Vec3};
 use tumble::{BodyDesc, Shape, World};

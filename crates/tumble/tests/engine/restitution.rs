@@ -1,6 +1,6 @@
 //! Restitution against closed forms: a ball rebounds to e² of its drop height; two equal balls
 //! in a head-on elastic collision exchange velocities with momentum conserved.
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::Vec3;
 use tumble::{BodyDesc, Shape, StepConfig, World};

@@ -1,7 +1,7 @@
 //! GPU batching against the CPU executor: the same colors, bit for bit, for both batchers on
 //! random constraint graphs of edge sizes, and the batches' guarantees on the GPU's output.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use tumble::stages::batching::gpu::GpuBatching;
 use tumble::stages::batching::{Batcher, Coloring, MAX_COLORS, color_constraints};

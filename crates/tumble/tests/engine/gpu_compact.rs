@@ -1,6 +1,6 @@
 //! Stream compaction and fill parity against their CPU twins.
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{LARGE, Random, SIZES, context};
 use tumble::gpu::GpuVec;

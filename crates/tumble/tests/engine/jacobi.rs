@@ -3,8 +3,8 @@
 //! momentum; its results do not depend on the thread count; and the comparison DESIGN.md's
 //! stage 7 asks for: at equal iterations a tower drifts more under Jacobi than under PGS.
 
-mod common;
-mod gpu_common;
+use crate::common;
+use crate::gpu_common;
 
 use common::*;
 use tumble::math::{Quat, Vec3};

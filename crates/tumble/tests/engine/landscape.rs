@@ -14,7 +14,7 @@ use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
 const SINK_TOLERANCE: f32 = 0.010;
 
 /// How far a body may sink once resting (m): the solver's penetration slop (5 mm) plus
-/// rounding, as on a plane (`tests/rest.rs`).
+/// rounding, as on a plane (`tests/engine/rest.rs`).
 const REST_TOLERANCE: f32 = 0.006;
 
 /// The lowest clearance (m) of a body above the landscape surface: sampled at the points where

@@ -1,6 +1,6 @@
 //! Picking: a body dragged by a point follows a moving target, is limited by the drag's
 //! largest force, and falls when let go.
-mod common;
+use crate::common;
 use common::*;
 use tumble::math::Vec3;
 use tumble::{BodyDesc, Shape, StepConfig, World};

@@ -14,7 +14,7 @@
 //! direction between two core points, and when the cores nearly meet (a deep overlap) an ulp
 //! of their coordinates turns the direction by ulp / gap; see [`round_tolerances`].
 
-mod gpu_common;
+use crate::gpu_common;
 
 use gpu_common::{Random, context};
 use tumble::Shape;

@@ -4,7 +4,7 @@
 //! pair lost when the key buffer starts far too small, deep degenerate trees), and the pair
 //! cache's diff (the CPU `PairCache`'s added, removed and kept pairs exactly).
 
-mod gpu_common;
+use crate::gpu_common;
 
 use std::time::Instant;
 

@@ -1,8 +1,8 @@
 //! The step with the GPU solver (`solver=gpu`, the other stages on the CPU):
 //! closed-form rest and friction, and a stack that follows the all-CPU run.
 
-mod common;
-mod gpu_common;
+use crate::common;
+use crate::gpu_common;
 
 use common::*;
 use tumble::math::{Quat, Vec3};
