@@ -11,6 +11,7 @@
 //! [`SAMPLES`] such submissions is reported.
 
 use std::time::Instant;
+use tumble::gpu::kernel::encode_all;
 use tumble::gpu::prims::fill::copy_dispatch;
 use tumble::gpu::prims::radix_sort::{RadixSort, SortPath};
 use tumble::gpu::prims::scan::{Scan, ScanKind, ScanPath};
@@ -192,11 +193,12 @@ fn kernel_copy_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
     let source = GpuVec::from_slice(context, "bench copy in", &vec![1u32; count]).map_err(error)?;
     let destination =
         GpuVec::<u32>::with_capacity(context, "bench copy out", count).map_err(error)?;
-    let copy = copy_dispatch(context, source.buffer(), destination.buffer(), count);
+    let copy =
+        copy_dispatch(context, source.buffer(), destination.buffer(), count).map_err(error)?;
     time_repeated(context, || {
         context.submit_pass("bench compute copy", |pass| {
             for _ in 0..REPEATS {
-                copy.encode(pass);
+                encode_all(pass, &copy);
             }
         });
         Ok(())

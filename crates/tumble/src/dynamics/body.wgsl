@@ -1,5 +1,5 @@
 // Bodies and colliders as every rigid-body kernel reads them: the twins of the #[repr(C)]
-// structs in dynamics/body.rs (tests/gpu_layout.rs checks that the layouts agree).
+// structs in dynamics/body.rs (tests/engine/gpu_layout.rs checks that the layouts agree).
 
 // Values of ColliderData.kind: shape/mod.rs ShapeKind, in its order.
 const SHAPE_SPHERE: u32 = 0u;

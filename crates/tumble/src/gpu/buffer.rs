@@ -5,6 +5,11 @@
 //! the `wgpu::Buffer`, so bind groups built on the old one must be rebuilt: drivers compare
 //! [`GpuVec::buffer`] handles (they are `Eq + Hash`) to notice.
 //!
+//! A vector is bound whole by most kernels, so its buffer stays within one storage binding
+//! (the adapter's `max_storage_buffer_binding_size`: 128 MiB on Mesa's CPU drivers). One made
+//! [`GpuVec::windowed`] may grow to the largest buffer the adapter allows; the primitives that
+//! take it (fill, copy, scan, reduce, compaction, radix sort) bind it a [`Window`] at a time.
+//!
 //! Uploads go through the queue (`write_buffer`, whose staging memory wgpu pools and reuses);
 //! downloads copy into a `MAP_READ` staging buffer that the vector keeps and reuses.
 
@@ -19,6 +24,8 @@ const MIN_CAPACITY_BYTES: u64 = 16;
 pub struct GpuVec<T: bytemuck::Pod> {
     label: &'static str,
     buffer: wgpu::Buffer,
+    /// May pass one binding ([`GpuVec::windowed`]).
+    windowed: bool,
     len: usize,
     capacity: usize,
     staging: Option<wgpu::Buffer>,
@@ -35,18 +42,40 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         "GpuVec elements are multiples of 4 bytes"
     );
 
-    /// An empty vector with room for `capacity` elements.
+    /// An empty vector with room for `capacity` elements, within one storage binding.
     pub fn with_capacity(
         context: &GpuContext,
         label: &'static str,
         capacity: usize,
     ) -> Result<Self, GpuError> {
+        Self::new(context, label, capacity, false)
+    }
+
+    /// An empty vector with room for `capacity` elements that may grow past one storage
+    /// binding, up to the adapter's largest buffer: for the primitives, which bind it by
+    /// [`windows`]. Binding it whole ([`GpuVec::binding`], [`GpuVec::whole`]) is valid only
+    /// while it fits one binding.
+    pub fn windowed(
+        context: &GpuContext,
+        label: &'static str,
+        capacity: usize,
+    ) -> Result<Self, GpuError> {
+        Self::new(context, label, capacity, true)
+    }
+
+    fn new(
+        context: &GpuContext,
+        label: &'static str,
+        capacity: usize,
+        windowed: bool,
+    ) -> Result<Self, GpuError> {
         let () = Self::ELEMENT_OK;
         let capacity = capacity.max(Self::min_capacity());
-        let buffer = create(context, label, Self::bytes(capacity))?;
+        let buffer = create(context, label, Self::bytes(capacity), windowed)?;
         Ok(Self {
             label,
             buffer,
+            windowed,
             len: 0,
             capacity,
             staging: None,
@@ -113,7 +142,12 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             return Ok(false);
         }
         let new_capacity = capacity.max(self.capacity * 2);
-        let buffer = create(context, self.label, Self::bytes(new_capacity))?;
+        let buffer = create(
+            context,
+            self.label,
+            Self::bytes(new_capacity),
+            self.windowed,
+        )?;
         if self.len > 0 {
             let mut encoder =
                 context
@@ -269,12 +303,22 @@ pub(crate) fn read_mapped(
 }
 
 /// A storage buffer usable as copy source and destination, checked against the adapter's
-/// limits so an oversized request is an error rather than a validation panic.
-fn create(context: &GpuContext, label: &'static str, bytes: u64) -> Result<wgpu::Buffer, GpuError> {
+/// limits (one binding, or one buffer when `windowed`) so an oversized request is an error
+/// rather than a validation panic.
+fn create(
+    context: &GpuContext,
+    label: &'static str,
+    bytes: u64,
+    windowed: bool,
+) -> Result<wgpu::Buffer, GpuError> {
     let limits = context.device.limits();
-    let limit = limits
-        .max_buffer_size
-        .min(limits.max_storage_buffer_binding_size);
+    let limit = if windowed {
+        limits.max_buffer_size
+    } else {
+        limits
+            .max_buffer_size
+            .min(limits.max_storage_buffer_binding_size)
+    };
     if bytes > limit {
         return Err(GpuError::BufferTooLarge {
             what: label,
@@ -290,4 +334,145 @@ fn create(context: &GpuContext, label: &'static str, bytes: u64) -> Result<wgpu:
             | wgpu::BufferUsages::COPY_DST,
         mapped_at_creation: false,
     }))
+}
+
+/// Elements `first..first + len` of a buffer, bound as one storage binding: the array a kernel
+/// sees. A buffer within one binding is one window.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Window {
+    pub first: usize,
+    pub len: usize,
+}
+
+impl Window {
+    /// This window of `buffer`, whose elements are `element_bytes` each, as a binding.
+    pub fn binding(self, buffer: &wgpu::Buffer, element_bytes: usize) -> wgpu::BufferBinding<'_> {
+        wgpu::BufferBinding {
+            buffer,
+            offset: (self.first * element_bytes) as u64,
+            size: wgpu::BufferSize::new((self.len.max(1) * element_bytes) as u64),
+        }
+    }
+
+    /// The element after the window.
+    pub fn end(self) -> usize {
+        self.first + self.len
+    }
+}
+
+/// `count` elements of `element_bytes` each, split into the fewest windows that each fit one
+/// storage binding of `context`: every window but the last holds a multiple of `granule`
+/// elements (a kernel's tile, so no tile straddles two windows) and starts at an offset the
+/// adapter can bind. None for no elements.
+pub fn windows(
+    context: &GpuContext,
+    count: usize,
+    element_bytes: usize,
+    granule: usize,
+) -> Result<Vec<Window>, GpuError> {
+    windows_at_most(context, count, element_bytes, granule, usize::MAX)
+}
+
+/// Like [`windows`], with at most `max_len` elements a window (but at least one granule).
+pub fn windows_at_most(
+    context: &GpuContext,
+    count: usize,
+    element_bytes: usize,
+    granule: usize,
+    max_len: usize,
+) -> Result<Vec<Window>, GpuError> {
+    let limits = context.device.limits();
+    split(
+        count,
+        element_bytes as u64,
+        granule as u64,
+        max_len as u64,
+        limits.max_storage_buffer_binding_size,
+        u64::from(limits.min_storage_buffer_offset_alignment),
+    )
+}
+
+/// [`windows_at_most`] for a binding limit and an offset alignment, in bytes.
+fn split(
+    count: usize,
+    element_bytes: u64,
+    granule: u64,
+    max_len: u64,
+    binding: u64,
+    alignment: u64,
+) -> Result<Vec<Window>, GpuError> {
+    // Grow the granule until a window of whole granules starts on an aligned offset.
+    let mut granule = granule.max(1);
+    while !(granule * element_bytes).is_multiple_of(alignment) {
+        granule *= 2;
+    }
+    let granules = binding / (granule * element_bytes);
+    if granules == 0 {
+        return Err(GpuError::BufferTooLarge {
+            what: "one tile of a windowed kernel",
+            needed: granule * element_bytes,
+            limit: binding,
+        });
+    }
+    let window = (granules.min((max_len / granule).max(1)) * granule) as usize;
+    Ok((0..count.div_ceil(window))
+        .map(|index| {
+            let first = index * window;
+            Window {
+                first,
+                len: window.min(count - first),
+            }
+        })
+        .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Windows tile `0..count` in order, each fits the binding, starts aligned and, but the
+    /// last, holds whole granules.
+    fn check(count: usize, element: u64, granule: u64, max_len: u64, binding: u64) {
+        let windows = split(count, element, granule, max_len, binding, 256).unwrap();
+        let mut next = 0;
+        for (index, window) in windows.iter().enumerate() {
+            assert_eq!(window.first, next);
+            assert!(window.len > 0);
+            assert!(window.len as u64 * element <= binding);
+            assert!((window.first as u64 * element).is_multiple_of(256));
+            if index + 1 < windows.len() {
+                assert!((window.len as u64).is_multiple_of(granule));
+                assert!(window.len as u64 <= max_len.max(granule));
+            }
+            next = window.end();
+        }
+        assert_eq!(next, count);
+    }
+
+    #[test]
+    fn windows_tile_the_array_within_the_limits() {
+        for count in [0, 1, 255, 256, 257, 65_537, 1_000_003] {
+            check(count, 4, 3840, u64::MAX, 128 << 20);
+            check(count, 4, 3840, 128 * 3840, 128 << 20);
+            check(count, 8, 4096, u64::MAX, 256 << 10);
+            check(count, 4, 1, u64::MAX, 1 << 10);
+            // A granule of 3 u32 is 12 bytes: doubled until windows start aligned.
+            check(count, 4, 3, u64::MAX, 4 << 10);
+        }
+        assert_eq!(
+            split(10, 4, 256, u64::MAX, 128 << 20, 256).unwrap().len(),
+            1
+        );
+        assert!(
+            split(0, 4, 256, u64::MAX, 128 << 20, 256)
+                .unwrap()
+                .is_empty()
+        );
+    }
+
+    #[test]
+    fn a_tile_larger_than_a_binding_is_an_error() {
+        let error = split(100, 4, 3840, u64::MAX, 1 << 10, 256).unwrap_err();
+        assert!(matches!(error, GpuError::BufferTooLarge { .. }), "{error}");
+    }
 }

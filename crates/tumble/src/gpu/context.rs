@@ -31,7 +31,7 @@ pub enum GpuError {
     RequestDevice { adapter: String, reason: String },
     #[error(
         "{what} needs {needed} bytes in one buffer, but this adapter allows at most {limit} bytes \
-         per storage binding; use fewer elements or a larger GPU"
+         there; use fewer elements or a larger GPU"
     )]
     BufferTooLarge {
         what: &'static str,
@@ -61,10 +61,17 @@ pub struct GpuContext {
 impl GpuContext {
     /// Picks an adapter as described in the module docs and creates a device on it.
     pub fn new() -> Result<Self, GpuError> {
-        pollster::block_on(Self::new_async())
+        pollster::block_on(Self::new_async(|_| {}))
     }
 
-    async fn new_async() -> Result<Self, GpuError> {
+    /// Like [`Self::new`], with the device's limits changed by `adjust` first: tests lower
+    /// `max_storage_buffer_binding_size` to run the windowed primitives on many small windows,
+    /// as an adapter with a small binding limit would.
+    pub fn with_limits(adjust: impl FnOnce(&mut wgpu::Limits)) -> Result<Self, GpuError> {
+        pollster::block_on(Self::new_async(adjust))
+    }
+
+    async fn new_async(adjust: impl FnOnce(&mut wgpu::Limits)) -> Result<Self, GpuError> {
         let descriptor = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         let backends = descriptor.backends;
         let instance = wgpu::Instance::new(descriptor);
@@ -74,13 +81,16 @@ impl GpuContext {
         let index = pick_adapter(&infos, wanted.as_deref(), backends)?;
         let adapter = adapters.swap_remove(index);
         let info = adapter.get_info();
-        let (device, queue) = adapter
-            .request_device(&Self::device_descriptor(&adapter))
-            .await
-            .map_err(|error| GpuError::RequestDevice {
-                adapter: info.name.clone(),
-                reason: error.to_string(),
-            })?;
+        let mut descriptor = Self::device_descriptor(&adapter);
+        adjust(&mut descriptor.required_limits);
+        let (device, queue) =
+            adapter
+                .request_device(&descriptor)
+                .await
+                .map_err(|error| GpuError::RequestDevice {
+                    adapter: info.name.clone(),
+                    reason: error.to_string(),
+                })?;
         Ok(Self {
             device,
             queue,

@@ -150,24 +150,23 @@ impl GpuGrid {
             "cell_bounds",
             &[Uniform, Read, Read, Read, Write, Write, Write],
         );
-        let cell_start_dispatches = vec![
-            fill_dispatch(context, cell_start.buffer(), cells, EMPTY_CELL)?,
-            bounds_kernel.dispatch(
-                bounds_kernel.bind(
-                    context,
-                    &[
-                        params.binding(0),
-                        sorted_keys_buffer.as_entire_buffer_binding(),
-                        sorted_ids_buffer.as_entire_buffer_binding(),
-                        particles.whole(),
-                        sorted_particles.whole(),
-                        cell_start.whole(),
-                        cell_end.whole(),
-                    ],
-                ),
-                groups,
+        let mut cell_start_dispatches =
+            fill_dispatch(context, cell_start.buffer(), cells, EMPTY_CELL)?;
+        cell_start_dispatches.push(bounds_kernel.dispatch(
+            bounds_kernel.bind(
+                context,
+                &[
+                    params.binding(0),
+                    sorted_keys_buffer.as_entire_buffer_binding(),
+                    sorted_ids_buffer.as_entire_buffer_binding(),
+                    particles.whole(),
+                    sorted_particles.whole(),
+                    cell_start.whole(),
+                    cell_end.whole(),
+                ],
             ),
-        ];
+            groups,
+        ));
         // Cell ids are below cell_count: only that many bits need sorting.
         let key_bits = u32::BITS - (config.cell_count().saturating_sub(1) as u32).leading_zeros();
         Ok(Self {
@@ -298,11 +297,12 @@ impl GpuParticles {
                     particles.whole(),
                     forces.whole(),
                 ];
-                vec![
-                    fill_dispatch(&context, forces.buffer(), 3 * count, 0)?,
+                let mut dispatches = fill_dispatch(&context, forces.buffer(), 3 * count, 0)?;
+                dispatches.extend([
                     pairs_kernel.dispatch(pairs_kernel.bind(&context, &bindings), groups),
                     integrate_kernel.dispatch(integrate_kernel.bind(&context, &bindings), groups),
-                ]
+                ]);
+                dispatches
             }
         };
         let profiler = GpuProfiler::new(&context, 4);

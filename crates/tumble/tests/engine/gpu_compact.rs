@@ -56,8 +56,8 @@ fn fill_matches_cpu() {
     for count in SIZES.into_iter().chain([LARGE]) {
         let mut expected = vec![0.0f32; count];
         let mut vector = GpuVec::from_slice(&context, "fill", &expected).expect("upload");
-        let dispatch = fill_vec_dispatch(&context, &vector, -1.5f32).expect("fill");
-        context.submit_pass("fill", |pass| encode_all(pass, &[dispatch]));
+        let dispatches = fill_vec_dispatch(&context, &vector, -1.5f32).expect("fill");
+        context.submit_pass("fill", |pass| encode_all(pass, &dispatches));
         fill_cpu(&mut expected, -1.5);
         assert_eq!(vector.download(&context).expect("download"), expected);
     }
@@ -70,8 +70,8 @@ fn fill_splits_dispatches_past_65535_workgroups() {
     let context = context();
     let count = 65_536 * 256 + 1;
     let mut vector = GpuVec::from_slice(&context, "fill", &vec![0u32; count]).expect("upload");
-    let dispatch = fill_vec_dispatch(&context, &vector, 7u32).expect("fill");
-    context.submit_pass("fill", |pass| encode_all(pass, &[dispatch]));
+    let dispatches = fill_vec_dispatch(&context, &vector, 7u32).expect("fill");
+    context.submit_pass("fill", |pass| encode_all(pass, &dispatches));
     let filled = vector.download(&context).expect("download");
     assert_eq!(filled.len(), count);
     assert!(filled.iter().all(|&word| word == 7));

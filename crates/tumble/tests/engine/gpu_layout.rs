@@ -85,7 +85,7 @@ fn primitive_parameter_blocks_match_rust() {
                 count,
                 inclusive,
                 tile_count,
-                padding
+                first_tile
             })],
             &["ThreadIds"],
         );
@@ -102,7 +102,11 @@ fn primitive_parameter_blocks_match_rust() {
                     count,
                     pass_index,
                     passes,
-                    tile_count
+                    tile_count,
+                    first_tile,
+                    destination_first,
+                    destination_count,
+                    replay
                 })],
                 &["ThreadIds"],
             );
@@ -130,9 +134,9 @@ fn primitive_parameter_blocks_match_rust() {
         compact::wgsl(),
         vec![rust_layout!(compact::CompactParams {
             count,
-            padding0,
-            padding1,
-            padding2
+            destination_first,
+            destination_count,
+            writes_total
         })],
     );
     for op in [
@@ -145,7 +149,7 @@ fn primitive_parameter_blocks_match_rust() {
                 source,
                 vec![rust_layout!(reduce::ReduceParams {
                     count,
-                    padding0,
+                    first_block,
                     padding1,
                     padding2
                 })],

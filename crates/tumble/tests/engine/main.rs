@@ -27,6 +27,7 @@ mod gpu_scan;
 mod gpu_solver;
 mod gpu_solver_world;
 mod gpu_stages;
+mod gpu_windows;
 mod hulls;
 mod jacobi;
 mod joints;

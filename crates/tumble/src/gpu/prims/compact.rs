@@ -3,10 +3,15 @@
 //!
 //! Exclusive scan of the flags gives each kept value its slot; one more dispatch moves it
 //! there. The output has room for every input (nothing can be dropped).
+//!
+//! Past one storage binding ([`GpuVec::windowed`] buffers) the scan runs by windows, and the
+//! move runs once per window of the input and window of the output at or before it (a value's
+//! slot is never after its index): each run writes the values whose slot lies in its output
+//! window.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, windows};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
@@ -29,9 +34,9 @@ const BINDINGS: [Binding; 6] = [
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct CompactParams {
     pub count: u32,
-    pub padding0: u32,
-    pub padding1: u32,
-    pub padding2: u32,
+    pub destination_first: u32,
+    pub destination_count: u32,
+    pub writes_total: u32,
 }
 const _: () = assert!(size_of::<CompactParams>() == 16);
 
@@ -105,9 +110,9 @@ fn compact_dispatches(
     count: usize,
 ) -> Result<Vec<Dispatch>, GpuError> {
     if count == 0 {
-        return Ok(vec![fill_dispatch(context, &buffers[3], 1, 0)?]);
+        return fill_dispatch(context, &buffers[3], 1, 0);
     }
-    let positions = GpuVec::<u32>::with_capacity(context, "compaction positions", count)?;
+    let positions = GpuVec::<u32>::windowed(context, "compaction positions", count)?;
     let mut dispatches = scan_dispatches(
         context,
         &buffers[1],
@@ -116,27 +121,36 @@ fn compact_dispatches(
         ScanKind::Exclusive,
     )?;
     let kernel = Kernel::new(context, "compact", &wgsl(), "scatter_kept", &BINDINGS);
-    let slots = UniformSlots::new(
-        context,
-        "compact params",
-        &[CompactParams {
-            count: count as u32,
-            padding0: 0,
-            padding1: 0,
-            padding2: 0,
-        }],
-    );
-    let bind_group = kernel.bind(
-        context,
-        &[
-            slots.binding(0),
-            buffers[1].as_entire_buffer_binding(),
-            positions.whole(),
-            buffers[0].as_entire_buffer_binding(),
-            buffers[2].as_entire_buffer_binding(),
-            buffers[3].as_entire_buffer_binding(),
-        ],
-    );
-    dispatches.push(kernel.dispatch(bind_group, workgroups_for(count, WORKGROUP_SIZE)));
+    let windows = windows(context, count, 4, WORKGROUP_SIZE as usize)?;
+    let last = windows.len() - 1;
+    // (input window, output window), each output window at or before the input's.
+    let runs: Vec<(usize, usize)> = (0..windows.len())
+        .flat_map(|input| (0..=input).map(move |output| (input, output)))
+        .collect();
+    let blocks: Vec<CompactParams> = runs
+        .iter()
+        .map(|&(input, output)| CompactParams {
+            count: windows[input].len as u32,
+            destination_first: windows[output].first as u32,
+            destination_count: windows[output].len as u32,
+            writes_total: u32::from(input == last && output == 0),
+        })
+        .collect();
+    let slots = UniformSlots::new(context, "compact params", &blocks);
+    for (slot, &(input, output)) in runs.iter().enumerate() {
+        let (input, output) = (windows[input], windows[output]);
+        let bind_group = kernel.bind(
+            context,
+            &[
+                slots.binding(slot),
+                input.binding(&buffers[1], 4),
+                input.binding(positions.buffer(), 4),
+                input.binding(&buffers[0], 4),
+                output.binding(&buffers[2], 4),
+                buffers[3].as_entire_buffer_binding(),
+            ],
+        );
+        dispatches.push(kernel.dispatch(bind_group, workgroups_for(input.len, WORKGROUP_SIZE)));
+    }
     Ok(dispatches)
 }

@@ -1,11 +1,16 @@
 // Stream compaction, after an exclusive scan of the flags (0 or 1) into `positions`:
 // kept values land at their position, in input order; the last thread writes the total.
+// Past one storage binding, one dispatch per window of the input and window of the output
+// (`gpu::prims::compact`): each writes the kept values whose position lies in its output window.
 
 struct CompactParams {
+    // Elements of this input window.
     count: u32,
-    padding0: u32,
-    padding1: u32,
-    padding2: u32,
+    // The output window: the first position it holds, and how many.
+    destination_first: u32,
+    destination_count: u32,
+    // 1 for the dispatch that writes the total: the last input window's first run.
+    writes_total: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: CompactParams;
@@ -26,10 +31,13 @@ fn scatter_kept(
         return;
     }
     let kept = flags[index] != 0u;
-    if kept {
-        compacted[positions[index]] = values[index];
+    let position = positions[index];
+    // Wrapping: positions before the window come out above its count.
+    let slot = position - params.destination_first;
+    if kept && slot < params.destination_count {
+        compacted[slot] = values[index];
     }
-    if index == params.count - 1u {
+    if params.writes_total != 0u && index == params.count - 1u {
         total[0] = positions[index] + select(0u, 1u, kept);
     }
 }

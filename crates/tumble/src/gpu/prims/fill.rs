@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, windows};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
@@ -36,34 +36,44 @@ pub fn fill_cpu<T: Pod>(destination: &mut [T], value: T) {
     destination.fill(value);
 }
 
-fn dispatch(
+/// The dispatches of `entry` over `words` words, a window of `destination` (and of `source`,
+/// when `windowed_source`) at a time.
+fn dispatches(
     context: &GpuContext,
     entry: &str,
-    source: &wgpu::Buffer,
+    (source, windowed_source): (&wgpu::Buffer, bool),
     destination: &wgpu::Buffer,
     words: usize,
     value: u32,
-) -> Dispatch {
+) -> Result<Vec<Dispatch>, GpuError> {
     let kernel = Kernel::new(context, entry, &wgsl(), entry, &BINDINGS);
-    let slots = UniformSlots::new(
-        context,
-        "fill params",
-        &[FillParams {
-            count: words as u32,
+    let windows = windows(context, words, 4, WORKGROUP_SIZE as usize)?;
+    let blocks: Vec<FillParams> = windows
+        .iter()
+        .map(|window| FillParams {
+            count: window.len as u32,
             value,
             padding0: 0,
             padding1: 0,
-        }],
-    );
-    let bind_group = kernel.bind(
-        context,
-        &[
-            slots.binding(0),
-            source.as_entire_buffer_binding(),
-            destination.as_entire_buffer_binding(),
-        ],
-    );
-    kernel.dispatch(bind_group, workgroups_for(words, WORKGROUP_SIZE))
+        })
+        .collect();
+    let slots = UniformSlots::new(context, "fill params", &blocks);
+    Ok(windows
+        .iter()
+        .enumerate()
+        .map(|(slot, window)| {
+            let source = if windowed_source {
+                window.binding(source, 4)
+            } else {
+                source.as_entire_buffer_binding()
+            };
+            let bind_group = kernel.bind(
+                context,
+                &[slots.binding(slot), source, window.binding(destination, 4)],
+            );
+            kernel.dispatch(bind_group, workgroups_for(window.len, WORKGROUP_SIZE))
+        })
+        .collect())
 }
 
 /// Writes `value` to the first `words` 4-byte words of `destination`.
@@ -72,17 +82,17 @@ pub fn fill_dispatch(
     destination: &wgpu::Buffer,
     words: usize,
     value: u32,
-) -> Result<Dispatch, GpuError> {
+) -> Result<Vec<Dispatch>, GpuError> {
     // The fill kernel never reads `source`; a small buffer fills the slot.
     let unused = GpuVec::<u32>::with_capacity(context, "fill unused source", 1)?;
-    Ok(dispatch(
+    dispatches(
         context,
         "fill",
-        unused.buffer(),
+        (unused.buffer(), false),
         destination,
         words,
         value,
-    ))
+    )
 }
 
 /// Copies the first `words` 4-byte words of `source` to `destination` (distinct buffers).
@@ -91,8 +101,8 @@ pub fn copy_dispatch(
     source: &wgpu::Buffer,
     destination: &wgpu::Buffer,
     words: usize,
-) -> Dispatch {
-    dispatch(context, "copy", source, destination, words, 0)
+) -> Result<Vec<Dispatch>, GpuError> {
+    dispatches(context, "copy", (source, true), destination, words, 0)
 }
 
 /// Fills a whole vector (its `len` elements) with `value`; a 4-byte element type.
@@ -100,7 +110,7 @@ pub fn fill_vec_dispatch<T: Pod>(
     context: &GpuContext,
     destination: &GpuVec<T>,
     value: T,
-) -> Result<Dispatch, GpuError> {
+) -> Result<Vec<Dispatch>, GpuError> {
     const { assert!(size_of::<T>() == 4, "fill writes 4-byte elements") };
     fill_dispatch(
         context,

@@ -12,18 +12,27 @@
 //! Two ways to rank a tile's elements by digit ([`SortPath`]): bit masks in workgroup memory
 //! (any adapter) or subgroup ballots (adapters with subgroups).
 //!
+//! Past one storage binding ([`GpuVec::windowed`] buffers) the sort binds a window at a time:
+//! the histogram runs once per input window, each pass once per (input window, output window),
+//! each run writing the elements whose place lies in its output window (`radix_sort.wgsl`).
+//! On Mesa's CPU drivers input windows are also short enough for their loop limit
+//! ([`look_back_tiles`]). A pass's tile statuses must fit one binding: a quarter of the input
+//! keys' bytes for u32 keys and an eighth for u64, so up to 4 GiB of keys on a 1 GiB binding
+//! limit.
+//!
 //! Stability: equal keys keep their input order (the rank inside a tile is the position among
 //! equal digits, tiles are laid out in order by the look-back), so sorting (key, index) pairs
 //! gives the same result on every device and every run.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, Window, windows, windows_at_most};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::gpu::prims::fill::fill_dispatch;
+use crate::gpu::prims::look_back_tiles;
 
 /// Values per digit.
 const RADIX: u32 = 256;
@@ -45,14 +54,18 @@ const MAX_COUNT: usize = (1 << 30) - 1;
 const WGSL: &str = include_str!("radix_sort.wgsl");
 const WGSL_BASELINE: &str = include_str!("radix_rank_baseline.wgsl");
 const WGSL_SUBGROUPS: &str = include_str!("radix_rank_subgroups.wgsl");
-const BINDINGS: [Binding; 6] = [
+const BINDINGS: [Binding; 7] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
+    Binding::StorageReadWrite,
 ];
+/// Elements of one histogram workgroup: a window holds whole ones, and so whole tiles.
+const HISTOGRAM_BLOCK: u32 = HISTOGRAM_ITEMS * WORKGROUP_SIZE;
+const _: () = assert!(HISTOGRAM_BLOCK.is_multiple_of(RADIX_TILE));
 
 /// A key the radix sort handles: a whole number of u32 words, least significant first.
 pub trait RadixKey: Pod + Ord {
@@ -76,8 +89,12 @@ pub struct RadixParams {
     pub pass_index: u32,
     pub passes: u32,
     pub tile_count: u32,
+    pub first_tile: u32,
+    pub destination_first: u32,
+    pub destination_count: u32,
+    pub replay: u32,
 }
-const _: () = assert!(size_of::<RadixParams>() == 16);
+const _: () = assert!(size_of::<RadixParams>() == 32);
 
 /// How a tile's elements are ranked by digit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -248,16 +265,42 @@ fn sort_dispatches<K: RadixKey>(
     let source = wgsl(K::WORDS, path, context.info.subgroup_min_size);
     let histogram = Kernel::new(context, "radix histogram", &source, "histogram", &BINDINGS);
     let scatter = Kernel::new(context, "radix scatter", &source, "scatter", &BINDINGS);
-    let tiles = workgroups_for(count, RADIX_TILE);
-    // Digit counts of every pass, then the status of every (pass, tile, digit).
-    let max_passes = 4 * K::WORDS as usize;
-    let state_words = (max_passes + passes as usize * tiles as usize) * RADIX as usize;
-    let state = GpuVec::<u32>::with_capacity(context, "radix state", state_words)?;
-    let scratch_keys = GpuVec::<K>::with_capacity(context, "radix scratch keys", count)?;
-    let scratch_values = GpuVec::<u32>::with_capacity(context, "radix scratch values", count)?;
+    let tiles = workgroups_for(count, RADIX_TILE) as usize;
+    // Input windows also bound the look-back ([`look_back_tiles`]); output windows only the
+    // binding.
+    let inputs = windows_at_most(
+        context,
+        count,
+        size_of::<K>(),
+        HISTOGRAM_BLOCK as usize,
+        look_back_tiles(context).saturating_mul(RADIX_TILE as usize),
+    )?;
+    let outputs = windows(context, count, size_of::<K>(), HISTOGRAM_BLOCK as usize)?;
+    // The digit counts of every pass, then each pass's tile statuses, bound a pass at a time.
+    let counts = Window {
+        first: 0,
+        len: 4 * K::WORDS as usize * RADIX as usize,
+    };
+    let pass_status = |pass: usize| Window {
+        first: counts.len + pass * tiles * RADIX as usize,
+        len: tiles * RADIX as usize,
+    };
+    let limit = context.device.limits().max_storage_buffer_binding_size;
+    let status_bytes = (pass_status(0).len * 4) as u64;
+    if status_bytes > limit {
+        return Err(GpuError::BufferTooLarge {
+            what: "radix sort tile statuses (one pass)",
+            needed: status_bytes,
+            limit,
+        });
+    }
+    let passes = passes as usize;
+    let state_words = pass_status(passes).first;
+    let state = GpuVec::<u32>::windowed(context, "radix state", state_words)?;
+    let scratch_keys = GpuVec::<K>::windowed(context, "radix scratch keys", count)?;
+    let scratch_values = GpuVec::<u32>::windowed(context, "radix scratch values", count)?;
     // The chain of (keys, values) buffers: input, then alternating output and scratch so
     // that the last pass writes the output.
-    let passes = passes as usize;
     let chain: Vec<(&wgpu::Buffer, &wgpu::Buffer)> = (0..=passes)
         .map(|step| {
             if step == 0 {
@@ -269,40 +312,73 @@ fn sort_dispatches<K: RadixKey>(
             }
         })
         .collect();
-    let blocks: Vec<RadixParams> = (0..passes as u32)
-        .map(|pass_index| RadixParams {
-            count: count as u32,
-            pass_index,
+    // The runs in order: the histogram of each input window (with pass 0's bindings: its
+    // input keys are the sort's input), then each pass's (input window, output window) pairs.
+    struct Run<'k> {
+        kernel: &'k Kernel,
+        workgroups: u32,
+        pass: usize,
+        input: Window,
+        output: Window,
+        replay: bool,
+    }
+    let mut runs: Vec<Run> = inputs
+        .iter()
+        .map(|&input| Run {
+            kernel: &histogram,
+            workgroups: workgroups_for(input.len, HISTOGRAM_BLOCK),
+            pass: 0,
+            input,
+            output: input,
+            replay: false,
+        })
+        .collect();
+    for pass in 0..passes {
+        for &input in &inputs {
+            for (index, &output) in outputs.iter().enumerate() {
+                runs.push(Run {
+                    kernel: &scatter,
+                    workgroups: workgroups_for(input.len, RADIX_TILE),
+                    pass,
+                    input,
+                    output,
+                    replay: index > 0,
+                });
+            }
+        }
+    }
+    let blocks: Vec<RadixParams> = runs
+        .iter()
+        .map(|run| RadixParams {
+            count: run.input.len as u32,
+            pass_index: run.pass as u32,
             passes: passes as u32,
-            tile_count: tiles,
+            tile_count: workgroups_for(run.input.len, RADIX_TILE),
+            first_tile: (run.input.first / RADIX_TILE as usize) as u32,
+            destination_first: run.output.first as u32,
+            destination_count: run.output.len as u32,
+            replay: u32::from(run.replay),
         })
         .collect();
     let slots = UniformSlots::new(context, "radix params", &blocks);
-    let bind = |kernel: &Kernel, pass: usize| {
-        let (keys_in, values_in) = chain[pass];
-        let (keys_out, values_out) = chain[pass + 1];
-        kernel.bind(
+    let key_bytes = size_of::<K>();
+    let mut dispatches = fill_dispatch(context, state.buffer(), state_words, 0)?;
+    for (slot, run) in runs.iter().enumerate() {
+        let (keys_in, values_in) = chain[run.pass];
+        let (keys_out, values_out) = chain[run.pass + 1];
+        let bind_group = run.kernel.bind(
             context,
             &[
-                slots.binding(pass),
-                keys_in.as_entire_buffer_binding(),
-                values_in.as_entire_buffer_binding(),
-                keys_out.as_entire_buffer_binding(),
-                values_out.as_entire_buffer_binding(),
-                state.whole(),
+                slots.binding(slot),
+                run.input.binding(keys_in, key_bytes),
+                run.input.binding(values_in, 4),
+                run.output.binding(keys_out, key_bytes),
+                run.output.binding(values_out, 4),
+                counts.binding(state.buffer(), 4),
+                pass_status(run.pass).binding(state.buffer(), 4),
             ],
-        )
-    };
-    let mut dispatches = vec![
-        fill_dispatch(context, state.buffer(), state_words, 0)?,
-        // Pass 0's bindings: its input keys are the sort's input.
-        histogram.dispatch(
-            bind(&histogram, 0),
-            workgroups_for(count, HISTOGRAM_ITEMS * WORKGROUP_SIZE),
-        ),
-    ];
-    for pass in 0..passes {
-        dispatches.push(scatter.dispatch(bind(&scatter, pass), tiles));
+        );
+        dispatches.push(run.kernel.dispatch(bind_group, run.workgroups));
     }
     Ok(dispatches)
 }
@@ -317,13 +393,17 @@ fn copy_dispatches<K: RadixKey>(
     if count == 0 {
         return Ok(Vec::new());
     }
-    Ok(vec![
-        crate::gpu::prims::fill::copy_dispatch(
-            context,
-            &buffers[0],
-            &buffers[2],
-            count * K::WORDS as usize,
-        ),
-        crate::gpu::prims::fill::copy_dispatch(context, &buffers[1], &buffers[3], count),
-    ])
+    let mut dispatches = crate::gpu::prims::fill::copy_dispatch(
+        context,
+        &buffers[0],
+        &buffers[2],
+        count * K::WORDS as usize,
+    )?;
+    dispatches.extend(crate::gpu::prims::fill::copy_dispatch(
+        context,
+        &buffers[1],
+        &buffers[3],
+        count,
+    )?);
+    Ok(dispatches)
 }

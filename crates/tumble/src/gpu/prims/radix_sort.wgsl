@@ -3,9 +3,9 @@
 // front, and each pass finds where its tile's runs go by a decoupled look-back over the tiles
 // before it. Keys are KEY_WORDS u32 words (1: u32 keys; 2: u64 keys, low word first).
 // Injected: KEY_WORDS, ROUNDS, HISTOGRAM_ITEMS, POLLS (and SUBGROUPS on the subgroup path).
-// `gpu::prims::radix_sort` zeroes `state` before each sort.
+// `gpu::prims::radix_sort` zeroes `counts` and `status` before each sort.
 //
-//   histogram:  state.counts[pass][digit] = elements of the input with that digit, all passes
+//   histogram:  counts[pass][digit] = elements of the input with that digit, all passes
 //   scatter:    one pass; per tile of TILE = ROUNDS × WORKGROUP_SIZE elements (the workgroup
 //               id's tile: see `scan.wgsl` on why no ticket is taken):
 //     1. rank: each element's position among the tile's equal digits;
@@ -20,14 +20,31 @@
 // deterministic. Two ways to find it, each in its own file (`radix_rank_*.wgsl`): per-digit
 // bit masks in workgroup memory (any adapter), or subgroup ballots and a count per subgroup and
 // digit (Onesweep's warp-level multisplit). Each file says which thread holds which element.
+//
+// Windows: arrays larger than one storage binding are bound a window at a time
+// (`gpu::buffer::windows`). The histogram runs once per input window. A pass runs once per
+// (input window, output window), in order: tiles are numbered over the whole input, so a
+// window's look-back walks into earlier windows, whose tiles have all published their PREFIX
+// (it never falls back to input outside its window); each run writes the elements whose place
+// lies in its output window. The first run of an input window publishes its tiles' statuses;
+// the later ones (`replay`) read their tile's own PREFIX instead of looking back.
 
 struct RadixParams {
+    // Elements of this input window.
     count: u32,
     // The digit this scatter sorts by: digit p is bits 8(p mod 4).. of key word p / 4.
     pass_index: u32,
     // Digits the histogram counts (passes of the whole sort).
     passes: u32,
+    // Tiles of this input window; workgroups past it (a 2D grid rounds up) do nothing.
     tile_count: u32,
+    // The window's first tile, numbered over the whole input.
+    first_tile: u32,
+    // The output window: the first place it holds, and how many.
+    destination_first: u32,
+    destination_count: u32,
+    // 1: an earlier run of this pass and input window published the tiles' statuses.
+    replay: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: RadixParams;
@@ -35,14 +52,14 @@ struct RadixParams {
 @group(0) @binding(2) var<storage, read> values_in: array<u32>;
 @group(0) @binding(3) var<storage, read_write> keys_out: array<u32>;
 @group(0) @binding(4) var<storage, read_write> values_out: array<u32>;
-// [pass × RADIX + digit]: digit counts of the input;
-// [STATUS + (pass × tile_count + tile) × RADIX + digit]: a tile's count of a digit, with a flag
-// in the top two bits (counts stay below 2^30, checked in Rust).
-@group(0) @binding(5) var<storage, read_write> state: array<atomic<u32>>;
+// [pass × RADIX + digit]: digit counts of the input.
+@group(0) @binding(5) var<storage, read_write> counts: array<atomic<u32>>;
+// This pass's [tile × RADIX + digit]: a tile's count of a digit, with a flag in the top two
+// bits (counts stay below 2^30, checked in Rust).
+@group(0) @binding(6) var<storage, read_write> status: array<atomic<u32>>;
 
 const RADIX: u32 = 256u;
 const MAX_PASSES: u32 = 4u * KEY_WORDS;
-const STATUS: u32 = MAX_PASSES * RADIX;
 const TILE: u32 = ROUNDS * WORKGROUP_SIZE;
 const FLAG_AGGREGATE: u32 = 1u << 30u;
 const FLAG_PREFIX: u32 = 2u << 30u;
@@ -138,13 +155,13 @@ fn histogram(
     for (var pass_index = 0u; pass_index < params.passes; pass_index++) {
         let count = atomicLoad(&pass_counts[pass_index * RADIX + local]);
         if count != 0u {
-            atomicAdd(&state[pass_index * RADIX + local], count);
+            atomicAdd(&counts[pass_index * RADIX + local], count);
         }
     }
 }
 
 fn status_index(tile: u32, digit: u32) -> u32 {
-    return STATUS + (params.pass_index * params.tile_count + tile) * RADIX + digit;
+    return tile * RADIX + digit;
 }
 
 // Status of (tile, digit), polled up to POLLS times; 0 if it has not been published.
@@ -152,20 +169,20 @@ fn status_index(tile: u32, digit: u32) -> u32 {
 // turns atomicStore and atomicLoad into plain accesses, which llvmpipe's compiler may hoist out
 // of a poll loop or delay, so other tiles would never see a status (and always fall back).
 fn poll_status(tile: u32, digit: u32) -> u32 {
-    var seen = atomicOr(&state[status_index(tile, digit)], 0u);
+    var seen = atomicOr(&status[status_index(tile, digit)], 0u);
     for (var poll = 1u; poll < POLLS && seen == 0u; poll++) {
-        seen = atomicOr(&state[status_index(tile, digit)], 0u);
+        seen = atomicOr(&status[status_index(tile, digit)], 0u);
     }
     return seen;
 }
 
-// The count of digit `local` in tile `tile`, from the input (the look-back's fallback); call
-// from uniform control flow with `exchange` free.
+// The count of digit `local` in tile `tile` (one of this window's), from the input (the
+// look-back's fallback); call from uniform control flow with `exchange` free.
 fn count_tile_digits(tile: u32, local: u32) -> u32 {
     atomicStore(&exchange[local], 0u);
     workgroupBarrier();
     for (var round = 0u; round < ROUNDS; round++) {
-        let index = tile * TILE + round * WORKGROUP_SIZE + local;
+        let index = (tile - params.first_tile) * TILE + round * WORKGROUP_SIZE + local;
         if index < params.count {
             let key_word = keys_in[index * KEY_WORDS + params.pass_index / 4u];
             atomicAdd(&exchange[digit_of(key_word, params.pass_index)], 1u);
@@ -249,15 +266,17 @@ fn place(element: u32, slot: u32, word: u32) {
 }
 
 // Writes slot `round` × WORKGROUP_SIZE + local of the sorted tile (word `word` of its element)
-// to its place in the output, `destination`.
+// to its place in the output, `destination`, if the output window holds that place.
 fn write_out(round: u32, local: u32, filled: u32, destination: u32, word: u32) {
     let slot = round * WORKGROUP_SIZE + local;
-    if slot < filled {
+    // Wrapping: places before the window come out above its count.
+    let place = destination - params.destination_first;
+    if slot < filled && place < params.destination_count {
         let moved = atomicLoad(&exchange[slot]);
         if word < KEY_WORDS {
-            keys_out[destination * KEY_WORDS + word] = moved;
+            keys_out[place * KEY_WORDS + word] = moved;
         } else {
-            values_out[destination] = moved;
+            values_out[place] = moved;
         }
     }
 }
@@ -268,14 +287,15 @@ const_assert ROUNDS == 8u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scatter(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let local = ids.local;
-    let tile = flat_workgroup(workgroup, groups);
-    if tile >= params.tile_count {
+    let window_tile = flat_workgroup(workgroup, groups);
+    if window_tile >= params.tile_count {
         return;
     }
     if local == 0u {
         atomicStore(&stuck_tile, 0u);
     }
-    let start = tile * TILE;
+    let tile = params.first_tile + window_tile;
+    let start = window_tile * TILE;
 
     // 1. Rank: each thread's ROUNDS elements, in the order the path lays them out.
     let element0 = element_index(ids, start, 0u);
@@ -307,11 +327,13 @@ fn scatter(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin
     // 2. Thread d handles digit d: publish the tile's count...
     let tile_digits = digit_count[local];
     let own_status = status_index(tile, local);
-    atomicExchange(&state[own_status], select(FLAG_AGGREGATE, FLAG_PREFIX, tile == 0u) | tile_digits);
+    if params.replay == 0u {
+        atomicExchange(&status[own_status], select(FLAG_AGGREGATE, FLAG_PREFIX, tile == 0u) | tile_digits);
+    }
     // ...scan (tile count, input count) over the digits, exclusive: where the digit's run
     // starts in the sorted tile and in the output (Hillis–Steele, ping-ponging between
     // exchange[0..2W] and exchange[2W..4W], a pair of words per digit)...
-    let own = vec2<u32>(tile_digits, atomicLoad(&state[params.pass_index * RADIX + local]));
+    let own = vec2<u32>(tile_digits, atomicLoad(&counts[params.pass_index * RADIX + local]));
     atomicStore(&exchange[2u * local], own.x);
     atomicStore(&exchange[2u * local + 1u], own.y);
     workgroupBarrier();
@@ -328,10 +350,16 @@ fn scatter(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin
         workgroupBarrier();
     }
     let before = vec2<u32>(atomicLoad(&exchange[read_half + 2u * local]), atomicLoad(&exchange[read_half + 2u * local + 1u])) - own;
-    // ...and look back: the digit's count in all earlier tiles of this pass.
-    let earlier = look_back(tile, local);
-    if tile > 0u {
-        atomicExchange(&state[own_status], FLAG_PREFIX | (earlier + tile_digits));
+    // ...and look back: the digit's count in all earlier tiles of this pass (a replay has
+    // it in its own PREFIX).
+    var earlier = 0u;
+    if params.replay == 0u {
+        earlier = look_back(tile, local);
+        if tile > 0u {
+            atomicExchange(&status[own_status], FLAG_PREFIX | (earlier + tile_digits));
+        }
+    } else {
+        earlier = (atomicOr(&status[own_status], 0u) & COUNT_MASK) - tile_digits;
     }
     digit_start[local] = before.x;
     digit_offset[local] = before.y + earlier - before.x;

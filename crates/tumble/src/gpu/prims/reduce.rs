@@ -2,11 +2,13 @@
 //!
 //! Blocks of [`REDUCE_BLOCK`] values reduce to one, level after level, until one is left
 //! (one dispatch per level: 2 for 1M values). The combination order is fixed and the CPU twin
-//! follows it, so even float sums agree bitwise.
+//! follows it, so even float sums agree bitwise. An input past one storage binding
+//! ([`GpuVec::windowed`]) is reduced a window of whole blocks at a time, each window's blocks
+//! writing their slots of the next level: the same blocks, the same order.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, Window, windows};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
@@ -94,7 +96,7 @@ impl ReduceScalar for f32 {
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct ReduceParams {
     pub count: u32,
-    pub padding0: u32,
+    pub first_block: u32,
     pub padding1: u32,
     pub padding2: u32,
 }
@@ -208,11 +210,24 @@ fn reduce_dispatches<T: ReduceScalar>(
         let below = counts[counts.len() - 1];
         counts.push(below.div_ceil(REDUCE_BLOCK as usize));
     }
-    let blocks: Vec<ReduceParams> = counts
+    // Each level's windows; an empty input is one empty window, whose block writes the
+    // identity.
+    let level_windows: Vec<Vec<Window>> = counts
         .iter()
-        .map(|&level_count| ReduceParams {
-            count: level_count as u32,
-            padding0: 0,
+        .map(|&level_count| {
+            if level_count == 0 {
+                Ok(vec![Window { first: 0, len: 0 }])
+            } else {
+                windows(context, level_count, size_of::<T>(), REDUCE_BLOCK as usize)
+            }
+        })
+        .collect::<Result<_, _>>()?;
+    let blocks: Vec<ReduceParams> = level_windows
+        .iter()
+        .flatten()
+        .map(|window| ReduceParams {
+            count: window.len as u32,
+            first_block: (window.first / REDUCE_BLOCK as usize) as u32,
             padding1: 0,
             padding2: 0,
         })
@@ -223,30 +238,31 @@ fn reduce_dispatches<T: ReduceScalar>(
         .map(|&level_count| GpuVec::with_capacity(context, "reduce partial", level_count))
         .collect::<Result<_, _>>()?;
     let levels = counts.len();
-    Ok((0..levels)
-        .map(|level| {
-            let source = if level == 0 {
-                input
-            } else {
-                scratch[level - 1].buffer()
-            };
-            let destination = if level + 1 == levels {
-                output
-            } else {
-                scratch[level].buffer()
-            };
+    let element = size_of::<T>();
+    let mut dispatches = Vec::new();
+    for (level, windows) in level_windows.iter().enumerate() {
+        let source = if level == 0 {
+            input
+        } else {
+            scratch[level - 1].buffer()
+        };
+        let destination = if level + 1 == levels {
+            output
+        } else {
+            scratch[level].buffer()
+        };
+        for window in windows {
             let bind_group = kernel.bind(
                 context,
                 &[
-                    slots.binding(level),
-                    source.as_entire_buffer_binding(),
+                    slots.binding(dispatches.len()),
+                    window.binding(source, element),
                     destination.as_entire_buffer_binding(),
                 ],
             );
-            kernel.dispatch(
-                bind_group,
-                workgroups_for(counts[level], REDUCE_BLOCK).max(1),
-            )
-        })
-        .collect())
+            dispatches
+                .push(kernel.dispatch(bind_group, workgroups_for(window.len, REDUCE_BLOCK).max(1)));
+        }
+    }
+    Ok(dispatches)
 }

@@ -5,8 +5,10 @@
 // run, and the CPU twin repeats it exactly.
 
 struct ReduceParams {
+    // Values of this window.
     count: u32,
-    padding0: u32,
+    // The window's first block, numbered over the whole level: where its results go.
+    first_block: u32,
     padding1: u32,
     padding2: u32,
 }
@@ -46,6 +48,6 @@ fn reduce(
         workgroupBarrier();
     }
     if local == 0u {
-        destination[block] = partial[0];
+        destination[params.first_block + block] = partial[0];
     }
 }

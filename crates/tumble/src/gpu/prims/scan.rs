@@ -6,15 +6,20 @@
 //! slow to publish, so no workgroup waits on another unboundedly: the scan needs no
 //! forward-progress guarantee (nor workgroups started in order) and runs on Mesa's CPU drivers
 //! too.
+//!
+//! Past one storage binding ([`GpuVec::windowed`] buffers), and on Mesa's CPU drivers past
+//! [`look_back_tiles`] tiles, the scan runs a window at a time, one dispatch each, with tiles
+//! numbered over the whole input so that a window's look-back continues into the last one.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, windows_at_most};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
 };
 use crate::gpu::prims::fill::fill_dispatch;
+use crate::gpu::prims::look_back_tiles;
 
 /// Elements each thread scans: 15 keeps the baseline's staged tile and the thread sums within
 /// the 16 KiB of workgroup memory WebGPU guarantees, and, being odd, spreads the runs threads
@@ -52,7 +57,7 @@ pub struct ScanParams {
     pub count: u32,
     pub inclusive: u32,
     pub tile_count: u32,
-    pub padding: u32,
+    pub first_tile: u32,
 }
 const _: () = assert!(size_of::<ScanParams>() == 16);
 
@@ -136,32 +141,41 @@ pub fn scan_dispatches_on(
     }
     let kernel = Kernel::new(context, "scan", &wgsl(path), "scan", &BINDINGS);
     let tiles = workgroups_for(count, SCAN_TILE);
-    // Two words per tile.
+    // Two words per tile, for the tiles of every window: a window's look-back walks into the
+    // windows before it, whose tiles have all published their prefix.
     let status_words = 2 * tiles as usize;
     let status = GpuVec::<u32>::with_capacity(context, "scan tile status", status_words)?;
-    let slots = UniformSlots::new(
+    let windows = windows_at_most(
         context,
-        "scan params",
-        &[ScanParams {
-            count: count as u32,
+        count,
+        4,
+        SCAN_TILE as usize,
+        look_back_tiles(context).saturating_mul(SCAN_TILE as usize),
+    )?;
+    let blocks: Vec<ScanParams> = windows
+        .iter()
+        .map(|window| ScanParams {
+            count: window.len as u32,
             inclusive: u32::from(kind == ScanKind::Inclusive),
-            tile_count: tiles,
-            padding: 0,
-        }],
-    );
-    let bind_group = kernel.bind(
-        context,
-        &[
-            slots.binding(0),
-            source.as_entire_buffer_binding(),
-            destination.as_entire_buffer_binding(),
-            status.whole(),
-        ],
-    );
-    Ok(vec![
-        fill_dispatch(context, status.buffer(), status_words, 0)?,
-        kernel.dispatch(bind_group, tiles),
-    ])
+            tile_count: workgroups_for(window.len, SCAN_TILE),
+            first_tile: (window.first / SCAN_TILE as usize) as u32,
+        })
+        .collect();
+    let slots = UniformSlots::new(context, "scan params", &blocks);
+    let mut dispatches = fill_dispatch(context, status.buffer(), status_words, 0)?;
+    for (slot, (window, block)) in windows.iter().zip(&blocks).enumerate() {
+        let bind_group = kernel.bind(
+            context,
+            &[
+                slots.binding(slot),
+                window.binding(source, 4),
+                window.binding(destination, 4),
+                status.whole(),
+            ],
+        );
+        dispatches.push(kernel.dispatch(bind_group, block.tile_count));
+    }
+    Ok(dispatches)
 }
 
 /// A scan with its dispatches cached for the last (source, destination, count, kind).

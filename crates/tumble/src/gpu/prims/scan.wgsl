@@ -25,6 +25,12 @@
 // loads by one round trip to memory (on an H100: 64M u32 0.390 → 0.385 ms; the radix sort of
 // 1M pairs 0.163 → 0.149 ms).
 //
+// Windows: an array larger than one storage binding is scanned a window at a time, one
+// dispatch each, in order (`gpu::buffer::windows`). Tiles are numbered over the whole array, so
+// a window's first tile looks back into the windows before it; every tile there has published
+// its PREFIX before this dispatch began, so the walk stops at the tile before the window and
+// never falls back to reading input outside it.
+//
 // Status of tile k: two words, the low and the high 16 bits of its sum, each with the flag
 // in its own high 16 bits (WGSL has no 64-bit atomics on the baseline, and a sum needs all 32
 // bits). A reader takes the pair only when both halves carry the same flag, so it never mixes
@@ -35,9 +41,10 @@ struct ScanParams {
     count: u32,
     // 1: inclusive (element i included), 0: exclusive.
     inclusive: u32,
-    // Tiles of this scan; workgroups past it (a 2D grid rounds up) do nothing.
+    // Tiles of this window; workgroups past it (a 2D grid rounds up) do nothing.
     tile_count: u32,
-    padding: u32,
+    // The window's first tile, numbered over the whole array.
+    first_tile: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ScanParams;
@@ -83,18 +90,23 @@ fn poll_status(tile: u32) -> vec2<u32> {
     return seen;
 }
 
+// Where tile `tile` (one of this window's) starts in the window.
+fn tile_start(tile: u32) -> u32 {
+    return (tile - params.first_tile) * TILE;
+}
+
 // Element `slot` of the tile starting at `start`, 0 past the end of the input.
 fn tile_item(start: u32, slot: u32) -> u32 {
     let index = start + slot;
     return select(0u, source[min(index, params.count - 1u)], index < params.count);
 }
 
-// The sum of tile `tile`'s input, to every thread (the fallback); call from uniform control
-// flow.
+// The sum of tile `tile`'s input (one of this window's), to every thread (the fallback); call
+// from uniform control flow.
 fn reduce_tile(tile: u32, local: u32) -> u32 {
     var sum = 0u;
     for (var item = 0u; item < ITEMS_PER_THREAD; item++) {
-        let index = tile * TILE + item * WORKGROUP_SIZE + local;
+        let index = tile_start(tile) + item * WORKGROUP_SIZE + local;
         if index < params.count {
             sum += source[index];
         }

@@ -12,11 +12,12 @@ var<workgroup> exchange: array<u32, TILE>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let tile = flat_workgroup(workgroup, groups);
-    if tile >= params.tile_count {
+    let window_tile = flat_workgroup(workgroup, groups);
+    if window_tile >= params.tile_count {
         return;
     }
-    let start = tile * TILE;
+    let tile = params.first_tile + window_tile;
+    let start = window_tile * TILE;
     load_tile(start, ids.local);
     workgroupBarrier();
     // Each thread sums its run of ITEMS_PER_THREAD consecutive elements...

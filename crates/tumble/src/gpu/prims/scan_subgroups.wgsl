@@ -17,13 +17,14 @@ struct ThreadIds {
 const_assert ITEMS_PER_THREAD == 15u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scan(ids: ThreadIds, @builtin(workgroup_id) workgroup: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let tile = flat_workgroup(workgroup, groups);
-    if tile >= params.tile_count {
+    let window_tile = flat_workgroup(workgroup, groups);
+    if window_tile >= params.tile_count {
         return;
     }
+    let tile = params.first_tile + window_tile;
     // Element `row` × width of this lane's rows. The rows' loads, sums and scans are written
     // out rather than looped: drivers do not unroll naga's loops (see `scan_baseline.wgsl`).
-    let first = tile * TILE + ids.subgroup * ITEMS_PER_THREAD * ids.width + ids.lane;
+    let first = window_tile * TILE + ids.subgroup * ITEMS_PER_THREAD * ids.width + ids.lane;
     let item0 = tile_item(first, 0u * ids.width);
     let item1 = tile_item(first, 1u * ids.width);
     let item2 = tile_item(first, 2u * ids.width);
@@ -143,11 +144,12 @@ fn first_lane(ballot: vec4<u32>) -> u32 {
     return 128u;
 }
 
-// The sum of tile `tile`'s input, summed by one subgroup (the look-back's fallback).
+// The sum of tile `tile`'s input (one of this window's), summed by one subgroup (the
+// look-back's fallback).
 fn subgroup_reduce_tile(ids: ThreadIds, tile: u32) -> u32 {
     var sum = 0u;
     for (var slot = ids.lane; slot < TILE; slot += ids.width) {
-        let index = tile * TILE + slot;
+        let index = tile_start(tile) + slot;
         if index < params.count {
             sum += source[index];
         }
@@ -166,8 +168,8 @@ fn look_back(ids: ThreadIds, tile: u32, aggregate: u32) -> u32 {
     // (a debug build that stored them showed it), no change to the walk's control flow helped,
     // and lavapipe's 8-wide subgroups never showed it, so we take it for a miscompile we could
     // not isolate further. One tile of a scan pays for the serial walk, nothing measurable.
-    // tests/gpu_scan.rs sweeps partial last tiles for this; run it on NVIDIA after changes here.
-    if params.count - tile * TILE < TILE {
+    // tests/engine/gpu_scan.rs sweeps partial last tiles for this; run it on NVIDIA after changes here.
+    if params.count - tile_start(tile) < TILE {
         return serial_look_back(ids.local, tile, aggregate);
     }
     if ids.local == 0u {

@@ -579,19 +579,17 @@ impl GpuBroadphase {
                 ],
             )
         };
-        let search = vec![
-            fill_dispatch(
-                context,
-                self.appended.buffer(),
-                2 * self.capacity(),
-                u32::MAX,
-            )?,
-            fill_dispatch(context, self.count.buffer(), 1, 0)?,
-            traverse.dispatch(
-                bind(&traverse),
-                workgroups_for(self.dynamic.leaves(), WORKGROUP_SIZE),
-            ),
-        ];
+        let mut search = fill_dispatch(
+            context,
+            self.appended.buffer(),
+            2 * self.capacity(),
+            u32::MAX,
+        )?;
+        search.extend(fill_dispatch(context, self.count.buffer(), 1, 0)?);
+        search.push(traverse.dispatch(
+            bind(&traverse),
+            workgroups_for(self.dynamic.leaves(), WORKGROUP_SIZE),
+        ));
         let unpack = vec![unpack.dispatch(
             bind(&unpack),
             workgroups_for(self.capacity(), WORKGROUP_SIZE),

@@ -1,6 +1,6 @@
 // Contact rows as both executors solve them: the twins of Softness (pipeline/config.rs), Row,
 // ConstraintPoint and ContactConstraint (stages/constraints/contact.rs), whose docs give each
-// field's meaning and unit. tests/gpu_layout.rs checks that the layouts agree.
+// field's meaning and unit. tests/engine/gpu_layout.rs checks that the layouts agree.
 
 // Body index of a constraint's static side (STATIC_BODY in Rust).
 const STATIC_BODY: u32 = 0xffffffffu;

@@ -1,7 +1,7 @@
 // Joint rows as both executors solve them: the twins of JointFrame, JointConstraint and
 // JointSlot (stages/constraints/joint.rs), whose docs give each field's meaning and unit, and
 // of BatchedJointImpulses (stages/solver/batched.rs).
-// tests/gpu_layout.rs checks that the layouts agree. Needs contact_constraint.wgsl (Softness).
+// tests/engine/gpu_layout.rs checks that the layouts agree. Needs contact_constraint.wgsl (Softness).
 
 // JointFrame::kind (JOINT_* in Rust).
 const JOINT_POINT: u32 = 0u;

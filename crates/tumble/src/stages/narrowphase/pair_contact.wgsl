@@ -1,6 +1,6 @@
 // What a pair keeps from one step to the next, as the GPU stages read and write it: the twins
 // of ContactPoint, Manifold (collision/manifold.rs), PointImpulse and PairContact
-// (stages/narrowphase/mod.rs). tests/gpu_layout.rs checks that the layouts agree.
+// (stages/narrowphase/mod.rs). tests/engine/gpu_layout.rs checks that the layouts agree.
 
 const MAX_MANIFOLD_POINTS: u32 = 4u;
 

@@ -52,7 +52,7 @@ fn store_body(index: u32, body: SolverBody) {
 
 // The two bodies a constraint moves, [0] = A and [1] = B, passed through the row functions
 // by value: kept in registers rather than in private variables, with which lavapipe ran
-// tests/gpu_solver.rs in 401 s instead of 1.9 s.
+// tests/engine/gpu_solver.rs in 401 s instead of 1.9 s.
 alias BodyPair = array<SolverBody, 2>;
 
 // How fast A moves away from B along a row (m/s).
