@@ -112,6 +112,18 @@ fn time_repeated(
 }
 
 /// Deterministic pseudo-random keys (xorshift), so every run sorts the same input.
+/// The arrays are windowed, so that sizes past one storage binding (128 MiB on Mesa's CPU
+/// drivers) run by windows instead of failing.
+fn windowed(
+    context: &GpuContext,
+    label: &'static str,
+    data: &[u32],
+) -> Result<GpuVec<u32>, tumble::gpu::GpuError> {
+    let mut vector = GpuVec::windowed(context, label, data.len())?;
+    vector.upload(context, data)?;
+    Ok(vector)
+}
+
 fn keys(count: usize) -> Vec<u32> {
     let mut state = 0x9e37_79b9u32;
     (0..count)
@@ -126,17 +138,16 @@ fn keys(count: usize) -> Vec<u32> {
 
 fn radix_sort_ms(context: &GpuContext, count: usize, path: SortPath) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
-    let keys_in = GpuVec::from_slice(context, "bench keys", &keys(count)).map_err(error)?;
-    let values_in = GpuVec::from_slice(
+    let keys_in = windowed(context, "bench keys", &keys(count)).map_err(error)?;
+    let values_in = windowed(
         context,
         "bench values",
         &(0..count as u32).collect::<Vec<_>>(),
     )
     .map_err(error)?;
-    let mut keys_out =
-        GpuVec::<u32>::with_capacity(context, "bench keys out", count).map_err(error)?;
+    let mut keys_out = GpuVec::<u32>::windowed(context, "bench keys out", count).map_err(error)?;
     let mut values_out =
-        GpuVec::<u32>::with_capacity(context, "bench values out", count).map_err(error)?;
+        GpuVec::<u32>::windowed(context, "bench values out", count).map_err(error)?;
     let mut sort = RadixSort::on(path);
     time_repeated(context, || {
         context.submit_pass("bench radix sort", |pass| {
@@ -157,9 +168,8 @@ fn radix_sort_ms(context: &GpuContext, count: usize, path: SortPath) -> Result<f
 
 fn scan_ms(context: &GpuContext, count: usize, path: ScanPath) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
-    let input = GpuVec::from_slice(context, "bench scan in", &vec![1u32; count]).map_err(error)?;
-    let mut output =
-        GpuVec::<u32>::with_capacity(context, "bench scan out", count).map_err(error)?;
+    let input = windowed(context, "bench scan in", &vec![1u32; count]).map_err(error)?;
+    let mut output = GpuVec::<u32>::windowed(context, "bench scan out", count).map_err(error)?;
     let mut scan = Scan::on(path);
     time_repeated(context, || {
         context.submit_pass("bench scan", |pass| {
@@ -174,9 +184,8 @@ fn scan_ms(context: &GpuContext, count: usize, path: ScanPath) -> Result<f64, St
 
 fn copy_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
-    let source = GpuVec::from_slice(context, "bench copy in", &vec![1u32; count]).map_err(error)?;
-    let destination =
-        GpuVec::<u32>::with_capacity(context, "bench copy out", count).map_err(error)?;
+    let source = windowed(context, "bench copy in", &vec![1u32; count]).map_err(error)?;
+    let destination = GpuVec::<u32>::windowed(context, "bench copy out", count).map_err(error)?;
     let bytes = (count * 4) as u64;
     time_repeated(context, || {
         let mut encoder = context.device.create_command_encoder(&Default::default());
@@ -190,9 +199,8 @@ fn copy_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
 
 fn kernel_copy_ms(context: &GpuContext, count: usize) -> Result<f64, String> {
     let error = |e: tumble::gpu::GpuError| e.to_string();
-    let source = GpuVec::from_slice(context, "bench copy in", &vec![1u32; count]).map_err(error)?;
-    let destination =
-        GpuVec::<u32>::with_capacity(context, "bench copy out", count).map_err(error)?;
+    let source = windowed(context, "bench copy in", &vec![1u32; count]).map_err(error)?;
+    let destination = GpuVec::<u32>::windowed(context, "bench copy out", count).map_err(error)?;
     let copy =
         copy_dispatch(context, source.buffer(), destination.buffer(), count).map_err(error)?;
     time_repeated(context, || {

@@ -259,6 +259,9 @@ impl<T: bytemuck::Pod> GpuVec<T> {
     }
 }
 
+/// How long a read-back waits for its map callback after the device went idle.
+const MAP_CALLBACK_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(10);
+
 /// Maps the first `bytes` of `staging` for reading, hands them to `read`, unmaps.
 pub(crate) fn read_mapped(
     context: &GpuContext,
@@ -273,7 +276,9 @@ pub(crate) fn read_mapped(
         let _ = sender.send(result);
     });
     context.wait()?;
-    match receiver.try_recv() {
+    // The callback runs inside a poll of the device: ours above, or, when another thread
+    // shares the device, that thread's, which may still be running it when ours returns.
+    match receiver.recv_timeout(MAP_CALLBACK_TIMEOUT) {
         Ok(Ok(())) => {}
         Ok(Err(error)) => {
             return Err(GpuError::Readback {

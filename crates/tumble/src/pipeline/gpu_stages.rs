@@ -4,6 +4,8 @@ use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, Collider
 use crate::dynamics::joint::Joint;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{Dispatch, encode_all};
+use crate::gpu::prims::fill::copy_dispatch;
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::math::Aabb;
 use crate::pipeline::config::Softness;
@@ -94,6 +96,9 @@ const COLLISION: StageSpans = StageSpans {
     wait: &["collision", "submit and wait"],
     download: &["collision", "copy to cpu"],
 };
+/// [`GpuStages::collide`]'s upload of the host's pair cache: its own line, shown only on the
+/// steps that need it.
+const PAIR_UPLOAD: SpanPath = &["collision", "copy pairs to gpu"];
 const NARROWPHASE: StageSpans = StageSpans {
     upload: &["narrowphase", "copy to gpu"],
     encode: &["narrowphase", "encode"],
@@ -207,6 +212,20 @@ pub(crate) struct GpuStages {
     pair_contacts_fresh: bool,
     /// The solver ran on the GPU this step: `solver_bodies` holds the step's motion.
     solved_this_step: bool,
+    /// This step: stages 1–4 ran as [`Self::collide`]; the rows were built from its output
+    /// ([`RowSlots::Narrowphase`]); the solver wrote their impulses into `contacts`.
+    collided: bool,
+    rows_from_narrowphase: bool,
+    impulses_scattered: bool,
+    /// The version of the host's pair cache ([`PairCache::version`]) that the broadphase's
+    /// keys and `contacts` hold, impulses included: [`Self::collide`] then reads last step's
+    /// pairs there instead of uploading them.
+    ///
+    /// [`PairCache::version`]: crate::stages::pairs::PairCache::version
+    cached_pairs: Option<u64>,
+    /// The device copies of last step's keys and contacts into `old_keys` and `old_contacts`,
+    /// for the buffers and sizes they were built for.
+    pair_copies: Option<(PairCopyKey, Vec<Dispatch>)>,
     /// Host scratch, reused: the identity map, last step's keys padded, the packed colliders,
     /// downloaded contacts.
     identity: Vec<u32>,
@@ -259,6 +278,11 @@ impl GpuStages {
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
             solved_this_step: false,
+            collided: false,
+            rows_from_narrowphase: false,
+            impulses_scattered: false,
+            cached_pairs: None,
+            pair_copies: None,
             identity: Vec::new(),
             padded_keys: Vec::new(),
             collider_data: Vec::new(),
@@ -296,6 +320,15 @@ impl GpuStages {
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
         self.solved_this_step = false;
+        self.collided = false;
+        self.rows_from_narrowphase = false;
+        self.impulses_scattered = false;
+    }
+
+    /// The host stored this step's solved impulses in its pair cache, now at `version`: when
+    /// the device did the same to its contacts, the two agree until the cache changes again.
+    pub fn pair_cache_stored(&mut self, version: u64) {
+        self.cached_pairs = self.impulses_scattered.then_some(version);
     }
 
     /// This step's poses on the device, when a stage uploaded the poses this step and the
@@ -406,7 +439,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         bodies: &BodyInputs,
         is_static: &[bool],
-        (old_keys, old_contacts): (&[u64], &[PairContact]),
+        (old_keys, old_contacts, old_version): (&[u64], &[PairContact], u64),
         skipped: &[u64],
         (margin, dt): (f32, f32),
         keys: &mut Vec<u64>,
@@ -416,16 +449,36 @@ impl GpuStages {
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         self.broadphase.set_bodies(context, is_static)?;
-        // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
-        // keeps its size from step to step and is not built again.
-        self.padded_keys.clear();
-        self.padded_keys.extend_from_slice(old_keys);
-        let padded = old_keys.len().max(self.broadphase.capacity());
-        self.padded_keys.resize(padded, u64::MAX);
-        self.old_keys.upload(context, &self.padded_keys)?;
-        self.old_contacts.upload(context, old_contacts)?;
         self.skipped.upload(context, skipped)?;
         record_copy(profiler, COLLISION.upload, elapsed_ms(start));
+        // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
+        // keeps its size from step to step and is not built again.
+        let padded = old_keys.len().max(self.broadphase.capacity());
+        // Last step's pairs are still on the device (the broadphase's keys, padded so, and
+        // `contacts`) when the host's cache is the version they hold: copied there, in the
+        // first pass below, instead of uploaded.
+        let on_device = self.cached_pairs.take() == Some(old_version)
+            && padded == self.broadphase.capacity()
+            && old_contacts.len() == self.contacts.len();
+        let mut copies = None;
+        if on_device {
+            self.old_keys.resize(context, padded)?;
+            self.old_contacts.resize(context, old_contacts.len())?;
+            copies = Some(pair_copies(
+                context,
+                &mut self.pair_copies,
+                (self.broadphase.keys(), &self.contacts),
+                (&self.old_keys, &self.old_contacts),
+            )?);
+        } else {
+            let start = Instant::now();
+            self.padded_keys.clear();
+            self.padded_keys.extend_from_slice(old_keys);
+            self.padded_keys.resize(padded, u64::MAX);
+            self.old_keys.upload(context, &self.padded_keys)?;
+            self.old_contacts.upload(context, old_contacts)?;
+            record_copy(profiler, PAIR_UPLOAD, elapsed_ms(start));
+        }
         loop {
             let device = &self.bodies;
             let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
@@ -433,7 +486,13 @@ impl GpuStages {
             let (narrowphase, output) = (&mut self.narrowphase, &mut self.contacts);
             let (old_keys, old_contacts, skipped) =
                 (&self.old_keys, &self.old_contacts, &self.skipped);
+            // Only the first run copies: a run again after the broadphase grew reads the same
+            // inputs, and its keys and `contacts` are this step's by then.
+            let copies = copies.take();
             run_pass(context, &mut self.profiler, profiler, &COLLISION, |pass| {
+                if let Some(copies) = copies {
+                    encode_all(pass, copies);
+                }
                 aabb.encode(
                     context,
                     pass,
@@ -474,6 +533,7 @@ impl GpuStages {
         self.keys.upload(context, keys)?;
         record_copy(profiler, COLLISION.download, elapsed_ms(start));
         self.pair_contacts_fresh = false;
+        self.collided = true;
         Ok(())
     }
 
@@ -592,6 +652,7 @@ impl GpuStages {
                 true
             }
         };
+        self.rows_from_narrowphase = from_narrowphase;
         self.masses.upload(context, inputs.masses)?;
         let bodies = BodyInputs {
             poses: inputs.poses,
@@ -870,6 +931,10 @@ impl GpuStages {
             &SOLVER
         };
         let solver_bodies = &mut self.solver_bodies;
+        // Rows from this step's one-submission collision: their impulses also go to the
+        // pairs' contacts on the device, for the next step's collision ([`Self::collide`]).
+        let scatter = self.collided && self.rows_from_narrowphase && self.pair_contacts_fresh;
+        let pair_contacts = &self.contacts;
         run_passes(
             context,
             &mut self.profiler,
@@ -914,6 +979,9 @@ impl GpuStages {
                         ),
                     };
                     batched.encode_read_impulses(pass);
+                    if scatter {
+                        batched.encode_scatter_pair_impulses(context, pass, pair_contacts);
+                    }
                     Ok(())
                 })?;
                 // The read-backs ride in the kernels' submission: one wait for the stage.
@@ -933,6 +1001,7 @@ impl GpuStages {
             .read_download(context, joint_impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.solved_this_step = true;
+        self.impulses_scattered = scatter;
         Ok(())
     }
 }
@@ -1031,6 +1100,41 @@ fn batching_pass(
 }
 
 /// Uploads poses and velocities once a step, and the colliders when they changed.
+/// What [`pair_copies`] were built for: (source, destination) buffers and words of the keys,
+/// then of the contacts.
+type PairCopyKey = [(wgpu::Buffer, wgpu::Buffer, usize); 2];
+
+/// The dispatches that copy last step's pairs (`from`: keys, contacts) into `to`, built again
+/// when the buffers or sizes changed.
+fn pair_copies<'c>(
+    context: &GpuContext,
+    cache: &'c mut Option<(PairCopyKey, Vec<Dispatch>)>,
+    from: (&GpuVec<u64>, &GpuVec<PairContact>),
+    to: (&GpuVec<u64>, &GpuVec<PairContact>),
+) -> Result<&'c Vec<Dispatch>, GpuError> {
+    let words = |bytes: usize| bytes / 4;
+    let key: PairCopyKey = [
+        (
+            from.0.buffer().clone(),
+            to.0.buffer().clone(),
+            words(to.0.len() * size_of::<u64>()),
+        ),
+        (
+            from.1.buffer().clone(),
+            to.1.buffer().clone(),
+            words(to.1.len() * size_of::<PairContact>()),
+        ),
+    ];
+    if cache.as_ref().is_none_or(|(cached, _)| *cached != key) {
+        let mut dispatches = Vec::new();
+        for (source, destination, words) in &key {
+            dispatches.extend(copy_dispatch(context, source, destination, *words)?);
+        }
+        *cache = Some((key, dispatches));
+    }
+    Ok(&cache.as_ref().expect("built above").1)
+}
+
 fn upload_bodies(
     context: &GpuContext,
     bodies: &mut DeviceBodies,
@@ -1063,6 +1167,7 @@ mod tests {
     use super::*;
     use crate::math::{Quat, Vec3};
     use crate::pipeline::config::{Softness, StepConfig};
+    use crate::pipeline::devices::Executor;
     use crate::stages::constraints::world_inverse_inertia;
     use crate::{BodyDesc, Shape, World};
 
@@ -1201,6 +1306,80 @@ mod tests {
         assert_eq!(bytes(&from_device), bytes(&from_host));
     }
 
+    /// With every stage on the GPU the pair cache stays on the device from step to step: the
+    /// solver writes its impulses into the narrowphase's contacts there, and the next
+    /// collision reads them instead of an upload. The run is bitwise the run that uploads the
+    /// host's cache every step (a change to the host's cache, here a write through
+    /// `values_mut` after each step, sends it up again).
+    #[test]
+    fn the_pair_cache_kept_on_the_device_steps_as_the_uploaded_one() {
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let steps = 40;
+        let run = |upload_every_step: bool| {
+            let mut world = World::new(StepConfig {
+                sleeping: false,
+                ..StepConfig::default()
+            })
+            .unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            for index in 0..40 {
+                let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
+                let shape = if index % 3 == 0 {
+                    Shape::sphere(0.5)
+                } else {
+                    Shape::cuboid(Vec3::splat(0.5))
+                };
+                world
+                    .add_body(
+                        BodyDesc::dynamic(shape)
+                            .position(Vec3::new(x as f32, 0.5 + 1.1 * y as f32, z as f32 * 1.02))
+                            .rotation(Quat::from_rotation_y(0.3 * index as f32)),
+                    )
+                    .unwrap();
+            }
+            for _ in 0..steps {
+                world.step();
+                if upload_every_step {
+                    world.pairs.values_mut();
+                }
+            }
+            let report = world.profiler().report();
+            let uploads = report
+                .root
+                .children
+                .iter()
+                .filter(|line| line.name == "collision")
+                .flat_map(|line| &line.children)
+                .filter(|line| line.name == "copy pairs to gpu")
+                .map(|line| line.calls_per_frame * report.frames as f64)
+                .sum::<f64>()
+                .round() as usize;
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let impulses: Vec<f32> = world
+                .pairs
+                .values()
+                .iter()
+                .flat_map(|c| c.impulses.iter().map(|i| i.normal))
+                .collect();
+            (poses, impulses, uploads)
+        };
+        let (kept, kept_impulses, kept_uploads) = run(false);
+        let (uploaded, uploaded_impulses, uploads) = run(true);
+        assert_eq!(uploads, steps);
+        // The first step has no cache on the device yet.
+        assert_eq!(kept_uploads, 1);
+        assert!(kept_impulses.iter().any(|&impulse| impulse > 0.0));
+        assert_eq!(kept_impulses, uploaded_impulses);
+        assert_eq!(kept, uploaded);
+    }
+
     /// Stages 1 to 4 in one submission give the pairs and contacts that the stages one by one
     /// give, bit for bit, warm starts included (through the GPU pair diff rather than the
     /// host's cache), and lose no pair when the broadphase's buffers start too small.
@@ -1249,7 +1428,7 @@ mod tests {
             &mut profiler,
             &bodies,
             &is_static,
-            (&old_keys, &old_contacts),
+            (&old_keys, &old_contacts, world.pairs.version()),
             &world.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut keys,

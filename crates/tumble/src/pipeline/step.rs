@@ -401,6 +401,9 @@ impl World {
                 self.pairs.values_mut(),
                 self.children.values_mut(),
             );
+            if let Some(gpu) = &mut self.gpu {
+                gpu.pair_cache_stored(self.pairs.version());
+            }
             // The rows' slots name the joints; the drag's is the one past them.
             let drag_slot = self.joints.len() as u32;
             let solved = scratch.batched_joint_impulses.iter();
@@ -499,7 +502,7 @@ impl World {
             profiler,
             &bodies,
             &scratch.is_static,
-            (self.pairs.keys(), self.pairs.values()),
+            (self.pairs.keys(), self.pairs.values(), self.pairs.version()),
             &self.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut scratch.pair_keys,

@@ -672,6 +672,34 @@ fn batched_impulses_match_rust() {
     );
 }
 
+/// The scatter of the solved impulses to the pairs' contacts on the device: the contact it
+/// writes has the Rust layout; the constraint structs are `solver_structs_match_rust`'s.
+#[test]
+fn pair_impulses_structs_match_rust() {
+    use tumble::collision::manifold::{ContactPoint, Manifold};
+    use tumble::stages::narrowphase::{PairContact, PointImpulse};
+    use tumble::stages::solver::batched::pair_impulses_wgsl;
+    check_with_gpu_only(
+        pair_impulses_wgsl(),
+        vec![
+            rust_layout!(ContactPoint {
+                position,
+                separation,
+                anchor,
+                id
+            }),
+            rust_layout!(Manifold {
+                normal,
+                count,
+                points
+            }),
+            rust_layout!(PointImpulse { normal, tangent }),
+            rust_layout!(PairContact { manifold, impulses }),
+        ],
+        &["Softness", "Row", "ConstraintPoint", "ContactConstraint"],
+    );
+}
+
 /// The joint rows' parameter block. The source also holds the body and constraint structs,
 /// whose layouts the body and solver tests check.
 #[test]

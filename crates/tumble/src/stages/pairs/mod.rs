@@ -40,6 +40,9 @@ pub struct PairCache<T> {
     next_values: Vec<T>,
     added: Vec<u64>,
     removed: Vec<u64>,
+    /// Bumped by every method that may change keys or values, so that a copy of the cache
+    /// elsewhere (the GPU step's) can tell whether it is still the same.
+    version: u64,
 }
 
 impl<T: Default> PairCache<T> {
@@ -56,6 +59,7 @@ impl<T: Default> PairCache<T> {
             new_keys.windows(2).all(|window| window[0] < window[1]),
             "pair keys must be sorted ascending and unique"
         );
+        self.version += 1;
         self.next_keys.clear();
         self.next_values.clear();
         self.added.clear();
@@ -103,18 +107,26 @@ impl<T: Default> PairCache<T> {
     }
 
     pub fn values_mut(&mut self) -> &mut [T] {
+        self.version += 1;
         &mut self.values
     }
 
     /// Keys and values together, the values writable (the narrowphase reads one, writes the
     /// other).
     pub fn keys_and_values_mut(&mut self) -> (&[u64], &mut [T]) {
+        self.version += 1;
         (&self.keys, &mut self.values)
+    }
+
+    /// Changes when keys or values may have changed (see the field).
+    pub fn version(&self) -> u64 {
+        self.version
     }
 
     /// Sets the value of `key`, adding the pair if it is not cached (keeps the keys sorted).
     /// For restoring saved state between steps; a step's pairs come from [`Self::update`].
     pub fn insert(&mut self, key: u64, value: T) {
+        self.version += 1;
         match self.keys.binary_search(&key) {
             Ok(index) => self.values[index] = value,
             Err(index) => {
@@ -156,6 +168,27 @@ mod tests {
         assert_eq!(cache.keys(), [pair_key(0, 1), pair_key(2, 3)]);
         cache.update(&[pair_key(2, 3)]);
         assert_eq!(cache.values(), [32]);
+    }
+
+    #[test]
+    fn every_change_moves_the_version_and_reads_do_not() {
+        let mut cache = PairCache::<u32>::new();
+        let mut seen = vec![cache.version()];
+        let mut changed = |cache: &PairCache<u32>| {
+            assert!(!seen.contains(&cache.version()), "{seen:?}");
+            seen.push(cache.version());
+        };
+        cache.insert(pair_key(0, 1), 1);
+        changed(&cache);
+        cache.update(&[pair_key(0, 1), pair_key(1, 2)]);
+        changed(&cache);
+        cache.values_mut()[0] = 5;
+        changed(&cache);
+        cache.keys_and_values_mut().1[1] = 6;
+        changed(&cache);
+        let version = cache.version();
+        let _ = (cache.keys(), cache.values(), cache.added(), cache.len());
+        assert_eq!(cache.version(), version);
     }
 
     /// The talk's particles A..F as body indices 0..5.

@@ -12,6 +12,11 @@
 //! that array. After the solve only their impulses come back ([`BatchedJointImpulses`], 32
 //! bytes a joint instead of 320), for the host's joints (break test, queries) and the drag, and
 //! they are also written to each joint's slot on the device, the next step's warm start.
+//!
+//! The contacts' impulses can go to their pairs on the device as well
+//! ([`GpuBatched::encode_scatter_pair_impulses`], `pair_impulses.wgsl`): with rows built from
+//! the GPU narrowphase's output, the next step's collision then warm-starts from the device's
+//! contacts and the host's pair cache is not uploaded again.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -25,8 +30,16 @@ use crate::math::Vec3;
 use crate::stages::constraints::{
     CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
 };
+use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
 
 const WGSL: &str = include_str!("batched.wgsl");
+const PAIR_IMPULSES_WGSL: &str = include_str!("pair_impulses.wgsl");
+/// Counts, batched constraints, the pairs' contacts.
+const PAIR_IMPULSES_BINDINGS: [Binding; 3] = [
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+];
 /// Counts, order, rows, batched constraints, their impulses, batched joints, their impulses,
 /// the joints' impulses by slot.
 const BINDINGS: [Binding; 8] = [
@@ -68,6 +81,14 @@ pub fn wgsl() -> Source {
         .snippet("batched.wgsl", WGSL)
 }
 
+/// The scatter of the contacts' impulses to their pairs, for the layout test.
+pub fn pair_impulses_wgsl() -> Source {
+    Source::new()
+        .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
+        .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
+        .snippet("pair_impulses.wgsl", PAIR_IMPULSES_WGSL)
+}
+
 /// The buffers the cached dispatches bind, and the capacities they cover (constraints, joints).
 type Key = ([wgpu::Buffer; 8], usize, usize);
 
@@ -84,6 +105,9 @@ pub struct GpuBatched {
     read_impulses: Kernel,
     read_joint_impulses: Kernel,
     cached: Option<(Key, [Dispatch; 3])>,
+    scatter_pair_impulses: Kernel,
+    /// For the contacts buffer and the constraint capacity it was built for.
+    scattered: Option<((wgpu::Buffer, wgpu::Buffer, usize), Dispatch)>,
 }
 
 impl GpuBatched {
@@ -100,6 +124,14 @@ impl GpuBatched {
             read_impulses: kernel("read_impulses"),
             read_joint_impulses: kernel("read_joint_impulses"),
             cached: None,
+            scatter_pair_impulses: Kernel::new(
+                context,
+                "scatter_pair_impulses",
+                &pair_impulses_wgsl(),
+                "scatter_pair_impulses",
+                &PAIR_IMPULSES_BINDINGS,
+            ),
+            scattered: None,
         })
     }
 
@@ -184,6 +216,42 @@ impl GpuBatched {
     pub fn encode_read_impulses(&self, pass: &mut wgpu::ComputePass<'_>) {
         if let Some((_, [_, read @ ..])) = &self.cached {
             encode_all(pass, read);
+        }
+    }
+
+    /// Encodes the copy of each solved constraint's impulses into `contacts[pair]` (after the
+    /// solve, in the same pass). Every constraint's `pair` must be a slot of `contacts`: rows
+    /// built from the GPU narrowphase's output.
+    pub fn encode_scatter_pair_impulses(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        contacts: &GpuVec<PairContact>,
+    ) {
+        let key = (
+            contacts.buffer().clone(),
+            self.constraints.buffer().clone(),
+            self.order.capacity(),
+        );
+        if self
+            .scattered
+            .as_ref()
+            .is_none_or(|(cached, _)| *cached != key)
+        {
+            let group = self.scatter_pair_impulses.bind(
+                context,
+                &[
+                    self.count.whole(),
+                    self.constraints.whole(),
+                    contacts.whole(),
+                ],
+            );
+            let groups = workgroups_for(key.2, WORKGROUP_SIZE);
+            let dispatch = self.scatter_pair_impulses.dispatch(group, groups);
+            self.scattered = Some((key, dispatch));
+        }
+        if let Some((_, dispatch)) = &self.scattered {
+            encode_all(pass, std::slice::from_ref(dispatch));
         }
     }
 }
