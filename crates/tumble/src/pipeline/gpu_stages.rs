@@ -526,11 +526,27 @@ impl GpuStages {
             }
         }
         let start = Instant::now();
-        self.broadphase.download_keys_into(context, keys)?;
-        // Only the counted contacts come back; the rows read them, and the keys, on the device.
-        self.contacts.resize(context, keys.len())?;
-        self.contacts.download_into(context, contacts)?;
-        self.keys.upload(context, keys)?;
+        // Only the counted keys and contacts come back, in one submission; the rows read them
+        // on the device, the keys copied there from the broadphase's.
+        let count = self.broadphase.last_pair_count();
+        debug_assert!(count <= self.broadphase.capacity(), "the run overflowed");
+        self.keys.resize(context, count)?;
+        self.contacts.resize(context, count)?;
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("collision read-back"),
+            });
+        if count > 0 {
+            let bytes = (count * size_of::<u64>()) as u64;
+            let from = self.broadphase.keys().buffer();
+            encoder.copy_buffer_to_buffer(from, 0, self.keys.buffer(), 0, bytes);
+        }
+        self.keys.encode_download(context, &mut encoder);
+        self.contacts.encode_download(context, &mut encoder);
+        context.queue.submit([encoder.finish()]);
+        self.keys.read_download(context, keys)?;
+        self.contacts.read_download(context, contacts)?;
         record_copy(profiler, COLLISION.download, elapsed_ms(start));
         self.pair_contacts_fresh = false;
         self.collided = true;

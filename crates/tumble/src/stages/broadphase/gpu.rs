@@ -656,6 +656,11 @@ impl GpuBroadphase {
         Ok(self.count_host[0] as usize)
     }
 
+    /// The pair count that [`Self::pair_count`] (or [`Self::check_capacity`]) last read.
+    pub fn last_pair_count(&self) -> usize {
+        self.count_host.first().map_or(0, |&count| count as usize)
+    }
+
     /// Reads back the last run's sorted keys, without the padding (the run must not have
     /// overflowed: see [`Self::check_capacity`]).
     pub fn download_keys(&mut self, context: &GpuContext) -> Result<Vec<u64>, GpuError> {
