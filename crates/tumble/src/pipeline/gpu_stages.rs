@@ -1228,6 +1228,28 @@ mod tests {
         }
     }
 
+    /// An awake world (the tests compare every step's contacts and motion) with a ground plane.
+    fn awake_world_on_a_plane() -> World {
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        world
+    }
+
+    /// Body `index` of a block four wide and four deep, layers of 16 a little apart, each
+    /// turned a little more than the last.
+    fn block_member(index: usize, shape: Shape) -> BodyDesc {
+        let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
+        BodyDesc::dynamic(shape)
+            .position(Vec3::new(x as f32, 0.5 + 1.1 * y as f32, z as f32 * 1.02))
+            .rotation(Quat::from_rotation_y(0.3 * index as f32))
+    }
+
     /// The rows read from the GPU narrowphase's output are the rows read from the host's copy
     /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
     #[test]
@@ -1237,14 +1259,7 @@ mod tests {
                 .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
         )
         .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
-        let mut world = World::new(StepConfig {
-            sleeping: false,
-            ..StepConfig::default()
-        })
-        .unwrap();
-        world
-            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-            .unwrap();
+        let mut world = awake_world_on_a_plane();
         for level in 0..6 {
             let turn = Quat::from_rotation_y(0.4 * level as f32);
             world
@@ -1333,32 +1348,18 @@ mod tests {
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let steps = 40;
         let run = |upload_every_step: bool| {
-            let mut world = World::new(StepConfig {
-                sleeping: false,
-                ..StepConfig::default()
-            })
-            .unwrap();
+            let mut world = awake_world_on_a_plane();
             world.set_gpu_context(context.clone()).unwrap();
             world
                 .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
                 .unwrap();
-            world
-                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-                .unwrap();
             for index in 0..40 {
-                let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
                 let shape = if index % 3 == 0 {
                     Shape::sphere(0.5)
                 } else {
                     Shape::cuboid(Vec3::splat(0.5))
                 };
-                world
-                    .add_body(
-                        BodyDesc::dynamic(shape)
-                            .position(Vec3::new(x as f32, 0.5 + 1.1 * y as f32, z as f32 * 1.02))
-                            .rotation(Quat::from_rotation_y(0.3 * index as f32)),
-                    )
-                    .unwrap();
+                world.add_body(block_member(index, shape)).unwrap();
             }
             for _ in 0..steps {
                 world.step();
@@ -1403,23 +1404,10 @@ mod tests {
     fn one_submission_collision_equals_the_stages_one_by_one() {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
-        let mut world = World::new(StepConfig {
-            sleeping: false,
-            ..StepConfig::default()
-        })
-        .unwrap();
-        world
-            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-            .unwrap();
+        let mut world = awake_world_on_a_plane();
         for index in 0..48 {
-            let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
-            world
-                .add_body(
-                    BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
-                        .position(Vec3::new(x as f32, 0.5 + 1.1 * y as f32, z as f32 * 1.02))
-                        .rotation(Quat::from_rotation_y(0.3 * index as f32)),
-                )
-                .unwrap();
+            let cube = Shape::cuboid(Vec3::splat(0.5));
+            world.add_body(block_member(index, cube)).unwrap();
         }
         for _ in 0..30 {
             world.step();
