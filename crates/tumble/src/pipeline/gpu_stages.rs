@@ -1115,7 +1115,6 @@ fn batching_pass(
     Ok(complete)
 }
 
-/// Uploads poses and velocities once a step, and the colliders when they changed.
 /// What [`pair_copies`] were built for: (source, destination) buffers and words of the keys,
 /// then of the contacts.
 type PairCopyKey = [(wgpu::Buffer, wgpu::Buffer, usize); 2];
@@ -1151,6 +1150,7 @@ fn pair_copies<'c>(
     Ok(&cache.as_ref().expect("built above").1)
 }
 
+/// Uploads poses and velocities once a step, and the colliders when they changed.
 fn upload_bodies(
     context: &GpuContext,
     bodies: &mut DeviceBodies,
