@@ -368,6 +368,8 @@ pub enum BodyError {
     CompoundMeshKeys { children: usize, triangles: usize },
     #[error("the body handle is stale: that body was removed")]
     StaleHandle,
+    #[error("reading the contacts back from the GPU failed: {0}")]
+    ContactsReadback(String),
     #[error("body name {0:?} is used twice")]
     DuplicateName(String),
 }

@@ -2,7 +2,7 @@ use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::dynamics::joint::Joint;
-use crate::gpu::buffer::GpuVec;
+use crate::gpu::buffer::{GpuVec, read_mapped};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Dispatch, encode_all};
 use crate::gpu::prims::fill::copy_dispatch;
@@ -18,6 +18,7 @@ use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
+use crate::stages::narrowphase::summary::{GpuPairSummaries, PairSummary};
 use crate::stages::narrowphase::{
     NarrowphaseInputs, PairContact, gpu_pair, pack_hulls, update_contacts_where,
 };
@@ -119,6 +120,16 @@ pub(crate) enum RowSlots<'a> {
     Narrowphase,
 }
 
+/// What [`GpuStages::collide`] reads back besides the keys.
+pub(crate) enum CollideOutput<'a> {
+    /// Every pair's contact, for the host's pair cache.
+    Contacts(&'a mut Vec<PairContact>),
+    /// Each pair's [`PairSummary`] only: the contacts stay on the device, where the rows read
+    /// them and the solver writes their impulses, until the host asks for them
+    /// ([`GpuStages::download_pair_contacts`]).
+    Summaries(&'a mut Vec<PairSummary>),
+}
+
 /// The joint rows of a GPU stage 5 ([`GpuStages::build_constraints`]).
 pub(crate) struct JointRowInputs<'a> {
     /// The world's joint array: the device keeps a copy, uploaded when the joints change.
@@ -206,6 +217,7 @@ pub(crate) struct GpuStages {
     old_index: GpuVec<u32>,
     old_contacts: GpuVec<PairContact>,
     contacts: GpuVec<PairContact>,
+    summaries: GpuPairSummaries,
     skipped: GpuVec<u64>,
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
@@ -275,6 +287,7 @@ impl GpuStages {
             old_index: GpuVec::with_capacity(&context, "old pair index", 0)?,
             old_contacts: GpuVec::with_capacity(&context, "old contacts", 0)?,
             contacts: GpuVec::with_capacity(&context, "contacts", 0)?,
+            summaries: GpuPairSummaries::new(&context)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
             solved_this_step: false,
@@ -329,6 +342,48 @@ impl GpuStages {
     /// the device did the same to its contacts, the two agree until the cache changes again.
     pub fn pair_cache_stored(&mut self, version: u64) {
         self.cached_pairs = self.impulses_scattered.then_some(version);
+    }
+
+    /// Whether the device holds the host's pair cache at `version` (see `cached_pairs`).
+    pub fn holds_pair_cache(&self, version: u64) -> bool {
+        self.cached_pairs == Some(version)
+    }
+
+    /// The host's pair cache, now at `version`, took its contacts from the device
+    /// ([`Self::read_pair_contacts`]): the two agree.
+    pub fn pair_cache_adopted(&mut self, version: u64) {
+        self.cached_pairs = Some(version);
+    }
+
+    /// The contacts of last step's pairs as they are on the device, impulses included, in
+    /// pair order: after a [`Self::collide`] that left them there
+    /// ([`CollideOutput::Summaries`]). Reads through a staging buffer of its own, so that a
+    /// caller holding only `&self` (the world's contact queries) can read them.
+    pub fn read_pair_contacts(&self) -> Result<Vec<PairContact>, GpuError> {
+        let context = &self.context;
+        let count = self.contacts.len();
+        let mut out = Vec::with_capacity(count);
+        if count == 0 {
+            return Ok(out);
+        }
+        let bytes = (count * size_of::<PairContact>()) as u64;
+        let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pair contacts read-back"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("pair contacts read-back"),
+            });
+        encoder.copy_buffer_to_buffer(self.contacts.buffer(), 0, &staging, 0, bytes);
+        context.queue.submit([encoder.finish()]);
+        read_mapped(context, &staging, bytes, "pair contacts", |bytes| {
+            out.extend_from_slice(bytemuck::cast_slice(bytes));
+        })?;
+        Ok(out)
     }
 
     /// This step's poses on the device, when a stage uploaded the poses this step and the
@@ -443,9 +498,10 @@ impl GpuStages {
         skipped: &[u64],
         (margin, dt): (f32, f32),
         keys: &mut Vec<u64>,
-        contacts: &mut Vec<PairContact>,
+        mut output: CollideOutput,
     ) -> Result<(), GpuError> {
         let context = &self.context;
+        let summarize = matches!(output, CollideOutput::Summaries(_));
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         self.broadphase.set_bodies(context, is_static)?;
@@ -483,7 +539,8 @@ impl GpuStages {
             let device = &self.bodies;
             let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
             let (broadphase, diff) = (&mut self.broadphase, &mut self.pair_diff);
-            let (narrowphase, output) = (&mut self.narrowphase, &mut self.contacts);
+            let (narrowphase, contacts) = (&mut self.narrowphase, &mut self.contacts);
+            let summaries = &mut self.summaries;
             let (old_keys, old_contacts, skipped) =
                 (&self.old_keys, &self.old_contacts, &self.skipped);
             // Only the first run copies: a run again after the broadphase grew reads the same
@@ -519,7 +576,12 @@ impl GpuStages {
                     margin,
                     dt,
                 };
-                narrowphase.encode(context, pass, &inputs, output)
+                narrowphase.encode(context, pass, &inputs, contacts)?;
+                if summarize {
+                    let capacity = broadphase.capacity();
+                    summaries.encode(context, pass, broadphase.count(), contacts, capacity)?;
+                }
+                Ok(())
             })?;
             if !self.broadphase.check_capacity(context)? {
                 break;
@@ -543,10 +605,20 @@ impl GpuStages {
             encoder.copy_buffer_to_buffer(from, 0, self.keys.buffer(), 0, bytes);
         }
         self.keys.encode_download(context, &mut encoder);
-        self.contacts.encode_download(context, &mut encoder);
+        let summaries = &mut self.summaries.summaries;
+        match &output {
+            CollideOutput::Contacts(_) => self.contacts.encode_download(context, &mut encoder),
+            CollideOutput::Summaries(_) => {
+                summaries.resize(context, count)?;
+                summaries.encode_download(context, &mut encoder);
+            }
+        }
         context.queue.submit([encoder.finish()]);
         self.keys.read_download(context, keys)?;
-        self.contacts.read_download(context, contacts)?;
+        match &mut output {
+            CollideOutput::Contacts(contacts) => self.contacts.read_download(context, contacts)?,
+            CollideOutput::Summaries(out) => summaries.read_download(context, out)?,
+        }
         record_copy(profiler, COLLISION.download, elapsed_ms(start));
         self.pair_contacts_fresh = false;
         self.collided = true;
@@ -1364,9 +1436,11 @@ mod tests {
             for _ in 0..steps {
                 world.step();
                 if upload_every_step {
+                    world.sync_contacts().unwrap();
                     world.pairs.values_mut();
                 }
             }
+            world.sync_contacts().unwrap();
             let report = world.profiler().report();
             let uploads = report
                 .root
@@ -1395,6 +1469,79 @@ mod tests {
         assert!(kept_impulses.iter().any(|&impulse| impulse > 0.0));
         assert_eq!(kept_impulses, uploaded_impulses);
         assert_eq!(kept, uploaded);
+    }
+
+    /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts
+    /// left on the device between steps or not: (poses, the contact queries' answer, the step
+    /// statistics' deepest penetration, the steps that left them there, bodies asleep).
+    fn steps_on_the_gpu(
+        contacts_may_stay_on_device: bool,
+        sleeping: bool,
+        steps: usize,
+    ) -> (Vec<u8>, Vec<u8>, f32, usize, usize) {
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = World::new(StepConfig {
+            sleeping,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world.contacts_may_stay_on_device = contacts_may_stay_on_device;
+        world.set_gpu_context(context).unwrap();
+        world
+            .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+            .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for index in 0..24 {
+            let shape = if index % 4 == 0 {
+                Shape::sphere(0.5)
+            } else {
+                Shape::cuboid(Vec3::splat(0.5))
+            };
+            world.add_body(block_member(index, shape)).unwrap();
+        }
+        let mut left_on_device = 0;
+        for _ in 0..steps {
+            world.step();
+            left_on_device += usize::from(world.contacts_on_device);
+        }
+        let contacts: Vec<PairContact> = world.contacts().map(|(_, _, c)| *c).collect();
+        (
+            bytemuck::cast_slice::<_, u8>(&world.poses).to_vec(),
+            bytemuck::cast_slice::<_, u8>(&contacts).to_vec(),
+            world.stats().max_penetration,
+            left_on_device,
+            world.stats().sleeping,
+        )
+    }
+
+    /// With every stage on the GPU and only pairs it computes, the contacts stay on the device
+    /// (only their point counts and depths come back), and the run is bitwise the one that
+    /// brings every contact back each step: poses, the contact queries' answer (read back when
+    /// asked) and the statistics.
+    #[test]
+    fn contacts_left_on_the_device_step_as_contacts_brought_back() {
+        let kept = steps_on_the_gpu(true, false, 30);
+        let brought = steps_on_the_gpu(false, false, 30);
+        assert_eq!((kept.3, brought.3), (30, 0));
+        assert!(!kept.1.is_empty() && kept.2 > 0.0);
+        assert_eq!(kept.2.to_bits(), brought.2.to_bits());
+        assert!(kept.1 == brought.1, "the contacts differ");
+        assert!(kept.0 == brought.0, "the poses differ");
+    }
+
+    /// Bodies falling asleep take the step off the one-submission path: the contacts come
+    /// back first, and the run stays bitwise the one that never left them on the device.
+    #[test]
+    fn contacts_come_back_when_bodies_fall_asleep() {
+        let kept = steps_on_the_gpu(true, true, 150);
+        let brought = steps_on_the_gpu(false, true, 150);
+        assert!(kept.3 > 10 && kept.3 < 150, "{} steps left them", kept.3);
+        assert!(kept.4 > 0 && kept.4 == brought.4, "asleep: {}", kept.4);
+        assert!(kept.1 == brought.1, "the contacts differ");
+        assert!(kept.0 == brought.0, "the poses differ");
     }
 
     /// Stages 1 to 4 in one submission give the pairs and contacts that the stages one by one
@@ -1436,7 +1583,7 @@ mod tests {
             &world.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut keys,
-            &mut contacts,
+            CollideOutput::Contacts(&mut contacts),
         )
         .unwrap();
         assert!(one.broadphase.capacity() >= keys.len() && keys.len() > 48);

@@ -1,19 +1,22 @@
 //! The step, stage by stage, in the order of DESIGN.md. Read top to bottom.
 
+use std::sync::OnceLock;
+
 use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::{BodyInputs, JointRowInputs, RowSlots};
+use crate::pipeline::gpu_stages::{BodyInputs, CollideOutput, JointRowInputs, RowSlots};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::{
     ContactConstraint, DRAG_JOINT, Drag, JointConstraint, RowInputs, build_constraints,
-    build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint, joint_slots,
-    world_inverse_inertia,
+    build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint, has_constraint,
+    joint_slots, world_inverse_inertia,
 };
+use crate::stages::narrowphase::summary::PairSummary;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses};
 use crate::stages::solver::jacobi::{self, JacobiScratch};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
@@ -67,8 +70,14 @@ impl World {
         if let Some(gpu) = &mut self.gpu {
             gpu.begin_step();
         }
+        // With every stage on the GPU and only pairs it computes, the contacts stay there from
+        // step to step; a step that needs them on the host brings them over first.
+        let device_contacts = self.keeps_contacts_on_device();
+        if !device_contacts {
+            self.sync_contacts()?;
+        }
         if self.collides_in_one_submission() {
-            self.collide_in_one_submission()?;
+            self.collide_in_one_submission(device_contacts)?;
         } else {
             self.collide_stage_by_stage()?;
         }
@@ -175,7 +184,19 @@ impl World {
                     profiler.end();
                 }
                 built?;
-                if chained {
+                if chained && self.contacts_on_device {
+                    // The contacts are on the device: their point counts came back.
+                    let counts = self.pair_summaries.iter().map(|s| s.point_count);
+                    let slots = self.pairs.keys().iter().zip(counts).enumerate();
+                    let colliders = &self.colliders;
+                    scratch.row_summaries.extend(
+                        slots
+                            .filter(|&(_, (&key, count))| has_constraint(key, count, &self.masses))
+                            .map(|(slot, (&key, count))| {
+                                RowSummary::new(slot as u32, key, count, &self.masses, colliders)
+                            }),
+                    );
+                } else if chained {
                     let slots = constraint_slots(
                         self.pairs.keys(),
                         self.pairs.values(),
@@ -186,7 +207,8 @@ impl World {
                     scratch
                         .row_summaries
                         .extend(slots.map(|(slot, key, contact)| {
-                            RowSummary::new(slot, key, contact, &self.masses, colliders)
+                            let count = contact.manifold.count;
+                            RowSummary::new(slot, key, count, &self.masses, colliders)
                         }));
                 }
             }
@@ -394,15 +416,22 @@ impl World {
         }
         solved?;
         let joint_broke = if chained {
-            store_batched_impulses(
-                &scratch.batched_impulses,
-                &scratch.batch_order,
-                &scratch.row_summaries,
-                self.pairs.values_mut(),
-                self.children.values_mut(),
-            );
-            if let Some(gpu) = &mut self.gpu {
-                gpu.pair_cache_stored(self.pairs.version());
+            if self.contacts_on_device {
+                // The solver wrote them into the contacts on the device, which are the newer.
+                if let Some(gpu) = &mut self.gpu {
+                    gpu.pair_cache_adopted(self.pairs.version());
+                }
+            } else {
+                store_batched_impulses(
+                    &scratch.batched_impulses,
+                    &scratch.batch_order,
+                    &scratch.row_summaries,
+                    self.pairs.values_mut(),
+                    self.children.values_mut(),
+                );
+                if let Some(gpu) = &mut self.gpu {
+                    gpu.pair_cache_stored(self.pairs.version());
+                }
             }
             // The rows' slots name the joints; the drag's is the one past them.
             let drag_slot = self.joints.len() as u32;
@@ -449,7 +478,13 @@ impl World {
         histogram.clone_from(&scratch.coloring.histogram);
         self.stats = StepStats {
             batch_histogram: histogram,
-            ..collect_stats(&scratch.pair_keys, &self.pairs, &self.children, scratch)
+            ..collect_stats(
+                &scratch.pair_keys,
+                &self.pairs,
+                &self.children,
+                self.contacts_on_device.then_some(&self.pair_summaries[..]),
+                scratch,
+            )
         };
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
@@ -467,6 +502,20 @@ impl World {
     /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
     /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
     /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
+    /// Whether this step leaves the pairs' contacts on the device (see `contacts_on_device`):
+    /// stages 1 to 4 in one submission, the rows, the batching and the solver on the GPU, and
+    /// every pair one the GPU narrowphase computes.
+    fn keeps_contacts_on_device(&self) -> bool {
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        self.contacts_may_stay_on_device
+            && self.collides_in_one_submission()
+            && on_gpu(Stage::Constraints)
+            && on_gpu(Stage::Batching)
+            && on_gpu(Stage::Solver)
+            && self.host_shapes == 0
+            && self.children.is_empty()
+    }
+
     fn collides_in_one_submission(&self) -> bool {
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         self.gpu.is_some()
@@ -480,7 +529,7 @@ impl World {
 
     /// Stages 1 to 4 in one GPU submission; the pair cache then takes the GPU's keys and
     /// contacts, and the host computes the pairs the GPU has no kernel for.
-    fn collide_in_one_submission(&mut self) -> Result<(), GpuError> {
+    fn collide_in_one_submission(&mut self, device_contacts: bool) -> Result<(), GpuError> {
         let config = self.config;
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
@@ -497,6 +546,10 @@ impl World {
             velocities: &self.velocities,
             colliders: &self.colliders,
         };
+        debug_assert!(
+            !self.contacts_on_device || gpu.holds_pair_cache(self.pairs.version()),
+            "the host's contacts are stale and the device's are not the cache's"
+        );
         profiler.begin("collision");
         let collided = gpu.collide(
             profiler,
@@ -506,13 +559,27 @@ impl World {
             &self.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut scratch.pair_keys,
-            &mut scratch.collided,
+            if device_contacts {
+                CollideOutput::Summaries(&mut self.pair_summaries)
+            } else {
+                CollideOutput::Contacts(&mut scratch.collided)
+            },
         );
         if collided.is_err() {
             profiler.end();
         }
         collided?;
         profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
+        if device_contacts {
+            // Every pair is the GPU's (no host shapes, no child manifolds): the pair cache's
+            // contacts stay on the device, where the rows read them.
+            self.contacts_on_device = true;
+            self.device_contacts = OnceLock::new();
+            self.refresh_resting = false;
+            gpu.pair_cache_is_collide_output();
+            profiler.end();
+            return Ok(());
+        }
         let colliders = &self.colliders;
         let on_gpu = |key: u64| {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
@@ -679,11 +746,12 @@ impl World {
                     touched.push(a);
                 }
             };
-            for (&key, contact) in self.pairs.keys().iter().zip(self.pairs.values()) {
-                if contact.manifold.count > 0 {
-                    let (a, b) = crate::stages::pairs::pair_bodies(key);
-                    edge(a, b);
-                }
+            for key in touching_pairs(
+                &self.pairs,
+                self.contacts_on_device.then_some(&self.pair_summaries),
+            ) {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                edge(a, b);
             }
             for joint in self.joints.iter().flatten().filter(|j| !j.broken) {
                 edge(joint.body_a, joint.body_b);
@@ -710,10 +778,11 @@ impl World {
         if !any_rested {
             return;
         }
-        let contacts = self.pairs.keys().iter().zip(self.pairs.values());
-        let contact_edges = contacts
-            .filter(|(_, contact)| contact.manifold.count > 0)
-            .map(|(&key, _)| crate::stages::pairs::pair_bodies(key));
+        let contact_edges = touching_pairs(
+            &self.pairs,
+            self.contacts_on_device.then_some(&self.pair_summaries),
+        )
+        .map(crate::stages::pairs::pair_bodies);
         let joint_edges = self
             .joints
             .iter()
@@ -779,7 +848,7 @@ impl RowSummary {
     fn new(
         slot: u32,
         key: u64,
-        contact: &narrowphase::PairContact,
+        point_count: u32,
         masses: &[crate::dynamics::body::BodyMass],
         colliders: &[crate::dynamics::body::Collider],
     ) -> Self {
@@ -787,7 +856,7 @@ impl RowSummary {
         Self {
             slot,
             bodies: constraint_bodies(key, masses),
-            point_count: contact.manifold.count,
+            point_count,
             // As the rows compute it: the larger of the two restitutions.
             restitution: colliders[a as usize]
                 .restitution
@@ -866,18 +935,39 @@ fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
     debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "pair sets overlap");
 }
 
+/// The keys of the pairs whose manifold has points, in pair order; `summaries` stand for the
+/// pairs' contacts when those stayed on the device.
+fn touching_pairs<'a>(
+    pairs: &'a crate::stages::pairs::PairCache<narrowphase::PairContact>,
+    summaries: Option<&'a Vec<PairSummary>>,
+) -> impl Iterator<Item = u64> + 'a {
+    let points = move |pair: usize| match summaries {
+        Some(summaries) => summaries[pair].point_count,
+        None => pairs.values()[pair].manifold.count,
+    };
+    let keys = pairs.keys().iter().enumerate();
+    keys.filter(move |&(pair, _)| points(pair) > 0)
+        .map(|(_, &key)| key)
+}
+
+/// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
+/// device.
 fn collect_stats(
     pair_keys: &[u64],
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
     children: &narrowphase::ChildCache,
+    summaries: Option<&[PairSummary]>,
     scratch: &StepScratch,
 ) -> StepStats {
-    let max_penetration = pairs
-        .values()
-        .iter()
-        .chain(children.values())
-        .flat_map(|c| c.manifold.points().iter().map(|p| -p.separation))
-        .fold(0.0f32, f32::max);
+    let max_penetration = match summaries {
+        Some(summaries) => summaries.iter().map(|s| s.depth).fold(0.0f32, f32::max),
+        None => pairs
+            .values()
+            .iter()
+            .chain(children.values())
+            .map(|c| PairSummary::of(c).depth)
+            .fold(0.0f32, f32::max),
+    };
     StepStats {
         pairs: pair_keys.len(),
         pairs_added: pairs.added().len(),

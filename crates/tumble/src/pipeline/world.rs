@@ -40,7 +40,8 @@ use crate::profile::Profiler;
 use crate::shape::Shape;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
-use crate::stages::narrowphase::{ChildCache, PairContact};
+use crate::stages::narrowphase::summary::PairSummary;
+use crate::stages::narrowphase::{ChildCache, PairContact, gpu_shape};
 use crate::stages::pairs::PairCache;
 use std::sync::Arc;
 use std::sync::OnceLock;
@@ -152,6 +153,19 @@ pub struct World {
     /// Bodies outside their broadphase fat AABB, for exact queries (`pipeline::query`); reset
     /// whenever bodies move, come or go.
     pub(crate) query_escapes: OnceLock<Vec<u32>>,
+    /// The last step left its pairs' contacts on the device (all stages on the GPU, every pair
+    /// one the GPU narrowphase computes): `pairs` has this step's keys, but its values are
+    /// older than the device's. `pair_summaries` holds what the step needed of them;
+    /// [`World::sync_contacts`] brings them over, and the contact queries read them through
+    /// `device_contacts`, at their first call after the step.
+    pub(crate) contacts_on_device: bool,
+    /// Whether a step may leave the contacts on the device (tests turn it off to compare).
+    pub(crate) contacts_may_stay_on_device: bool,
+    pub(crate) pair_summaries: Vec<PairSummary>,
+    pub(crate) device_contacts: OnceLock<Vec<PairContact>>,
+    /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
+    /// there are any, the contacts come back to the host every step.
+    pub(crate) host_shapes: usize,
 }
 
 impl World {
@@ -188,6 +202,11 @@ impl World {
             refresh_resting: false,
             changed_bodies: Vec::new(),
             query_escapes: OnceLock::new(),
+            contacts_on_device: false,
+            contacts_may_stay_on_device: true,
+            pair_summaries: Vec::new(),
+            device_contacts: OnceLock::new(),
+            host_shapes: 0,
         })
     }
 
@@ -316,6 +335,9 @@ impl World {
             .aabb(&pose.transform())
             .expanded(self.config.contact_margin);
         self.broadphase.insert(index, aabb, dynamic);
+        if !gpu_shape(&self.colliders[index as usize].shape) {
+            self.host_shapes += 1;
+        }
         if let Some(gpu) = &mut self.gpu {
             gpu.colliders_changed();
         }
@@ -357,6 +379,9 @@ impl World {
         }
         self.broadphase.remove(handle.index);
         self.query_escapes = OnceLock::new();
+        if !gpu_shape(&self.colliders[i].shape) {
+            self.host_shapes -= 1;
+        }
         let slot = &mut self.slots[i];
         slot.state = SlotState::Free;
         slot.generation = slot.generation.wrapping_add(1);
@@ -719,6 +744,8 @@ impl World {
     /// it over, so the step's buffers ([`Self::device_poses`]) are on the device it draws with.
     /// The GPU side starts afresh there (its buffers are uploaded again at the next step).
     pub fn set_gpu_context(&mut self, context: GpuContext) -> Result<(), GpuError> {
+        // The contacts left on the old device come over first.
+        self.sync_contacts()?;
         if self.gpu.is_some() {
             self.gpu = Some(GpuStages::new(context.clone())?);
         }
@@ -861,11 +888,13 @@ impl World {
     }
 
     /// Persistent contacts as (body A, body B, pair data), in pair order.
+    /// When the last step left the contacts on the device, the first call after it reads them
+    /// back (an empty list if that read-back fails: the next step reports the device's error).
     pub fn contacts(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, &PairContact)> + '_ {
         self.pairs
             .keys()
             .iter()
-            .zip(self.pairs.values())
+            .zip(self.pair_values())
             .filter(|(_, c)| c.manifold.count > 0)
             .map(|(&key, contact)| {
                 let (a, b) = crate::stages::pairs::pair_bodies(key);
@@ -881,13 +910,47 @@ impl World {
         self.pairs
             .keys()
             .iter()
-            .zip(self.pairs.values())
+            .zip(self.pair_values())
             .zip(self.pair_batches.iter().chain(std::iter::repeat(&NO_BATCH)))
             .filter(|((_, contact), _)| contact.manifold.count > 0)
             .map(|((&key, _), &batch)| {
                 let (a, b) = crate::stages::pairs::pair_bodies(key);
                 (self.handle_of(a), self.handle_of(b), batch)
             })
+    }
+
+    /// The pairs' contacts in pair order, wherever they are newest (see `contacts_on_device`).
+    fn pair_values(&self) -> &[PairContact] {
+        if !self.contacts_on_device {
+            return self.pairs.values();
+        }
+        self.device_contacts.get_or_init(|| {
+            self.gpu
+                .as_ref()
+                .and_then(|gpu| gpu.read_pair_contacts().ok())
+                .unwrap_or_default()
+        })
+    }
+
+    /// Brings the pairs' contacts to the host's pair cache when the last step left them on the
+    /// device (every stage on the GPU). The step does this itself when a stage on the host
+    /// needs them; a caller rarely has to.
+    pub fn sync_contacts(&mut self) -> Result<(), GpuError> {
+        if !self.contacts_on_device {
+            return Ok(());
+        }
+        let gpu = self
+            .gpu
+            .as_mut()
+            .expect("contacts stay on the device only with GPU stages");
+        let contacts = match self.device_contacts.take() {
+            Some(contacts) if contacts.len() == self.pairs.len() => contacts,
+            _ => gpu.read_pair_contacts()?,
+        };
+        self.pairs.values_mut().copy_from_slice(&contacts);
+        gpu.pair_cache_adopted(self.pairs.version());
+        self.contacts_on_device = false;
+        Ok(())
     }
 
     /// Child contacts (per triangle of a mesh) as (body A, body B, triangle, pair data), in
@@ -915,6 +978,8 @@ impl World {
         contact: PairContact,
     ) -> Result<(), BodyError> {
         let (key, contact) = self.pair_ordered(a, b, contact)?;
+        self.sync_contacts()
+            .map_err(|error| BodyError::ContactsReadback(error.to_string()))?;
         self.pairs.insert(key, contact);
         Ok(())
     }

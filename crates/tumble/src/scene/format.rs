@@ -945,6 +945,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::DynamicPlane | BodyError::DynamicTriMesh => "mass".into(),
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
         BodyError::CompoundMeshKeys { .. } => format!("shape.{shape_name}"),
+        BodyError::ContactsReadback(_) => "contacts".into(),
     }
 }
 

@@ -174,17 +174,19 @@ pub fn constraint_slots<'a>(
     let child_pairs = children.keys().iter().map(|&(key, _)| key);
     let all_keys = keys.iter().copied().chain(child_pairs);
     let all_contacts = contacts.iter().chain(children.values());
-    let resting = |body: u32| masses[body as usize].inverse_mass == 0.0;
     all_contacts
         .zip(all_keys)
         .enumerate()
-        .filter_map(move |(slot, (contact, key))| {
-            let (a, b) = pair_bodies(key);
-            // No points, or two sleeping bodies (or one asleep on a static one): nothing to
-            // solve.
-            let skip = contact.manifold.count == 0 || (resting(a) && resting(b));
-            (!skip).then_some((slot as u32, key, contact))
-        })
+        .filter(move |&(_, (contact, key))| has_constraint(key, contact.manifold.count, masses))
+        .map(|(slot, (contact, key))| (slot as u32, key, contact))
+}
+
+/// Whether the manifold of pair `key` with `point_count` points gets a constraint: not
+/// without points, nor between two sleeping bodies (or one asleep on a static one).
+pub fn has_constraint(key: u64, point_count: u32, masses: &[BodyMass]) -> bool {
+    let (a, b) = pair_bodies(key);
+    let resting = |body: u32| masses[body as usize].inverse_mass == 0.0;
+    point_count > 0 && !(resting(a) && resting(b))
 }
 
 /// The bodies a constraint on the pair `key` moves: [`STATIC_BODY`] for a side without mass.

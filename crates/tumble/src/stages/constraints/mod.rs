@@ -9,7 +9,7 @@ pub mod joint_gpu;
 
 pub use contact::{
     CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row, RowInputs,
-    body_inverse_inertia, build_constraints, constraint_bodies, constraint_slots,
+    body_inverse_inertia, build_constraints, constraint_bodies, constraint_slots, has_constraint,
     world_inverse_inertia,
 };
 pub use joint::{

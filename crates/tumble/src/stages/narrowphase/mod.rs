@@ -16,6 +16,7 @@
 //! the same stage on the GPU, one thread per pair, with the same points, ids and impulses.
 
 pub mod gpu;
+pub mod summary;
 
 pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams, pack_hulls};
 
@@ -93,6 +94,19 @@ pub const MAX_HULL_FACE_VERTICES: u32 = 16;
 /// at most [`MAX_HULL_FACE_VERTICES`] vertices against boxes, planes and such hulls, by SAT and
 /// clipping. Meshes and compounds stay with [`update_contacts_where`] on the host.
 pub fn gpu_pair(a: &Shape, b: &Shape) -> bool {
+    gpu_pair_of(a, b)
+}
+
+/// Whether every pair of `shape` with any shape for which this holds is a [`gpu_pair`]:
+/// spheres, capsules, boxes, planes and hulls whose faces the GPU kernels hold.
+pub fn gpu_shape(shape: &Shape) -> bool {
+    match shape {
+        Shape::ConvexHull(hull) => hull.max_face_vertices() <= MAX_HULL_FACE_VERTICES,
+        _ => shape.kind() <= ShapeKind::Plane,
+    }
+}
+
+fn gpu_pair_of(a: &Shape, b: &Shape) -> bool {
     let polyhedral = |shape: &Shape| match shape {
         Shape::Cuboid(_) | Shape::Plane(_) => true,
         Shape::ConvexHull(hull) => hull.max_face_vertices() <= MAX_HULL_FACE_VERTICES,
