@@ -933,8 +933,9 @@ impl GpuStages {
     /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
     /// is the contact constraint at batched place i, `joint_order[i]` the slot of the joint
     /// row there; `offsets` and `joint_offsets` the batch offsets), solved as [`Self::solve`]
-    /// does, and only impulses come back, in batch order: the contacts' into `impulses`, the
-    /// joints' into `joint_impulses`. `contact_bodies` and `joint_bodies` are the bodies (A, B)
+    /// does, and only impulses come back, in batch order: the contacts' into `impulses` (when
+    /// given: with the contacts on the device nobody on the host reads them), the joints' into
+    /// `joint_impulses`. `contact_bodies` and `joint_bodies` are the bodies (A, B)
     /// of the gathered rows, in batch order: the Jacobi solver's adjacency.
     #[allow(clippy::too_many_arguments)]
     pub fn solve_batched(
@@ -951,7 +952,7 @@ impl GpuStages {
         has_overflow: bool,
         settings: SolverSettings,
         restitution: bool,
-        impulses: &mut Vec<BatchedImpulses>,
+        impulses: Option<&mut Vec<BatchedImpulses>>,
         joint_impulses: &mut Vec<BatchedJointImpulses>,
     ) -> Result<(), GpuError> {
         let solved = self.solve_batched_rows(
@@ -989,7 +990,7 @@ impl GpuStages {
         has_overflow: bool,
         settings: SolverSettings,
         restitution: bool,
-        impulses: &mut Vec<BatchedImpulses>,
+        impulses: Option<&mut Vec<BatchedImpulses>>,
         joint_impulses: &mut Vec<BatchedJointImpulses>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
@@ -1074,7 +1075,9 @@ impl GpuStages {
                 })?;
                 // The read-backs ride in the kernels' submission: one wait for the stage.
                 solver_bodies.encode_download(context, encoder);
-                batched.impulses.encode_download(context, encoder);
+                if impulses.is_some() {
+                    batched.impulses.encode_download(context, encoder);
+                }
                 batched.joint_impulses.encode_download(context, encoder);
                 Ok(())
             },
@@ -1083,7 +1086,9 @@ impl GpuStages {
         self.solver_bodies
             .read_download(context, &mut self.downloaded_bodies)?;
         bodies.copy_from_slice(&self.downloaded_bodies);
-        self.batched.impulses.read_download(context, impulses)?;
+        if let Some(impulses) = impulses {
+            self.batched.impulses.read_download(context, impulses)?;
+        }
         self.batched
             .joint_impulses
             .read_download(context, joint_impulses)?;

@@ -382,7 +382,8 @@ impl World {
                     scratch.coloring.has_overflow,
                     settings,
                     restitution,
-                    &mut scratch.batched_impulses,
+                    // With the contacts on the device the solver writes their impulses there.
+                    (!self.contacts_on_device).then_some(&mut scratch.batched_impulses),
                     &mut scratch.batched_joint_impulses,
                 )
             }
