@@ -498,7 +498,7 @@ impl GpuStages {
         skipped: &[u64],
         (margin, dt): (f32, f32),
         keys: &mut Vec<u64>,
-        mut output: CollideOutput,
+        output: CollideOutput,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let summarize = matches!(output, CollideOutput::Summaries(_));
@@ -536,89 +536,120 @@ impl GpuStages {
             record_copy(profiler, PAIR_UPLOAD, elapsed_ms(start));
         }
         loop {
+            if summarize {
+                // The keys and summaries come back with the kernels, at the broadphase's
+                // capacity (the count is not known before): one wait for the stage.
+                self.keys.resize(context, self.broadphase.capacity())?;
+            }
             let device = &self.bodies;
             let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
             let (broadphase, diff) = (&mut self.broadphase, &mut self.pair_diff);
             let (narrowphase, contacts) = (&mut self.narrowphase, &mut self.contacts);
-            let summaries = &mut self.summaries;
+            let (summaries, row_keys) = (&mut self.summaries, &mut self.keys);
             let (old_keys, old_contacts, skipped) =
                 (&self.old_keys, &self.old_contacts, &self.skipped);
             // Only the first run copies: a run again after the broadphase grew reads the same
             // inputs, and its keys and `contacts` are this step's by then.
             let copies = copies.take();
-            run_pass(context, &mut self.profiler, profiler, &COLLISION, |pass| {
-                if let Some(copies) = copies {
-                    encode_all(pass, copies);
-                }
-                aabb.encode(
-                    context,
-                    pass,
-                    &device.poses,
-                    &device.velocities,
-                    &device.colliders,
-                    margin,
-                    dt,
-                    aabbs,
-                )?;
-                broadphase.encode(context, pass, aabbs)?;
-                // The broadphase's keys are padded with u64::MAX past the count, which both
-                // the diff and the narrowphase pass over: the count stays on the device.
-                diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
-                let inputs = GpuNarrowphaseInputs {
-                    keys: broadphase.keys(),
-                    old_index: diff.old_index(),
-                    old_contacts,
-                    poses: &device.poses,
-                    velocities: &device.velocities,
-                    colliders: &device.colliders,
-                    hulls: &device.hulls,
-                    skipped,
-                    margin,
-                    dt,
-                };
-                narrowphase.encode(context, pass, &inputs, contacts)?;
-                if summarize {
-                    let capacity = broadphase.capacity();
-                    summaries.encode(context, pass, broadphase.count(), contacts, capacity)?;
-                }
-                Ok(())
-            })?;
-            if !self.broadphase.check_capacity(context)? {
+            run_passes(
+                context,
+                &mut self.profiler,
+                profiler,
+                &COLLISION,
+                |encoder, timer| {
+                    encode_pass(encoder, timer, COLLISION.kernel, |pass| {
+                        if let Some(copies) = copies {
+                            encode_all(pass, copies);
+                        }
+                        aabb.encode(
+                            context,
+                            pass,
+                            &device.poses,
+                            &device.velocities,
+                            &device.colliders,
+                            margin,
+                            dt,
+                            aabbs,
+                        )?;
+                        broadphase.encode(context, pass, aabbs)?;
+                        // The broadphase's keys are padded with u64::MAX past the count, which both
+                        // the diff and the narrowphase pass over: the count stays on the device.
+                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
+                        let inputs = GpuNarrowphaseInputs {
+                            keys: broadphase.keys(),
+                            old_index: diff.old_index(),
+                            old_contacts,
+                            poses: &device.poses,
+                            velocities: &device.velocities,
+                            colliders: &device.colliders,
+                            hulls: &device.hulls,
+                            skipped,
+                            margin,
+                            dt,
+                        };
+                        narrowphase.encode(context, pass, &inputs, contacts)?;
+                        if summarize {
+                            let capacity = broadphase.capacity();
+                            summaries.encode(
+                                context,
+                                pass,
+                                broadphase.count(),
+                                contacts,
+                                capacity,
+                            )?;
+                        }
+                        Ok(())
+                    })?;
+                    broadphase.encode_count_download(context, encoder);
+                    if summarize {
+                        let bytes = (row_keys.len() * size_of::<u64>()) as u64;
+                        let from = broadphase.keys().buffer();
+                        encoder.copy_buffer_to_buffer(from, 0, row_keys.buffer(), 0, bytes);
+                        row_keys.encode_download(context, encoder);
+                        summaries.summaries.encode_download(context, encoder);
+                    }
+                    Ok(())
+                },
+            )?;
+            let count = self.broadphase.read_encoded_count(context)?;
+            if !self.broadphase.grow_for(context, count)? {
                 break;
             }
         }
         let start = Instant::now();
-        // Only the counted keys and contacts come back, in one submission; the rows read them
-        // on the device, the keys copied there from the broadphase's.
         let count = self.broadphase.last_pair_count();
-        debug_assert!(count <= self.broadphase.capacity(), "the run overflowed");
-        self.keys.resize(context, count)?;
-        self.contacts.resize(context, count)?;
-        let mut encoder = context
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("collision read-back"),
-            });
-        if count > 0 {
-            let bytes = (count * size_of::<u64>()) as u64;
-            let from = self.broadphase.keys().buffer();
-            encoder.copy_buffer_to_buffer(from, 0, self.keys.buffer(), 0, bytes);
-        }
-        self.keys.encode_download(context, &mut encoder);
-        let summaries = &mut self.summaries.summaries;
-        match &output {
-            CollideOutput::Contacts(_) => self.contacts.encode_download(context, &mut encoder),
-            CollideOutput::Summaries(_) => {
-                summaries.resize(context, count)?;
-                summaries.encode_download(context, &mut encoder);
+        match output {
+            CollideOutput::Summaries(out) => {
+                self.keys.read_download(context, keys)?;
+                self.summaries.summaries.read_download(context, out)?;
+                keys.truncate(count);
+                out.truncate(count);
+                self.keys.resize(context, count)?;
+            }
+            CollideOutput::Contacts(contacts) => {
+                // Only the counted keys and contacts come back, in one submission; the rows
+                // read them on the device, the keys copied there from the broadphase's.
+                self.keys.resize(context, count)?;
+                self.contacts.resize(context, count)?;
+                let mut encoder =
+                    context
+                        .device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some("collision read-back"),
+                        });
+                if count > 0 {
+                    let bytes = (count * size_of::<u64>()) as u64;
+                    let from = self.broadphase.keys().buffer();
+                    encoder.copy_buffer_to_buffer(from, 0, self.keys.buffer(), 0, bytes);
+                }
+                self.keys.encode_download(context, &mut encoder);
+                self.contacts.encode_download(context, &mut encoder);
+                context.queue.submit([encoder.finish()]);
+                self.keys.read_download(context, keys)?;
+                self.contacts.read_download(context, contacts)?;
             }
         }
-        context.queue.submit([encoder.finish()]);
-        self.keys.read_download(context, keys)?;
-        match &mut output {
-            CollideOutput::Contacts(contacts) => self.contacts.read_download(context, contacts)?,
-            CollideOutput::Summaries(out) => summaries.read_download(context, out)?,
-        }
+        self.contacts.resize(context, count)?;
         record_copy(profiler, COLLISION.download, elapsed_ms(start));
         self.pair_contacts_fresh = false;
         self.collided = true;
@@ -1477,7 +1508,7 @@ mod tests {
     }
 
     /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts
-    /// left on the device between steps or not: (poses, the contact queries' answer, the step
+    /// left on the device between steps or not, the pair buffers starting too small: (poses, the contact queries' answer, the step
     /// statistics' deepest penetration, the steps that left them there, bodies asleep).
     fn steps_on_the_gpu(
         contacts_may_stay_on_device: bool,
@@ -1492,10 +1523,14 @@ mod tests {
         })
         .unwrap();
         world.contacts_may_stay_on_device = contacts_may_stay_on_device;
-        world.set_gpu_context(context).unwrap();
+        world.set_gpu_context(context.clone()).unwrap();
         world
             .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
             .unwrap();
+        // Room for 4 pairs: the pair buffers grow, and the collision runs again, as the pile
+        // forms.
+        let gpu = world.gpu.as_mut().unwrap();
+        gpu.broadphase.set_capacity(&context, 4).unwrap();
         world
             .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
             .unwrap();

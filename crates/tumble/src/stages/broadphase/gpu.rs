@@ -601,11 +601,7 @@ impl GpuBroadphase {
     /// buffers hold, grows them to fit and returns true: the caller must run the stage again.
     pub fn check_capacity(&mut self, context: &GpuContext) -> Result<bool, GpuError> {
         let count = self.pair_count(context)?;
-        if count <= self.capacity() {
-            return Ok(false);
-        }
-        self.set_capacity(context, count.next_power_of_two())?;
-        Ok(true)
+        self.grow_for(context, count)
     }
 
     /// Upload, encode, submit, read back: the sorted pair keys of `aabbs` (one per body slot)
@@ -654,6 +650,33 @@ impl GpuBroadphase {
     pub fn pair_count(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
         self.count.download_into(context, &mut self.count_host)?;
         Ok(self.count_host[0] as usize)
+    }
+
+    /// Records the copy of the pair count into its staging buffer at the end of `encoder`, so
+    /// that it comes back with the submission's other read-backs
+    /// ([`Self::read_encoded_count`] after the submission).
+    pub fn encode_count_download(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
+        self.count.encode_download(context, encoder);
+    }
+
+    /// The pair count [`Self::encode_count_download`] copied.
+    pub fn read_encoded_count(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
+        self.count.read_download(context, &mut self.count_host)?;
+        Ok(self.last_pair_count())
+    }
+
+    /// Grows the key buffers when `count` pairs do not fit (the run must be done again);
+    /// whether they grew.
+    pub fn grow_for(&mut self, context: &GpuContext, count: usize) -> Result<bool, GpuError> {
+        if count <= self.capacity() {
+            return Ok(false);
+        }
+        self.set_capacity(context, count.next_power_of_two())?;
+        Ok(true)
     }
 
     /// The pair count that [`Self::pair_count`] (or [`Self::check_capacity`]) last read.
