@@ -570,7 +570,12 @@ impl World {
             profiler.end();
         }
         collided?;
-        profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
+        if device_contacts {
+            // The contacts are the device's: only the keys move here.
+            profiler.scope("pairs", || self.pairs.update_keys(&scratch.pair_keys));
+        } else {
+            profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
+        }
         if device_contacts {
             // Every pair is the GPU's (no host shapes, no child manifolds): the pair cache's
             // contacts stay on the device, where the rows read them.

@@ -96,6 +96,37 @@ impl<T: Default> PairCache<T> {
         std::mem::swap(&mut self.values, &mut self.next_values);
     }
 
+    /// [`Self::update`] for a cache whose values live elsewhere (the GPU step's contacts): the
+    /// same keys and added / removed lists, but the values are only resized to the keys, their
+    /// contents unspecified until the caller writes every one. Moves no value.
+    pub fn update_keys(&mut self, new_keys: &[u64]) {
+        assert!(
+            new_keys.windows(2).all(|window| window[0] < window[1]),
+            "pair keys must be sorted ascending and unique"
+        );
+        self.version += 1;
+        self.added.clear();
+        self.removed.clear();
+        let mut old_keys = self.keys.iter().copied().peekable();
+        for &key in new_keys {
+            while let Some(&old_key) = old_keys.peek()
+                && old_key < key
+            {
+                self.removed.push(old_key);
+                old_keys.next();
+            }
+            if old_keys.peek() == Some(&key) {
+                old_keys.next();
+            } else {
+                self.added.push(key);
+            }
+        }
+        self.removed.extend(old_keys);
+        self.keys.clear();
+        self.keys.extend_from_slice(new_keys);
+        self.values.resize_with(new_keys.len(), T::default);
+    }
+
     /// This step's pair keys, sorted ascending.
     pub fn keys(&self) -> &[u64] {
         &self.keys
@@ -168,6 +199,23 @@ mod tests {
         assert_eq!(cache.keys(), [pair_key(0, 1), pair_key(2, 3)]);
         cache.update(&[pair_key(2, 3)]);
         assert_eq!(cache.values(), [32]);
+    }
+
+    #[test]
+    fn update_keys_gives_the_keys_and_changes_of_update() {
+        let steps: [&[u64]; 4] = [&[1, 4, 9], &[0, 4, 5, 9, 12], &[], &[3, 4]];
+        let (mut full, mut keys_only) = (PairCache::<u32>::new(), PairCache::<u32>::new());
+        for keys in steps {
+            full.update(keys);
+            keys_only.update_keys(keys);
+            assert_eq!(keys_only.keys(), full.keys());
+            assert_eq!(keys_only.added(), full.added());
+            assert_eq!(keys_only.removed(), full.removed());
+            assert_eq!(keys_only.values().len(), keys.len());
+        }
+        let version = keys_only.version();
+        keys_only.update_keys(&[3, 4]);
+        assert_ne!(keys_only.version(), version);
     }
 
     #[test]
