@@ -116,7 +116,7 @@ pub(crate) enum RowSlots<'a> {
         contacts: &'a [PairContact],
     },
     /// This step's GPU narrowphase output, already on the device: every slot is a pair and the
-    /// narrowphase computed all of them ([`GpuStages::pair_contacts_on_device`]).
+    /// narrowphase computed all of them ([`GpuStages::narrowphase_output_is_pair_cache`]).
     Narrowphase,
 }
 
@@ -398,7 +398,7 @@ impl GpuStages {
 
     /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
     /// [`RowSlots::Narrowphase`] can stand for the pair cache.
-    pub fn pair_contacts_on_device(&self) -> bool {
+    pub fn narrowphase_output_is_pair_cache(&self) -> bool {
         self.pair_contacts_fresh
     }
 
@@ -1398,7 +1398,7 @@ mod tests {
         gpu.update_contacts(&mut profiler, &keys, &mut contacts, &inputs)
             .unwrap();
         assert!(
-            gpu.pair_contacts_on_device(),
+            gpu.narrowphase_output_is_pair_cache(),
             "every pair is a GPU pair here"
         );
         assert!(contacts.iter().any(|c| c.manifold.count > 0), "no contact");

@@ -147,7 +147,7 @@ impl World {
                     scratch.joint_row_slots.push(self.joints.len() as u32);
                     scratch.joint_row_bodies.push((drag.body_a, drag.body_b));
                 }
-                let slots = if self.children.is_empty() && gpu.pair_contacts_on_device() {
+                let slots = if self.children.is_empty() && gpu.narrowphase_output_is_pair_cache() {
                     // The GPU narrowphase's output is the pair cache: no copy, no upload.
                     RowSlots::Narrowphase
                 } else {
