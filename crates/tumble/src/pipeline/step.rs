@@ -500,9 +500,6 @@ impl World {
         Ok(())
     }
 
-    /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
-    /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
-    /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
     /// Whether this step leaves the pairs' contacts on the device (see `contacts_on_device`):
     /// stages 1 to 4 in one submission, the rows, the batching and the solver on the GPU, and
     /// every pair one the GPU narrowphase computes.
@@ -517,6 +514,9 @@ impl World {
             && self.children.is_empty()
     }
 
+    /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
+    /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
+    /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
     fn collides_in_one_submission(&self) -> bool {
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         self.gpu.is_some()

@@ -24,7 +24,7 @@ pub mod scan;
 /// wrong from half-way on. A window's look-back stops at the window before it, whose tiles are
 /// all published, so 128 tiles a window keeps it below 12 000 iterations. GPUs have no such
 /// limit and keep one window per binding.
-pub(crate) fn look_back_tiles(context: &GpuContext) -> usize {
+pub fn look_back_tiles(context: &GpuContext) -> usize {
     if context.is_cpu_driver() {
         128
     } else {
