@@ -1542,6 +1542,18 @@ mod tests {
             };
             world.add_body(block_member(index, shape)).unwrap();
         }
+        // A chain of three capsules on point joints falls onto the block: joint rows, and
+        // jointed pairs the narrowphase skips.
+        let link =
+            |x: f32| BodyDesc::dynamic(Shape::capsule(0.3, 0.2)).position(Vec3::new(x, 6.0, 1.5));
+        let links: Vec<_> = (0..3)
+            .map(|i| world.add_body(link(i as f32)).unwrap())
+            .collect();
+        for pair in links.windows(2) {
+            let anchor = Vec3::new(0.5 + world.pose(pair[0]).unwrap().position.x, 6.0, 1.5);
+            let joint = crate::JointDesc::new(crate::JointKind::Point, pair[0], pair[1], anchor);
+            world.add_joint(joint).unwrap();
+        }
         let mut left_on_device = 0;
         for _ in 0..steps {
             world.step();
