@@ -67,6 +67,8 @@ const CONSTRAINTS: StageSpans = StageSpans {
     wait: &["constraints", "submit and wait"],
     download: &["constraints", "copy to cpu"],
 };
+/// The constraints' submission when the rows stay on the device: nothing to wait for.
+const CONSTRAINTS_SUBMIT: SpanPath = &["constraints", "submit"];
 /// The joint rows' kernel: its own pass in the constraints' submission, so the profile shows
 /// it beside the contact rows' kernels.
 const JOINT_ROWS_KERNEL: SpanPath = &["constraints", "joint kernel"];
@@ -810,24 +812,26 @@ impl GpuStages {
             softness: joints.softness,
         };
         let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
-        run_passes(
-            context,
-            &mut self.profiler,
-            profiler,
-            &CONSTRAINTS,
-            |encoder, timer| {
-                encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
-                    rows.encode(context, pass, &device_inputs)
+        let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
+            encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
+                rows.encode(context, pass, &device_inputs)
+            })?;
+            if build_joints {
+                encode_pass(encoder, timer, JOINT_ROWS_KERNEL, |pass| {
+                    joint_rows.encode_build(context, pass, &joint_inputs);
+                    Ok(())
                 })?;
-                if build_joints {
-                    encode_pass(encoder, timer, JOINT_ROWS_KERNEL, |pass| {
-                        joint_rows.encode_build(context, pass, &joint_inputs);
-                        Ok(())
-                    })?;
-                }
-                Ok(())
-            },
-        )?;
+            }
+            Ok(())
+        };
+        if out.is_some() {
+            run_passes(context, &mut self.profiler, profiler, &CONSTRAINTS, encode)?;
+        } else {
+            // The rows stay on the device for the batching and the solver, whose submissions
+            // follow this one on the queue: no wait here.
+            let spans = (&CONSTRAINTS, CONSTRAINTS_SUBMIT);
+            submit_passes(context, &mut self.profiler, profiler, spans, encode)?;
+        }
         if let Some((contacts, joint_constraints)) = out {
             let start = Instant::now();
             self.rows.read_back(context, contacts)?;
@@ -1193,6 +1197,31 @@ fn run_passes(
     context.wait()?;
     profiler.record(spans.wait, SpanKind::Cpu, elapsed_ms(start));
     gpu_profiler.collect(context, profiler)
+}
+
+/// [`run_passes`] for a stage whose results stay on the device: submitted (timed at `submit`),
+/// not waited for. Its kernels' GPU times are collected with the next stage that waits (the
+/// profiler's queries accumulate until then).
+fn submit_passes(
+    context: &GpuContext,
+    gpu_profiler: &mut GpuProfiler,
+    profiler: &mut Profiler,
+    (spans, submit): (&StageSpans, SpanPath),
+    encode: impl FnOnce(&mut wgpu::CommandEncoder, &mut GpuProfiler) -> Result<(), GpuError>,
+) -> Result<(), GpuError> {
+    let start = Instant::now();
+    let mut encoder = context
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some(spans.kernel[0]),
+        });
+    encode(&mut encoder, gpu_profiler)?;
+    let commands = encoder.finish();
+    profiler.record(spans.encode, SpanKind::Cpu, elapsed_ms(start));
+    let start = Instant::now();
+    context.queue.submit([commands]);
+    profiler.record(submit, SpanKind::Cpu, elapsed_ms(start));
+    Ok(())
 }
 
 /// One submission of batching kernels (`encode`) with the colors' read-back: whether every
