@@ -17,6 +17,7 @@ use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
+use crate::stages::integrate::gpu::GpuPrepareBodies;
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::summary::{GpuPairSummaries, PairSummary};
 use crate::stages::narrowphase::{
@@ -206,6 +207,8 @@ pub(crate) struct GpuStages {
     /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
     /// joints) on the device; [`Self::solve_batched`] uses the offsets and the bodies.
     solver_bodies: GpuVec<SolverBody>,
+    /// Makes `solver_bodies` from the velocities and masses on the device (batched solves).
+    prepare_bodies: GpuPrepareBodies,
     batched_contacts: GpuVec<ContactConstraint>,
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,
@@ -279,6 +282,7 @@ impl GpuStages {
             jacobi: None,
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
+            prepare_bodies: GpuPrepareBodies::new(&context),
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
             batched_joints: GpuVec::with_capacity(&context, "batched joints", 0)?,
@@ -1030,7 +1034,13 @@ impl GpuStages {
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
-        self.solver_bodies.upload(context, bodies)?;
+        // The rows ran here, so the velocities and masses on the device are this step's: the
+        // solver's bodies are made from them there.
+        debug_assert!(
+            self.bodies.uploaded_this_step,
+            "no bodies on the device this step"
+        );
+        self.solver_bodies.resize(context, bodies.len())?;
         self.batch_offsets.upload(context, offsets)?;
         self.joint_batch_offsets.upload(context, joint_offsets)?;
         self.batched.upload(context, order, joint_order.len())?;
@@ -1055,6 +1065,8 @@ impl GpuStages {
             &SOLVER
         };
         let solver_bodies = &mut self.solver_bodies;
+        let prepare = &mut self.prepare_bodies;
+        let (velocities, masses) = (&self.bodies.velocities, &self.masses);
         // Rows from this step's one-submission collision: their impulses also go to the
         // pairs' contacts on the device, for the next step's collision ([`Self::collide`]).
         let scatter = self.collided && self.rows_from_narrowphase && self.pair_contacts_fresh;
@@ -1066,6 +1078,7 @@ impl GpuStages {
             spans,
             |encoder, timer| {
                 encode_pass(encoder, timer, spans.kernel, |pass| {
+                    prepare.encode(context, pass, velocities, masses, solver_bodies);
                     if !joint_order.is_empty() {
                         joint_rows.encode_gather(context, pass);
                     }

@@ -10,6 +10,8 @@ use crate::math::{Quat, Vec3};
 use crate::stages::solver::SolverBody;
 use rayon::prelude::*;
 
+pub mod gpu;
+
 /// Most a body may turn in one sub-step (rad): caps runaway spin, which the linearized
 /// quaternion update cannot follow (Box2D caps at the same quarter turn).
 pub const MAX_ROTATION_PER_STEP: f32 = 0.25 * std::f32::consts::PI;

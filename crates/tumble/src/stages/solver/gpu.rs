@@ -36,7 +36,7 @@ use crate::stages::constraints::{
 };
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 
-const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
+pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
 const SOLVER_JOINT_WGSL: &str = include_str!("solver_joint.wgsl");
 /// Parameters, bodies, contacts, contact offsets, joints, joint offsets.
