@@ -583,6 +583,9 @@ impl World {
             self.device_contacts = OnceLock::new();
             self.refresh_resting = false;
             gpu.pair_cache_is_collide_output();
+            // From here the device's contacts are the cache's, even if a later stage of this
+            // step fails.
+            gpu.pair_cache_adopted(self.pairs.version());
             profiler.end();
             return Ok(());
         }

@@ -694,10 +694,8 @@ impl World {
     /// [`step_then`](Self::step_then), reporting a failure of a GPU stage as
     /// [`try_step`](Self::try_step) does; `after` runs only after a step that succeeded.
     pub fn try_step_then<R>(&mut self, after: impl FnOnce(&mut World) -> R) -> Result<R, GpuError> {
-        let snapshot = self
-            .devices
-            .any_gpu()
-            .then(|| (self.poses.clone(), self.velocities.clone()));
+        // The bodies need no copy to be left as they were: every stage that can fail (the GPU
+        // ones) runs before the integration, the first write to the poses and velocities.
         self.profiler.begin_frame();
         let result = self.step_stages();
         self.query_escapes = OnceLock::new();
@@ -708,13 +706,7 @@ impl World {
                 self.steps += 1;
                 Ok(value)
             }
-            Err(error) => {
-                if let Some((poses, velocities)) = snapshot {
-                    self.poses = poses;
-                    self.velocities = velocities;
-                }
-                Err(error)
-            }
+            Err(error) => Err(error),
         }
     }
 

@@ -448,3 +448,65 @@ fn compounds_beside_gpu_stages_follow_the_cpu() {
         );
     }
 }
+
+/// A GPU stage that fails partway through a step leaves the bodies as they were before it,
+/// and says why: here the contact rows outgrow the storage bindings of a device whose limit
+/// is lowered to 200 KiB, after the collision ran.
+#[test]
+fn a_failed_gpu_step_leaves_the_bodies_as_they_were() {
+    let _turn = gpu_common::context();
+    let small = tumble::gpu::GpuContext::with_limits(|limits| {
+        limits.max_storage_buffer_binding_size = 200 << 10;
+    })
+    .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+    let mut world = World::new(StepConfig {
+        sleeping: false,
+        ..StepConfig::default()
+    })
+    .unwrap();
+    world.set_gpu_context(small).unwrap();
+    world
+        .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    let mut bodies = Vec::new();
+    for index in 0..48 {
+        let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
+        let position = Vec3::new(x as f32, 0.5 + y as f32, z as f32);
+        let desc = BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)))
+            .position(position)
+            .linear_velocity(Vec3::new(0.1, 0.0, 0.0));
+        bodies.push(world.add_body(desc).unwrap());
+    }
+    world
+        .set_stage_devices(StageDevices::all(Executor::Gpu))
+        .unwrap();
+    let state = |world: &World| -> Vec<(Vec3, Quat, Vec3)> {
+        bodies
+            .iter()
+            .map(|&body| {
+                let pose = world.pose(body).unwrap();
+                (
+                    pose.position,
+                    pose.rotation,
+                    world.linear_velocity(body).unwrap(),
+                )
+            })
+            .collect()
+    };
+    let before = state(&world);
+    let error = world.try_step().unwrap_err();
+    assert!(
+        matches!(
+            error,
+            tumble::gpu::GpuError::BufferTooLarge {
+                what: "contact constraints",
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert_eq!(state(&world), before);
+    // And again: the world is as it was, so the same step fails the same way.
+    assert!(world.try_step().is_err());
+    assert_eq!(state(&world), before);
+}
