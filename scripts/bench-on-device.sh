@@ -3,15 +3,15 @@
 # "Reproducing"). Builds nothing, copies nothing: runs the release binary built here beforehand
 # by scripts/build-devbin.sh and writes tables, CSVs, charts and machine.txt into $OUT.
 #
-#   bash scripts/bench-on-device.sh [all|falling|stacked|prims]
+#   bash scripts/bench-on-device.sh [all|falling|stacked|prims|profile]
 #
 # Environment: THREADS (default "1,<all cores>"), TIME_LIMIT_MS (default 250).
 set -euo pipefail
 
 part=${1:-all}
 case "$part" in
-  all | falling | stacked | prims) ;;
-  *) echo "usage: $0 [all|falling|stacked|prims]" >&2; exit 2 ;;
+  all | falling | stacked | prims | profile) ;;
+  *) echo "usage: $0 [all|falling|stacked|prims|profile]" >&2; exit 2 ;;
 esac
 out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
 binary=.devbin/tumble
@@ -76,4 +76,14 @@ for n in (1 << 20, 1 << 24):
     ms = sorted(samples)[3]
     print(f"torch.sort (stable, with indices) {n:>9} keys {ms:10.4f} ms {n / ms / 1e3:10.0f} Mkeys/s")
 PY
+fi
+if [ "$part" = all ] || [ "$part" = profile ]; then
+  # The GPU step's stages, copies and waits at 3k and 100k falling boxes: the profile, then
+  # the median step without the profiler's timestamps.
+  for scale in 1 33; do
+    "$binary" run falling-boxes --scale "$scale" --device gpu --steps 300 --profile |
+      tee "$out/profile-falling-$scale.txt"
+    "$binary" run falling-boxes --scale "$scale" --device gpu --steps 300 --json |
+      tee -a "$out/profile-falling-$scale.txt"
+  done
 fi
