@@ -493,9 +493,35 @@ impl GpuStages {
     /// would give them. Pairs the GPU narrowphase has no kernel for ([`gpu_pair`]) come back
     /// with last step's contact: the caller computes them. The pair count is read back once;
     /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
-    /// again (from the same inputs).
+    /// again (from the same inputs). When the step fails (pairs past the adapter's limits),
+    /// the pair buffers keep their size from before it, so that a smaller scene steps again.
     #[allow(clippy::too_many_arguments)]
     pub fn collide(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &BodyInputs,
+        is_static: &[bool],
+        old: (&[u64], &[PairContact], u64),
+        skipped: &[u64],
+        margin_dt: (f32, f32),
+        keys: &mut Vec<u64>,
+        output: CollideOutput,
+    ) -> Result<(), GpuError> {
+        let capacity = self.broadphase.capacity();
+        let collided = self.collide_growing(
+            profiler, bodies, is_static, old, skipped, margin_dt, keys, output,
+        );
+        if collided.is_err() && self.broadphase.capacity() != capacity {
+            // Smaller than what failed, and allocated before: the original error is the one
+            // to report either way.
+            let _ = self.broadphase.set_capacity(&self.context, capacity);
+        }
+        collided
+    }
+
+    /// [`Self::collide`], growing the pair buffers as the pairs need.
+    #[allow(clippy::too_many_arguments)]
+    fn collide_growing(
         &mut self,
         profiler: &mut Profiler,
         bodies: &BodyInputs,
@@ -1335,7 +1361,7 @@ mod tests {
     use crate::pipeline::config::{Softness, StepConfig};
     use crate::pipeline::devices::Executor;
     use crate::stages::constraints::world_inverse_inertia;
-    use crate::{BodyDesc, Shape, World};
+    use crate::{BodyDesc, BodyHandle, Shape, World};
 
     /// The batching stage encodes the rounds the last batching needed and a few more: a chain
     /// that needs more than encoded takes the second pass and gives the CPU's colors all the
@@ -1636,6 +1662,95 @@ mod tests {
         assert!(kept.4 > 0 && kept.4 == brought.4, "asleep: {}", kept.4);
         assert!(kept.1 == brought.1, "the contacts differ");
         assert!(kept.0 == brought.0, "the poses differ");
+    }
+
+    /// A collision that fails while the contacts are on the device (here the pairs outgrow the
+    /// bindings of a device whose limit is lowered to 64 KiB, when the contact margin jumps)
+    /// starts the pair cache afresh instead of from half-overwritten contacts: the step fails,
+    /// and the steps after it run, with the contacts a world that never failed has.
+    #[test]
+    fn a_collision_that_fails_with_the_contacts_on_the_device_starts_the_pairs_afresh() {
+        let small = GpuContext::with_limits(|limits| {
+            limits.max_storage_buffer_binding_size = 64 << 10;
+        })
+        .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let config = StepConfig {
+            sleeping: false,
+            gravity: Vec3::ZERO,
+            ..StepConfig::default()
+        };
+        let balls = |context: &GpuContext| {
+            let mut world = World::new(config).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world
+                .gpu
+                .as_mut()
+                .unwrap()
+                .broadphase
+                .set_capacity(context, 4)
+                .unwrap();
+            // Balls 2 m apart, still, and 8 more each touching two of them: 16 pairs at the
+            // default margin, hundreds at 1.5 m.
+            for index in 0..64 {
+                let (x, y, z) = (index % 4, (index / 4) % 4, index / 16);
+                let position = 2.0 * Vec3::new(x as f32, y as f32, z as f32);
+                world
+                    .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(position))
+                    .unwrap();
+            }
+            for index in 0..8 {
+                let position = Vec3::new(
+                    1.0 + 2.0 * (index % 2) as f32,
+                    2.0 * (index / 2) as f32,
+                    0.0,
+                );
+                world
+                    .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(position))
+                    .unwrap();
+            }
+            world
+        };
+        let mut world = balls(&small);
+        let mut reference = balls(&small);
+        for _ in 0..3 {
+            world.try_step().unwrap();
+            reference.try_step().unwrap();
+        }
+        assert!(world.contacts_on_device);
+        assert_eq!(world.contacts().count(), 16);
+        let wide = StepConfig {
+            contact_margin: 1.5,
+            ..config
+        };
+        world.set_config(wide).unwrap();
+        let error = world.try_step().unwrap_err();
+        assert!(
+            matches!(
+                error,
+                GpuError::BufferTooLarge {
+                    what: "contacts",
+                    ..
+                }
+            ),
+            "{error}"
+        );
+        assert!(!world.contacts_on_device && world.pairs.is_empty());
+        world.set_config(config).unwrap();
+        for _ in 0..3 {
+            world.try_step().unwrap();
+            reference.try_step().unwrap();
+        }
+        assert!(world.contacts_on_device);
+        let touching = |world: &World| -> Vec<(BodyHandle, BodyHandle, u32)> {
+            world
+                .contacts()
+                .map(|(a, b, contact)| (a, b, contact.manifold.count))
+                .collect()
+        };
+        assert_eq!(touching(&world), touching(&reference));
     }
 
     /// Stages 1 to 4 in one submission give the pairs and contacts that the stages one by one

@@ -568,6 +568,13 @@ impl World {
         );
         if collided.is_err() {
             profiler.end();
+            if self.contacts_on_device {
+                // The device's contacts, the cache's values, may be half overwritten by now:
+                // the cache starts afresh (the next step's pairs are all new, without warm
+                // start) rather than from anything stale.
+                self.pairs.update_keys(&[]);
+                self.contacts_on_device = false;
+            }
         }
         collided?;
         if device_contacts {
