@@ -60,9 +60,15 @@ fn more_particles_than_memory_allows_is_an_error() {
     let (count, bytes, _) = host_memory_error(result);
     assert_eq!(count, 1 << 22);
     assert!(bytes > 3 * 32 * (1 << 22), "{bytes}");
+    // (On a machine that other work has left with less than that available, the check
+    // refuses it first.)
     let result = ParticleSystem::new(config.clone(), ParticleDevice::Cpu);
     assert!(
-        matches!(result, Err(ParticleError::HostAllocation { count, .. }) if count == 1 << 22),
+        matches!(
+            result,
+            Err(ParticleError::HostAllocation { count, .. })
+                | Err(ParticleError::HostMemory { count, .. }) if count == 1 << 22
+        ),
         "{result:?}"
     );
 
