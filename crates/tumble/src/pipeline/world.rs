@@ -939,6 +939,13 @@ impl World {
             Some(contacts) if contacts.len() == self.pairs.len() => contacts,
             _ => gpu.read_pair_contacts()?,
         };
+        if contacts.len() != self.pairs.len() {
+            // Not one contact per pair: a bug, reported rather than copied in part.
+            return Err(GpuError::Readback {
+                what: "pair contacts",
+                reason: format!("{} contacts for {} pairs", contacts.len(), self.pairs.len()),
+            });
+        }
         self.pairs.values_mut().copy_from_slice(&contacts);
         gpu.pair_cache_adopted(self.pairs.version());
         self.contacts_on_device = false;
