@@ -183,10 +183,10 @@ struct Prepass {
     ground: wgpu::RenderPipeline,
 }
 
-/// The pose pass's bind group and what it binds: the physics' start poses and motion, the
-/// links and the instances (the last two grow), and how many links.
+/// The pose pass's bind group and what it binds: the physics' poses, the links and the
+/// instances (the last two grow), and how many links.
 struct PoseBinding {
-    buffers: [wgpu::Buffer; 4],
+    buffers: [wgpu::Buffer; 3],
     links: usize,
     bind_group: wgpu::BindGroup,
 }
@@ -939,8 +939,7 @@ impl Renderer {
         // A new bind group only when a buffer was replaced (the physics' grew, or ours) or the
         // link count changed: the bindings' sizes are the count's (pose.wgsl's arrayLength).
         let buffers = [
-            poses.start.clone(),
-            poses.motion.clone(),
+            poses.poses.clone(),
             self.links.buffer.clone(),
             self.instances.buffer.clone(),
         ];
@@ -956,14 +955,10 @@ impl Renderer {
                 entries: &[
                     wgpu::BindGroupEntry {
                         binding: 0,
-                        resource: poses.start.as_entire_binding(),
+                        resource: poses.poses.as_entire_binding(),
                     },
                     wgpu::BindGroupEntry {
                         binding: 1,
-                        resource: poses.motion.as_entire_binding(),
-                    },
-                    wgpu::BindGroupEntry {
-                        binding: 2,
                         resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                             buffer: &self.links.buffer,
                             offset: 0,
@@ -971,7 +966,7 @@ impl Renderer {
                         }),
                     },
                     wgpu::BindGroupEntry {
-                        binding: 3,
+                        binding: 2,
                         resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                             buffer: &self.instances.buffer,
                             offset: 0,

@@ -656,7 +656,7 @@ fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
     world.step();
     let poses = world.device_poses().expect("the step ran on the GPU");
 
-    // The start poses' buffer belongs to `own`'s device: copying it there is valid...
+    // The poses' buffer belongs to `own`'s device: copying it there is valid...
     let bytes = (poses.count * 32) as u64;
     let readback = own.device.create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -666,11 +666,12 @@ fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
     });
     let scope = own.device.push_error_scope(wgpu::ErrorFilter::Validation);
     let mut encoder = own.device.create_command_encoder(&Default::default());
-    encoder.copy_buffer_to_buffer(poses.start, 0, &readback, 0, bytes);
+    encoder.copy_buffer_to_buffer(poses.poses, 0, &readback, 0, bytes);
     own.queue.submit([encoder.finish()]);
     let error = pollster::block_on(scope.pop());
     assert!(error.is_none(), "{error:?}");
-    // ... and holds the ball where the step began (a pose is 8 floats: position, pad, rotation).
+    // ... and holds the ball where the step left it, which has moved (a pose is 8 floats:
+    // position, pad, rotation).
     readback
         .slice(..)
         .map_async(wgpu::MapMode::Read, |result| result.unwrap());
@@ -678,7 +679,9 @@ fn a_world_runs_its_gpu_stages_on_the_device_it_is_given() {
     let mapped = readback.slice(..).get_mapped_range().unwrap();
     let floats: &[f32] = bytemuck::cast_slice(&mapped);
     let slot = 8 * ball.index() as usize;
-    assert_eq!(floats[slot..slot + 3], start.to_array());
+    let end = world.pose(ball).unwrap().position;
+    assert_ne!(end, start);
+    assert_eq!(floats[slot..slot + 3], end.to_array());
 }
 
 #[test]

@@ -257,6 +257,29 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             },
         )
     }
+
+    /// [`read_download`](Self::read_download) into a slice of the downloaded length, with no
+    /// vector between: the bodies' state comes back straight into the world's arrays.
+    pub fn read_download_to(&self, context: &GpuContext, out: &mut [T]) -> Result<(), GpuError> {
+        if out.len() != self.staged {
+            return Err(GpuError::Readback {
+                what: self.label,
+                reason: format!("{} elements downloaded into {}", self.staged, out.len()),
+            });
+        }
+        let Some(staging) = self.staging.as_ref().filter(|_| self.staged > 0) else {
+            return Ok(());
+        };
+        read_mapped(
+            context,
+            staging,
+            Self::bytes(self.staged),
+            self.label,
+            |bytes| {
+                out.copy_from_slice(bytemuck::cast_slice(bytes));
+            },
+        )
+    }
 }
 
 /// How long a read-back waits for its map callback after the device went idle.

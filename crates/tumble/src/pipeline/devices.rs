@@ -33,16 +33,18 @@ pub enum Stage {
     Constraints,
     Batching,
     Solver,
+    Integrate,
 }
 
 impl Stage {
-    pub const ALL: [Stage; 6] = [
+    pub const ALL: [Stage; 7] = [
         Stage::Aabb,
         Stage::Broadphase,
         Stage::Narrowphase,
         Stage::Constraints,
         Stage::Batching,
         Stage::Solver,
+        Stage::Integrate,
     ];
 
     pub fn name(self) -> &'static str {
@@ -53,6 +55,7 @@ impl Stage {
             Stage::Constraints => "constraints",
             Stage::Batching => "batching",
             Stage::Solver => "solver",
+            Stage::Integrate => "integrate",
         }
     }
 }
@@ -69,7 +72,7 @@ pub enum StageDevicesError {
     #[error("{0:?} is not stage=device (e.g. broadphase=gpu)")]
     NotAnAssignment(String),
     #[error(
-        "unknown stage {0:?}; stages are aabb, broadphase, narrowphase, constraints, batching, solver"
+        "unknown stage {0:?}; stages are aabb, broadphase, narrowphase, constraints, batching, solver, integrate"
     )]
     UnknownStage(String),
     #[error("unknown device {device:?} for {stage}; use cpu or gpu")]

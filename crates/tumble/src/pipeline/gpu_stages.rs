@@ -17,7 +17,7 @@ use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
-use crate::stages::integrate::gpu::GpuPrepareBodies;
+use crate::stages::integrate::gpu::{GpuFinalizeBodies, GpuPrepareBodies};
 use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
 use crate::stages::narrowphase::summary::{GpuPairSummaries, PairSummary};
 use crate::stages::narrowphase::{
@@ -92,6 +92,17 @@ const JACOBI_SOLVER: StageSpans = StageSpans {
     kernel: &["solver", "jacobi kernels"],
     ..SOLVER
 };
+/// Stage 8 on the device after a solve elsewhere ([`GpuStages::integrate`]).
+const INTEGRATE: StageSpans = StageSpans {
+    upload: &["integrate", "copy to gpu"],
+    encode: &["integrate", "encode"],
+    kernel: &["integrate", "kernel"],
+    wait: &["integrate", "submit and wait"],
+    download: &["integrate", "copy to cpu"],
+};
+/// Stage 8 in the GPU solver's submission: its kernel and the bodies' read-back.
+const SOLVER_INTEGRATE_KERNEL: SpanPath = &["solver", "integrate kernel"];
+const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
 /// Stages 1–4 in one submission ([`GpuStages::collide`]).
 const COLLISION: StageSpans = StageSpans {
     upload: &["collision", "copy to gpu"],
@@ -147,39 +158,67 @@ pub(crate) struct JointRowInputs<'a> {
 }
 
 /// A GPU step's poses where they are, on the device, for a renderer on the same device to draw
-/// from without a readback. The integrator runs on the host, so no device buffer holds the
-/// poses after the step; two buffers that the step leaves there give them: body slot `i`
-/// ends the step at `start[i]` ([`BodyPose`], the pose the stages uploaded at the start of
-/// the step) moved by `motion[i]` ([`SolverBody`]): position + delta_position, rotation
-/// normalize(delta_rotation * rotation), unless inverse_mass is 0 (static or asleep: it stays),
-/// as [`finalize_bodies`](crate::stages::integrate::finalize_bodies) computes on the host.
-/// Valid until the world is stepped or changed.
+/// from without a readback: after a step that integrated on the GPU, `poses` holds each body
+/// slot's [`BodyPose`] at the end of the step. Valid until the world is stepped or changed.
 #[derive(Clone, Copy, Debug)]
 pub struct DevicePoses<'a> {
-    pub start: &'a wgpu::Buffer,
-    pub motion: &'a wgpu::Buffer,
-    /// Body slots in both buffers.
+    pub poses: &'a wgpu::Buffer,
+    /// Body slots in the buffer.
     pub count: usize,
 }
 
-/// The step's body arrays, as the GPU stages read them.
+/// The step's body arrays, as the GPU stages read them, and the world's version of them
+/// (bumped by every change on the host): the device keeps its copies while the version holds.
 pub(crate) struct BodyInputs<'a> {
     pub poses: &'a [BodyPose],
     pub velocities: &'a [BodyVelocity],
+    pub masses: &'a [BodyMass],
     pub colliders: &'a [Collider],
+    pub version: u64,
+}
+
+/// The body arrays that a GPU integration moves (stage 8 on the device): uploaded first when
+/// the device's are not at `version`, then the step's new poses and velocities come back into
+/// them.
+pub(crate) struct BodyState<'a> {
+    pub poses: &'a mut [BodyPose],
+    pub velocities: &'a mut [BodyVelocity],
+    pub masses: &'a [BodyMass],
+    pub colliders: &'a [Collider],
+    pub version: u64,
+}
+
+impl BodyState<'_> {
+    fn inputs(&self) -> BodyInputs<'_> {
+        BodyInputs {
+            poses: self.poses,
+            velocities: self.velocities,
+            masses: self.masses,
+            colliders: self.colliders,
+            version: self.version,
+        }
+    }
 }
 
 /// Device copies of the body arrays, shared by the GPU stages.
 struct DeviceBodies {
     poses: GpuVec<BodyPose>,
     velocities: GpuVec<BodyVelocity>,
+    masses: GpuVec<BodyMass>,
     colliders: GpuVec<ColliderData>,
     /// The colliders' hulls for the narrowphase ([`pack_hulls`]), uploaded with them.
     hulls: GpuVec<u32>,
     /// The host's colliders changed since the last upload.
     colliders_stale: bool,
-    /// Poses and velocities were uploaded this step (they change only in the solver).
+    /// The world's body version ([`BodyInputs::version`]) that `poses`, `velocities` and
+    /// `masses` hold: set by an upload, or by an integration here whose results the host took.
+    synced: Option<u64>,
+    /// A stage checked this step that the device holds the host's bodies.
     uploaded_this_step: bool,
+    /// Debug builds: the host's bodies as bytes when they were last synced, to catch a change
+    /// that did not bump the version (the device would go on from stale bodies).
+    #[cfg(debug_assertions)]
+    shadow: Vec<u8>,
 }
 
 pub(crate) struct GpuStages {
@@ -192,10 +231,9 @@ pub(crate) struct GpuStages {
     narrowphase: GpuNarrowphase,
     rows: GpuRows,
     joint_rows: GpuJointRows,
-    /// The rows' inputs on the device: every manifold slot's key and contact, the masses.
+    /// The rows' inputs on the device: every manifold slot's key and contact.
     row_keys: GpuVec<u64>,
     row_contacts: GpuVec<PairContact>,
-    masses: GpuVec<BodyMass>,
     batching: GpuBatching,
     /// Batching rounds encoded before the colors are first read back (grows when too few).
     batching_rounds: usize,
@@ -209,6 +247,8 @@ pub(crate) struct GpuStages {
     solver_bodies: GpuVec<SolverBody>,
     /// Makes `solver_bodies` from the velocities and masses on the device (batched solves).
     prepare_bodies: GpuPrepareBodies,
+    /// Stage 8 on the device: the motion in `solver_bodies` into the poses and velocities.
+    finalize_bodies: GpuFinalizeBodies,
     batched_contacts: GpuVec<ContactConstraint>,
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,
@@ -227,8 +267,8 @@ pub(crate) struct GpuStages {
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
     pair_contacts_fresh: bool,
-    /// The solver ran on the GPU this step: `solver_bodies` holds the step's motion.
-    solved_this_step: bool,
+    /// This step integrated on the GPU: the device's poses are the step's end poses.
+    integrated_this_step: bool,
     /// This step: stages 1–4 ran as [`Self::collide`]; the rows were built from its output
     /// ([`RowSlots::Narrowphase`]); the solver wrote their impulses into `contacts`.
     collided: bool,
@@ -262,10 +302,14 @@ impl GpuStages {
             bodies: DeviceBodies {
                 poses: GpuVec::with_capacity(&context, "poses", 0)?,
                 velocities: GpuVec::with_capacity(&context, "velocities", 0)?,
+                masses: GpuVec::with_capacity(&context, "masses", 0)?,
                 colliders: GpuVec::with_capacity(&context, "colliders", 0)?,
                 hulls: GpuVec::with_capacity(&context, "hulls", 0)?,
                 colliders_stale: true,
+                synced: None,
                 uploaded_this_step: false,
+                #[cfg(debug_assertions)]
+                shadow: Vec::new(),
             },
             aabb: GpuAabbs::new(),
             aabbs: GpuVec::with_capacity(&context, "aabbs", 0)?,
@@ -275,7 +319,6 @@ impl GpuStages {
             joint_rows: GpuJointRows::new(&context)?,
             row_keys: GpuVec::with_capacity(&context, "row keys", 0)?,
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
-            masses: GpuVec::with_capacity(&context, "masses", 0)?,
             batching: GpuBatching::new(&context)?,
             batching_rounds: FIRST_BATCHING_ROUNDS,
             solver: GpuSolver::new(&context)?,
@@ -283,6 +326,7 @@ impl GpuStages {
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             prepare_bodies: GpuPrepareBodies::new(&context),
+            finalize_bodies: GpuFinalizeBodies::new(&context),
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
             batched_joints: GpuVec::with_capacity(&context, "batched joints", 0)?,
@@ -296,7 +340,7 @@ impl GpuStages {
             summaries: GpuPairSummaries::new(&context)?,
             skipped: GpuVec::with_capacity(&context, "jointed pairs", 0)?,
             pair_contacts_fresh: false,
-            solved_this_step: false,
+            integrated_this_step: false,
             collided: false,
             rows_from_narrowphase: false,
             impulses_scattered: false,
@@ -334,11 +378,11 @@ impl GpuStages {
         self.joint_rows.impulses_changed();
     }
 
-    /// A new step: the host's poses and velocities are newer than the device's.
+    /// A new step: nothing of it is on the device yet.
     pub fn begin_step(&mut self) {
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
-        self.solved_this_step = false;
+        self.integrated_this_step = false;
         self.collided = false;
         self.rows_from_narrowphase = false;
         self.impulses_scattered = false;
@@ -392,14 +436,23 @@ impl GpuStages {
         Ok(out)
     }
 
-    /// This step's poses on the device, when a stage uploaded the poses this step and the
-    /// solver ran here ([`DevicePoses`]).
+    /// This step's end poses on the device, when it integrated here ([`DevicePoses`]).
     pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
-        (self.bodies.uploaded_this_step && self.solved_this_step).then(|| DevicePoses {
-            start: self.bodies.poses.buffer(),
-            motion: self.solver_bodies.buffer(),
+        self.integrated_this_step.then(|| DevicePoses {
+            poses: self.bodies.poses.buffer(),
             count: self.bodies.poses.len(),
         })
+    }
+
+    /// The host took this step's GPU integration into its bodies, which are now at `version`:
+    /// the device's poses, velocities and masses are the host's until the next change.
+    pub fn bodies_integrated(&mut self, bodies: &BodyInputs) {
+        debug_assert!(self.integrated_this_step, "no GPU integration this step");
+        self.bodies.synced = Some(bodies.version);
+        #[cfg(debug_assertions)]
+        {
+            self.bodies.shadow = body_bytes(bodies);
+        }
     }
 
     /// Whether this step's GPU narrowphase left every pair's contact on the device, so that
@@ -702,6 +755,7 @@ impl GpuStages {
         keys: &[u64],
         contacts: &mut [PairContact],
         inputs: &NarrowphaseInputs,
+        bodies: &BodyInputs,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
@@ -716,12 +770,7 @@ impl GpuStages {
         self.old_index.upload(context, &self.identity)?;
         self.old_contacts.upload(context, contacts)?;
         self.skipped.upload(context, inputs.skipped)?;
-        let bodies = BodyInputs {
-            poses: inputs.poses,
-            velocities: inputs.velocities,
-            colliders: inputs.colliders,
-        };
-        upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
+        upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         record_copy(profiler, NARROWPHASE.upload, elapsed_ms(start));
 
         let device_inputs = GpuNarrowphaseInputs {
@@ -784,6 +833,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         slots: RowSlots,
         inputs: &RowInputs,
+        bodies_version: u64,
         joints: &JointRowInputs,
         out: Option<(&mut Vec<ContactConstraint>, &mut Vec<JointConstraint>)>,
     ) -> Result<(), GpuError> {
@@ -804,11 +854,12 @@ impl GpuStages {
             }
         };
         self.rows_from_narrowphase = from_narrowphase;
-        self.masses.upload(context, inputs.masses)?;
         let bodies = BodyInputs {
             poses: inputs.poses,
             velocities: inputs.velocities,
+            masses: inputs.masses,
             colliders: inputs.colliders,
+            version: bodies_version,
         };
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, &bodies)?;
         // No joint row to solve (none, or all asleep): no joint kernel.
@@ -831,14 +882,14 @@ impl GpuStages {
             contacts,
             poses: &self.bodies.poses,
             velocities: &self.bodies.velocities,
-            masses: &self.masses,
+            masses: &self.bodies.masses,
             colliders: &self.bodies.colliders,
             softness: inputs.softness,
             static_softness: inputs.static_softness,
         };
         let joint_inputs = GpuJointInputs {
             poses: &self.bodies.poses,
-            masses: &self.masses,
+            masses: &self.bodies.masses,
             softness: joints.softness,
         };
         let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
@@ -918,7 +969,9 @@ impl GpuStages {
 
     /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract, contacts and
     /// joints (the drag included) in the same batches; or, for [`SolverKind::Jacobi`],
-    /// [`jacobi::solve`](crate::stages::solver::jacobi::solve)'s.
+    /// [`jacobi::solve`](crate::stages::solver::jacobi::solve)'s. With `integrate`, stage 8
+    /// runs in the same submission ([`Self::integrate`]'s contract) and the solver's bodies
+    /// stay on the device.
     pub fn solve(
         &mut self,
         profiler: &mut Profiler,
@@ -926,9 +979,35 @@ impl GpuStages {
         bodies: &mut [SolverBody],
         batched: &mut Batched,
         settings: SolverSettings,
+        integrate: Option<BodyState>,
+    ) -> Result<(), GpuError> {
+        let solved = self.solve_host_rows(profiler, kind, bodies, batched, settings, integrate);
+        if solved.is_err() {
+            // The integration may have moved the device's bodies.
+            self.bodies.synced = None;
+        }
+        solved
+    }
+
+    fn solve_host_rows(
+        &mut self,
+        profiler: &mut Profiler,
+        kind: SolverKind,
+        bodies: &mut [SolverBody],
+        batched: &mut Batched,
+        settings: SolverSettings,
+        mut integrate: Option<BodyState>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
+        if let Some(state) = &integrate {
+            upload_bodies(
+                context,
+                &mut self.bodies,
+                &mut self.collider_data,
+                &state.inputs(),
+            )?;
+        }
         self.solver_bodies.upload(context, bodies)?;
         self.batched_contacts.upload(context, batched.contacts)?;
         self.batch_offsets
@@ -965,20 +1044,64 @@ impl GpuStages {
         } else {
             &SOLVER
         };
-        run_pass(context, &mut self.profiler, profiler, spans, |pass| {
-            match jacobi {
-                Some(jacobi) => {
-                    jacobi.encode(pass, device_bodies, &device_batched, settings, restitution)
+        let (finalize, device) = (&mut self.finalize_bodies, &self.bodies);
+        run_passes(
+            context,
+            &mut self.profiler,
+            profiler,
+            spans,
+            |encoder, timer| {
+                encode_pass(encoder, timer, spans.kernel, |pass| {
+                    match jacobi {
+                        Some(jacobi) => jacobi.encode(
+                            pass,
+                            device_bodies,
+                            &device_batched,
+                            settings,
+                            restitution,
+                        ),
+                        None => solver.encode(
+                            pass,
+                            device_bodies,
+                            &device_batched,
+                            settings,
+                            restitution,
+                        ),
+                    };
+                    Ok(())
+                })?;
+                if integrate.is_some() {
+                    encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
+                        finalize.encode(
+                            context,
+                            pass,
+                            device_bodies,
+                            &device.poses,
+                            &device.velocities,
+                        );
+                        Ok(())
+                    })?;
                 }
-                None => solver.encode(pass, device_bodies, &device_batched, settings, restitution),
-            };
-            Ok(())
-        })?;
+                Ok(())
+            },
+        )?;
+        let start = Instant::now();
+        match &mut integrate {
+            Some(state) => {
+                self.bodies.synced = None;
+                self.integrated_this_step = true;
+                download_bodies(context, &mut self.bodies, state)?;
+                record_copy(profiler, SOLVER_BODIES_DOWNLOAD, elapsed_ms(start));
+            }
+            None => {
+                self.solver_bodies
+                    .download_into(context, &mut self.downloaded_bodies)?;
+                bodies.copy_from_slice(&self.downloaded_bodies);
+                record_copy(profiler, SOLVER.download, elapsed_ms(start));
+            }
+        }
         // Impulses come back for warm starting and, for joints, the host's break test.
         let start = Instant::now();
-        self.solver_bodies
-            .download_into(context, &mut self.downloaded_bodies)?;
-        bodies.copy_from_slice(&self.downloaded_bodies);
         self.batched_contacts
             .download_into(context, &mut self.downloaded_constraints)?;
         batched
@@ -988,7 +1111,54 @@ impl GpuStages {
             .download_into(context, &mut self.downloaded_joints)?;
         batched.joints.copy_from_slice(&self.downloaded_joints);
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
-        self.solved_this_step = true;
+        Ok(())
+    }
+
+    /// Stage 8 on the GPU after a solve elsewhere:
+    /// [`finalize_bodies`](crate::stages::integrate::finalize_bodies)'s contract for the
+    /// motion `bodies`, on the device's copies of `state` (uploaded first when stale), whose
+    /// new poses and velocities come back into `state`. The device keeps them: the host
+    /// says so with [`Self::bodies_integrated`] once it has taken them.
+    pub fn integrate(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: &[SolverBody],
+        mut state: BodyState,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        upload_bodies(
+            context,
+            &mut self.bodies,
+            &mut self.collider_data,
+            &state.inputs(),
+        )?;
+        self.solver_bodies.upload(context, bodies)?;
+        record_copy(profiler, INTEGRATE.upload, elapsed_ms(start));
+        self.bodies.synced = None;
+        self.integrated_this_step = true;
+        let (finalize, motion, device) = (
+            &mut self.finalize_bodies,
+            &self.solver_bodies,
+            &mut self.bodies,
+        );
+        run_passes(
+            context,
+            &mut self.profiler,
+            profiler,
+            &INTEGRATE,
+            |encoder, timer| {
+                encode_pass(encoder, timer, INTEGRATE.kernel, |pass| {
+                    finalize.encode(context, pass, motion, &device.poses, &device.velocities);
+                    Ok(())
+                })?;
+                encode_body_downloads(context, device, encoder);
+                Ok(())
+            },
+        )?;
+        let start = Instant::now();
+        read_body_downloads(context, &self.bodies, &mut state)?;
+        record_copy(profiler, INTEGRATE.download, elapsed_ms(start));
         Ok(())
     }
 }
@@ -1019,6 +1189,7 @@ impl GpuStages {
         restitution: bool,
         impulses: Option<&mut Vec<BatchedImpulses>>,
         joint_impulses: &mut Vec<BatchedJointImpulses>,
+        integrate: Option<BodyState>,
     ) -> Result<(), GpuError> {
         let solved = self.solve_batched_rows(
             profiler,
@@ -1033,11 +1204,13 @@ impl GpuStages {
             restitution,
             impulses,
             joint_impulses,
+            integrate,
         );
         if solved.is_err() {
             // The solve may have written some joints' impulses to their slots, which the
-            // host's joints never got.
+            // host's joints never got, and the integration may have moved the device's bodies.
             self.joint_rows.impulses_changed();
+            self.bodies.synced = None;
         }
         solved
     }
@@ -1057,6 +1230,7 @@ impl GpuStages {
         restitution: bool,
         impulses: Option<&mut Vec<BatchedImpulses>>,
         joint_impulses: &mut Vec<BatchedJointImpulses>,
+        mut integrate: Option<BodyState>,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
@@ -1066,6 +1240,14 @@ impl GpuStages {
             self.bodies.uploaded_this_step,
             "no bodies on the device this step"
         );
+        if let Some(state) = &integrate {
+            upload_bodies(
+                context,
+                &mut self.bodies,
+                &mut self.collider_data,
+                &state.inputs(),
+            )?;
+        }
         self.solver_bodies.resize(context, bodies.len())?;
         self.batch_offsets.upload(context, offsets)?;
         self.joint_batch_offsets.upload(context, joint_offsets)?;
@@ -1091,8 +1273,13 @@ impl GpuStages {
             &SOLVER
         };
         let solver_bodies = &mut self.solver_bodies;
-        let prepare = &mut self.prepare_bodies;
-        let (velocities, masses) = (&self.bodies.velocities, &self.masses);
+        let (prepare, finalize) = (&mut self.prepare_bodies, &mut self.finalize_bodies);
+        let device = &mut self.bodies;
+        let integrating = integrate.is_some();
+        if integrating {
+            device.synced = None;
+            self.integrated_this_step = true;
+        }
         // Rows from this step's one-submission collision: their impulses also go to the
         // pairs' contacts on the device, for the next step's collision ([`Self::collide`]).
         let scatter = self.collided && self.rows_from_narrowphase && self.pair_contacts_fresh;
@@ -1104,7 +1291,13 @@ impl GpuStages {
             spans,
             |encoder, timer| {
                 encode_pass(encoder, timer, spans.kernel, |pass| {
-                    prepare.encode(context, pass, velocities, masses, solver_bodies);
+                    prepare.encode(
+                        context,
+                        pass,
+                        &device.velocities,
+                        &device.masses,
+                        solver_bodies,
+                    );
                     if !joint_order.is_empty() {
                         joint_rows.encode_gather(context, pass);
                     }
@@ -1147,8 +1340,19 @@ impl GpuStages {
                     }
                     Ok(())
                 })?;
+                if integrating {
+                    encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
+                        let (poses, velocities) = (&device.poses, &device.velocities);
+                        finalize.encode(context, pass, solver_bodies, poses, velocities);
+                        Ok(())
+                    })?;
+                }
                 // The read-backs ride in the kernels' submission: one wait for the stage.
-                solver_bodies.encode_download(context, encoder);
+                if integrating {
+                    encode_body_downloads(context, device, encoder);
+                } else {
+                    solver_bodies.encode_download(context, encoder);
+                }
                 if impulses.is_some() {
                     batched.impulses.encode_download(context, encoder);
                 }
@@ -1157,9 +1361,19 @@ impl GpuStages {
             },
         )?;
         let start = Instant::now();
-        self.solver_bodies
-            .read_download(context, &mut self.downloaded_bodies)?;
-        bodies.copy_from_slice(&self.downloaded_bodies);
+        match &mut integrate {
+            Some(state) => {
+                read_body_downloads(context, &self.bodies, state)?;
+                record_copy(profiler, SOLVER_BODIES_DOWNLOAD, elapsed_ms(start));
+            }
+            None => {
+                self.solver_bodies
+                    .read_download(context, &mut self.downloaded_bodies)?;
+                bodies.copy_from_slice(&self.downloaded_bodies);
+                record_copy(profiler, SOLVER.download, elapsed_ms(start));
+            }
+        }
+        let start = Instant::now();
         if let Some(impulses) = impulses {
             self.batched.impulses.read_download(context, impulses)?;
         }
@@ -1167,7 +1381,6 @@ impl GpuStages {
             .joint_impulses
             .read_download(context, joint_impulses)?;
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
-        self.solved_this_step = true;
         self.impulses_scattered = scatter;
         Ok(())
     }
@@ -1326,18 +1539,33 @@ fn pair_copies<'c>(
     Ok(&cache.as_ref().expect("built above").1)
 }
 
-/// Uploads poses and velocities once a step, and the colliders when they changed.
+/// Uploads poses, velocities and masses when the device's are not at the host's version, and
+/// the colliders when they changed.
 fn upload_bodies(
     context: &GpuContext,
     bodies: &mut DeviceBodies,
     collider_data: &mut Vec<ColliderData>,
     inputs: &BodyInputs,
 ) -> Result<(), GpuError> {
-    if !bodies.uploaded_this_step {
+    if bodies.synced == Some(inputs.version) {
+        #[cfg(debug_assertions)]
+        debug_assert!(
+            bodies.shadow == body_bytes(inputs),
+            "the host's bodies changed without a new version: the device's are stale"
+        );
+    } else {
+        // Not synced while the copies are under way: a failed one leaves them mixed.
+        bodies.synced = None;
         bodies.poses.upload(context, inputs.poses)?;
         bodies.velocities.upload(context, inputs.velocities)?;
-        bodies.uploaded_this_step = true;
+        bodies.masses.upload(context, inputs.masses)?;
+        bodies.synced = Some(inputs.version);
+        #[cfg(debug_assertions)]
+        {
+            bodies.shadow = body_bytes(inputs);
+        }
     }
+    bodies.uploaded_this_step = true;
     if bodies.colliders_stale || bodies.colliders.len() != inputs.colliders.len() {
         collider_data.clear();
         collider_data.extend(inputs.colliders.iter().map(Collider::data));
@@ -1348,6 +1576,56 @@ fn upload_bodies(
         bodies.colliders_stale = false;
     }
     Ok(())
+}
+
+/// The device's poses and velocities into `state`, in a submission after the one that
+/// integrated them.
+fn download_bodies(
+    context: &GpuContext,
+    bodies: &mut DeviceBodies,
+    state: &mut BodyState,
+) -> Result<(), GpuError> {
+    let mut encoder = context
+        .device
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("bodies read-back"),
+        });
+    encode_body_downloads(context, bodies, &mut encoder);
+    context.queue.submit([encoder.finish()]);
+    read_body_downloads(context, bodies, state)
+}
+
+/// Records the copies of the device's poses and velocities for [`read_body_downloads`].
+fn encode_body_downloads(
+    context: &GpuContext,
+    bodies: &mut DeviceBodies,
+    encoder: &mut wgpu::CommandEncoder,
+) {
+    bodies.poses.encode_download(context, encoder);
+    bodies.velocities.encode_download(context, encoder);
+}
+
+/// The poses and velocities that [`encode_body_downloads`] copied, into `state`, once their
+/// submission is done.
+fn read_body_downloads(
+    context: &GpuContext,
+    bodies: &DeviceBodies,
+    state: &mut BodyState,
+) -> Result<(), GpuError> {
+    bodies.poses.read_download_to(context, state.poses)?;
+    bodies
+        .velocities
+        .read_download_to(context, state.velocities)
+}
+
+/// The poses, velocities and masses as bytes, for the debug check in [`upload_bodies`].
+#[cfg(debug_assertions)]
+fn body_bytes(inputs: &BodyInputs) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    bytes.extend_from_slice(bytemuck::cast_slice(inputs.poses));
+    bytes.extend_from_slice(bytemuck::cast_slice(inputs.velocities));
+    bytes.extend_from_slice(bytemuck::cast_slice(inputs.masses));
+    bytes
 }
 
 fn elapsed_ms(start: Instant) -> f64 {
@@ -1462,8 +1740,15 @@ mod tests {
             skipped: &world.jointed_pairs,
             keep_resting: None,
         };
+        let bodies = BodyInputs {
+            poses: &world.poses,
+            velocities: &world.velocities,
+            masses: &world.masses,
+            colliders: &world.colliders,
+            version: world.bodies_version,
+        };
         gpu.begin_step();
-        gpu.update_contacts(&mut profiler, &keys, &mut contacts, &inputs)
+        gpu.update_contacts(&mut profiler, &keys, &mut contacts, &inputs, &bodies)
             .unwrap();
         assert!(
             gpu.narrowphase_output_is_pair_cache(),
@@ -1492,6 +1777,7 @@ mod tests {
             &mut profiler,
             RowSlots::Narrowphase,
             &row_inputs,
+            world.bodies_version,
             &no_joints,
             Some((&mut from_device, &mut Vec::new())),
         )
@@ -1504,6 +1790,7 @@ mod tests {
             &mut profiler,
             slots,
             &row_inputs,
+            world.bodies_version,
             &no_joints,
             Some((&mut from_host, &mut Vec::new())),
         )
@@ -1573,6 +1860,64 @@ mod tests {
         assert!(kept_impulses.iter().any(|&impulse| impulse > 0.0));
         assert_eq!(kept_impulses, uploaded_impulses);
         assert_eq!(kept, uploaded);
+    }
+
+    /// With every stage on the GPU the bodies stay on the device from step to step: after each
+    /// step the device holds the host's bodies at the world's version, so the next step
+    /// uploads none. The host's changes between steps (a velocity set, a body added, one
+    /// removed) reach the device, and the run is bitwise the one that uploads the bodies
+    /// every step. (Debug builds also check, at every skipped upload, that the host's bodies
+    /// are the ones the device holds.)
+    #[test]
+    fn bodies_kept_on_the_device_step_as_bodies_uploaded() {
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let steps = 40;
+        let run = |upload_every_step: bool| {
+            let mut world = awake_world_on_a_plane();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            let blocks: Vec<_> = (0..24)
+                .map(|index| {
+                    let body = block_member(index, Shape::cuboid(Vec3::splat(0.5)));
+                    world.add_body(body).unwrap()
+                })
+                .collect();
+            let mut kept = 0;
+            for step in 0..steps {
+                match step {
+                    10 => world
+                        .set_velocity(blocks[5], Vec3::new(0.0, 3.0, 1.0), Vec3::X)
+                        .unwrap(),
+                    20 => {
+                        let ball = BodyDesc::dynamic(Shape::sphere(0.4))
+                            .position(Vec3::new(1.5, 6.0, 1.5));
+                        world.add_body(ball).unwrap();
+                    }
+                    30 => world.remove_body(blocks[0]).unwrap(),
+                    _ => {}
+                }
+                world.step();
+                let gpu = world.gpu.as_ref().unwrap();
+                kept += usize::from(gpu.bodies.synced == Some(world.bodies_version));
+                if upload_every_step {
+                    world.bodies_changed();
+                }
+            }
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            (poses, velocities, kept)
+        };
+        let (kept_poses, kept_velocities, kept) = run(false);
+        let (uploaded_poses, uploaded_velocities, _) = run(true);
+        assert_eq!(kept, steps);
+        assert!(
+            kept_velocities == uploaded_velocities,
+            "the velocities differ"
+        );
+        assert!(kept_poses == uploaded_poses, "the poses differ");
     }
 
     /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts
@@ -1776,7 +2121,9 @@ mod tests {
         let bodies = BodyInputs {
             poses: &world.poses,
             velocities: &world.velocities,
+            masses: &world.masses,
             colliders: &world.colliders,
+            version: world.bodies_version,
         };
         let mut profiler = Profiler::new("test");
 
@@ -1825,7 +2172,7 @@ mod tests {
         };
         let (cache_keys, cache_contacts) = cache.keys_and_values_mut();
         stages
-            .update_contacts(&mut profiler, cache_keys, cache_contacts, &inputs)
+            .update_contacts(&mut profiler, cache_keys, cache_contacts, &inputs, &bodies)
             .unwrap();
 
         assert_eq!(keys, stage_keys);

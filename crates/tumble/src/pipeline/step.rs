@@ -7,7 +7,7 @@ use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::{BodyInputs, CollideOutput, JointRowInputs, RowSlots};
+use crate::pipeline::gpu_stages::{BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
@@ -108,6 +108,9 @@ impl World {
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         let rows_on_gpu = self.gpu.is_some() && on_gpu(Stage::Constraints);
         let chained = rows_on_gpu && on_gpu(Stage::Batching) && on_gpu(Stage::Solver);
+        // Stage 8 on the GPU: in the solver's submission when the solver runs there too.
+        let integrate_on_gpu = self.gpu.is_some() && on_gpu(Stage::Integrate);
+        let integrate_in_solver = integrate_on_gpu && on_gpu(Stage::Solver);
         // The GPU rows compute the inertias they need themselves.
         if rows_on_gpu {
             scratch.inverse_inertia.clear();
@@ -177,6 +180,7 @@ impl World {
                     profiler,
                     slots,
                     &inputs,
+                    self.bodies_version,
                     &joint_inputs,
                     (!chained).then_some((&mut scratch.contacts, &mut scratch.joints)),
                 );
@@ -361,6 +365,22 @@ impl World {
             joint_offsets: &scratch.joint_offsets,
             has_overflow: scratch.coloring.has_overflow,
         };
+        let state = BodyState {
+            poses: &mut self.poses,
+            velocities: &mut self.velocities,
+            masses: &self.masses,
+            colliders: &self.colliders,
+            version: self.bodies_version,
+        };
+        let mut state = Some(state);
+        // The solver takes the bodies when it integrates them too.
+        let mut solver_state = || {
+            if integrate_in_solver {
+                state.take()
+            } else {
+                None
+            }
+        };
         let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) if chained => {
                 let restitution = scratch.row_summaries.iter().any(|r| r.restitution);
@@ -385,6 +405,7 @@ impl World {
                     // With the contacts on the device the solver writes their impulses there.
                     (!self.contacts_on_device).then_some(&mut scratch.batched_impulses),
                     &mut scratch.batched_joint_impulses,
+                    solver_state(),
                 )
             }
             (Executor::Gpu, Some(gpu)) => gpu.solve(
@@ -393,6 +414,7 @@ impl World {
                 &mut scratch.solver_bodies,
                 &mut batched,
                 settings,
+                solver_state(),
             ),
             _ => {
                 match config.solver {
@@ -416,6 +438,47 @@ impl World {
             profiler.end();
         }
         solved?;
+        profiler.end();
+
+        // 8. Integrate: the step's motion into the poses. Before the impulses are stored, so
+        //    that a step whose integration fails leaves the world as it was.
+        let integrated = match (&mut self.gpu, state) {
+            (Some(gpu), Some(state)) if integrate_on_gpu => {
+                profiler.begin("integrate");
+                let integrated = gpu.integrate(profiler, &scratch.solver_bodies, state);
+                profiler.end();
+                integrated.map(|()| true)
+            }
+            (_, Some(state)) => {
+                profiler.scope("integrate", || {
+                    integrate::finalize_bodies(
+                        &scratch.solver_bodies,
+                        state.poses,
+                        state.velocities,
+                    )
+                });
+                Ok(false)
+            }
+            // Integrated in the solver's submission.
+            (_, None) => Ok(true),
+        };
+        let integrated_on_gpu = integrated?;
+        self.bodies_changed();
+        if integrated_on_gpu && let Some(gpu) = &mut self.gpu {
+            gpu.bodies_integrated(&BodyInputs {
+                poses: &self.poses,
+                velocities: &self.velocities,
+                masses: &self.masses,
+                colliders: &self.colliders,
+                version: self.bodies_version,
+            });
+        }
+        let scratch = &mut self.scratch;
+        let profiler = &mut self.profiler;
+
+        // The solved impulses into the pair cache and the joints, for the next step's warm
+        // start and the joints' break test.
+        profiler.begin("store impulses");
         let joint_broke = if chained {
             if self.contacts_on_device {
                 // The solver wrote them into the contacts on the device, which are the newer.
@@ -464,15 +527,6 @@ impl World {
             broke
         };
         profiler.end();
-
-        // 8. Integrate: the step's motion into the poses.
-        profiler.scope("integrate", || {
-            integrate::finalize_bodies(
-                &scratch.solver_bodies,
-                &mut self.poses,
-                &mut self.velocities,
-            )
-        });
 
         // The histogram's buffer is kept from step to step (no allocation per step).
         let mut histogram = std::mem::take(&mut self.stats.batch_histogram);
@@ -545,7 +599,9 @@ impl World {
         let bodies = BodyInputs {
             poses: &self.poses,
             velocities: &self.velocities,
+            masses: &self.masses,
             colliders: &self.colliders,
+            version: self.bodies_version,
         };
         debug_assert!(
             !self.contacts_on_device || gpu.holds_pair_cache(self.pairs.version()),
@@ -652,7 +708,9 @@ impl World {
                 let bodies = BodyInputs {
                     poses: &self.poses,
                     velocities: &self.velocities,
+                    masses: &self.masses,
                     colliders: &self.colliders,
+                    version: self.bodies_version,
                 };
                 // A GPU broadphase reads them where they are.
                 let download = (!broadphase_on_gpu).then_some(&mut scratch.aabbs);
@@ -731,7 +789,16 @@ impl World {
         };
         self.refresh_resting = false;
         let narrowphase = match (self.devices.get(Stage::Narrowphase), &mut self.gpu) {
-            (Executor::Gpu, Some(gpu)) => gpu.update_contacts(profiler, keys, contacts, &inputs),
+            (Executor::Gpu, Some(gpu)) => {
+                let bodies = BodyInputs {
+                    poses: &self.poses,
+                    velocities: &self.velocities,
+                    masses: &self.masses,
+                    colliders: &self.colliders,
+                    version: self.bodies_version,
+                };
+                gpu.update_contacts(profiler, keys, contacts, &inputs, &bodies)
+            }
             _ => {
                 narrowphase::update_contacts(keys, contacts, &inputs);
                 Ok(())
@@ -816,6 +883,8 @@ impl World {
         if self.changed_bodies.is_empty() {
             return;
         }
+        // Their masses and velocities are zero now.
+        self.bodies_changed();
         for &body in &self.changed_bodies {
             self.broadphase.set_moving(body, false);
         }

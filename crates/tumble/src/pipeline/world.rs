@@ -166,6 +166,10 @@ pub struct World {
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
     pub(crate) host_shapes: usize,
+    /// Bumped by every change of `poses`, `velocities` or `masses` ([`Self::bodies_changed`]):
+    /// the GPU stages keep their copies of the bodies while it holds, so a step that
+    /// integrated on the device uploads no body at the next.
+    pub(crate) bodies_version: u64,
 }
 
 impl World {
@@ -207,6 +211,7 @@ impl World {
             pair_summaries: Vec::new(),
             device_contacts: OnceLock::new(),
             host_shapes: 0,
+            bodies_version: 0,
         })
     }
 
@@ -223,6 +228,9 @@ impl World {
             self.changed_bodies.clear();
             self.islands
                 .wake_all(&mut self.masses, &mut self.changed_bodies);
+            if !self.changed_bodies.is_empty() {
+                self.bodies_changed();
+            }
             self.after_waking();
         }
         Ok(())
@@ -303,6 +311,7 @@ impl World {
         } else {
             SlotState::Static
         };
+        self.bodies_changed();
         let index = match self.free_slots.pop() {
             Some(index) => {
                 let i = index as usize;
@@ -392,6 +401,7 @@ impl World {
         // A free slot is static and shapeless for the stages: it never moves or collides.
         self.masses[i] = BodyMass::default();
         self.velocities[i] = BodyVelocity::default();
+        self.bodies_changed();
         self.free_slots.push(handle.index);
         self.update_resting_pairs();
         Ok(())
@@ -416,6 +426,7 @@ impl World {
             let bodies: Vec<u32> = group.iter().map(|&(_, body)| body).collect();
             self.islands
                 .restore_island(&bodies, &mut self.masses, &mut self.velocities);
+            self.bodies_changed();
             for &body in &bodies {
                 self.broadphase.set_moving(body, false);
             }
@@ -445,11 +456,19 @@ impl World {
             self.islands
                 .wake(body, &mut self.masses, &mut self.changed_bodies);
         }
+        if !self.changed_bodies.is_empty() {
+            self.bodies_changed();
+        }
         self.after_waking();
     }
 
     /// The bodies in `changed_bodies` just woke: back into the moving tree, and their pairs
     /// are found by the broadphase again.
+    /// The host changed `poses`, `velocities` or `masses`: the device's copies are stale.
+    pub(crate) fn bodies_changed(&mut self) {
+        self.bodies_version += 1;
+    }
+
     fn after_waking(&mut self) {
         if self.changed_bodies.is_empty() {
             return;
@@ -812,6 +831,7 @@ impl World {
             self.wake(&[handle.index]);
             self.islands.reset_timer(handle.index);
             self.velocities[i] = BodyVelocity::new(linear, angular);
+            self.bodies_changed();
         }
         Ok(())
     }

@@ -700,31 +700,33 @@ fn pair_impulses_structs_match_rust() {
     );
 }
 
-/// The parameter block of the solver bodies' preparation on the device; the body structs are
-/// checked by the body and solver tests.
+/// The parameter block of the body kernels (the solver bodies' preparation and the
+/// integration on the device); the body structs are checked by the body and solver tests.
 #[test]
-fn prepare_bodies_parameters_match_rust() {
-    use tumble::stages::integrate::gpu::{PrepareParams, wgsl};
-    check_with_gpu_only(
-        wgsl(),
-        vec![rust_layout!(PrepareParams {
-            count,
-            _pad0,
-            _pad1,
-            _pad2
-        })],
-        &[
-            "BodyPose",
-            "BodyVelocity",
-            "BodyMass",
-            "ColliderData",
-            "Softness",
-            "Row",
-            "ConstraintPoint",
-            "ContactConstraint",
-            "SolverBody",
-        ],
-    );
+fn body_kernel_parameters_match_rust() {
+    use tumble::stages::integrate::gpu::{BodyCount, finalize_wgsl, prepare_wgsl};
+    for source in [prepare_wgsl(), finalize_wgsl()] {
+        check_with_gpu_only(
+            source,
+            vec![rust_layout!(BodyCount {
+                count,
+                _pad0,
+                _pad1,
+                _pad2
+            })],
+            &[
+                "BodyPose",
+                "BodyVelocity",
+                "BodyMass",
+                "ColliderData",
+                "Softness",
+                "Row",
+                "ConstraintPoint",
+                "ContactConstraint",
+                "SolverBody",
+            ],
+        );
+    }
 }
 
 /// The joint rows' parameter block. The source also holds the body and constraint structs,

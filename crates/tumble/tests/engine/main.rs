@@ -15,6 +15,7 @@ mod gpu_broadphase;
 mod gpu_common;
 mod gpu_compact;
 mod gpu_context;
+mod gpu_integrate;
 mod gpu_joint_rows;
 mod gpu_joints;
 mod gpu_layout;

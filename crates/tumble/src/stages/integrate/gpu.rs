@@ -1,10 +1,14 @@
-//! [`prepare_bodies`](super::prepare_bodies) on the GPU (`prepare.wgsl`): the solver's bodies
-//! from the velocities and masses the step already uploaded, bit for bit the CPU's (the same
-//! selects, no arithmetic), so the solver's submission uploads no body.
+//! Stage 8's two halves on the GPU: [`prepare_bodies`](super::prepare_bodies) (`prepare.wgsl`)
+//! makes the solver's bodies from the velocities and masses the step already has on the
+//! device, and [`finalize_bodies`](super::finalize_bodies) (`finalize.wgsl`) moves the poses
+//! and sets the velocities there, so the bodies stay on the device from step to step. The
+//! preparation is bit for bit the CPU's (the same selects, no arithmetic); the finalization
+//! writes glam's quaternion product and normalization in its order of operations, but a GPU
+//! may fuse a multiply and an add, so it agrees with the CPU to rounding.
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyVelocity};
+use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::GpuContext;
 use crate::gpu::kernel::{
@@ -15,53 +19,104 @@ use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 use crate::stages::solver::SolverBody;
 use crate::stages::solver::gpu::SOLVER_BODY_WGSL;
 
-const WGSL: &str = include_str!("prepare.wgsl");
-const BINDINGS: [Binding; 4] = [
-    Binding::Uniform,
-    Binding::StorageRead,
-    Binding::StorageRead,
-    Binding::StorageReadWrite,
-];
+const PREPARE_WGSL: &str = include_str!("prepare.wgsl");
+const FINALIZE_WGSL: &str = include_str!("finalize.wgsl");
+const BODY_COUNT_WGSL: &str = include_str!("body_count.wgsl");
 
-/// Mirrors `PrepareParams` in `prepare.wgsl`.
+/// Mirrors `BodyCount` in `body_count.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct PrepareParams {
+pub struct BodyCount {
     pub count: u32,
     pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
 
-pub fn wgsl() -> Source {
+/// A body kernel's source: the body structs, `body_count.wgsl`, then the kernel file.
+fn wgsl(file: &str, text: &str) -> Source {
     Source::new()
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
         .snippet("solver_body.wgsl", SOLVER_BODY_WGSL)
-        .snippet("prepare.wgsl", WGSL)
+        .snippet("body_count.wgsl", BODY_COUNT_WGSL)
+        .snippet(file, text)
 }
 
-/// The buffers and body count a dispatch was built for.
-type Key = ([wgpu::Buffer; 3], usize);
+/// `prepare.wgsl`'s source (its structs are checked against Rust's in the layout test).
+pub fn prepare_wgsl() -> Source {
+    wgsl("prepare.wgsl", PREPARE_WGSL)
+}
 
-pub struct GpuPrepareBodies {
+/// `finalize.wgsl`'s source.
+pub fn finalize_wgsl() -> Source {
+    wgsl("finalize.wgsl", FINALIZE_WGSL)
+}
+
+/// A kernel of one thread a body over three body arrays, with its dispatch kept for the
+/// buffers and count it was built for (a step allocates nothing).
+struct BodyKernel {
     kernel: Kernel,
-    cached: Option<(Key, Dispatch)>,
+    cached: Option<(([wgpu::Buffer; 3], usize), Dispatch)>,
 }
+
+impl BodyKernel {
+    fn new(context: &GpuContext, source: &Source, entry: &str, bindings: &[Binding; 4]) -> Self {
+        Self {
+            kernel: Kernel::new(context, entry, source, entry, bindings),
+            cached: None,
+        }
+    }
+
+    fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        buffers: [&wgpu::Buffer; 3],
+        count: usize,
+    ) {
+        let key = (buffers.map(Clone::clone), count);
+        if self
+            .cached
+            .as_ref()
+            .is_none_or(|(cached, _)| *cached != key)
+        {
+            let block = BodyCount {
+                count: count as u32,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
+            };
+            let slots = UniformSlots::new(context, "body count", &[block]);
+            let [a, b, c] = buffers.map(wgpu::Buffer::as_entire_buffer_binding);
+            let group = self.kernel.bind(context, &[slots.binding(0), a, b, c]);
+            let dispatch = self
+                .kernel
+                .dispatch(group, workgroups_for(count, WORKGROUP_SIZE));
+            self.cached = Some((key, dispatch));
+        }
+        if let Some((_, dispatch)) = &self.cached {
+            encode_all(pass, std::slice::from_ref(dispatch));
+        }
+    }
+}
+
+pub struct GpuPrepareBodies(BodyKernel);
 
 impl GpuPrepareBodies {
     pub fn new(context: &GpuContext) -> Self {
-        Self {
-            kernel: Kernel::new(
-                context,
-                "prepare_bodies",
-                &wgsl(),
-                "prepare_bodies",
-                &BINDINGS,
-            ),
-            cached: None,
-        }
+        Self(BodyKernel::new(
+            context,
+            &prepare_wgsl(),
+            "prepare_bodies",
+            &[
+                Binding::Uniform,
+                Binding::StorageRead,
+                Binding::StorageRead,
+                Binding::StorageReadWrite,
+            ],
+        ))
     }
 
     /// Encodes `bodies[i]` = the solver body of velocity `i` and mass `i`, for `bodies.len()`
@@ -74,46 +129,39 @@ impl GpuPrepareBodies {
         masses: &GpuVec<BodyMass>,
         bodies: &GpuVec<SolverBody>,
     ) {
-        let count = bodies.len();
-        let key = (
-            [
-                velocities.buffer().clone(),
-                masses.buffer().clone(),
-                bodies.buffer().clone(),
+        let buffers = [velocities.buffer(), masses.buffer(), bodies.buffer()];
+        self.0.encode(context, pass, buffers, bodies.len());
+    }
+}
+
+pub struct GpuFinalizeBodies(BodyKernel);
+
+impl GpuFinalizeBodies {
+    pub fn new(context: &GpuContext) -> Self {
+        Self(BodyKernel::new(
+            context,
+            &finalize_wgsl(),
+            "finalize_bodies",
+            &[
+                Binding::Uniform,
+                Binding::StorageRead,
+                Binding::StorageReadWrite,
+                Binding::StorageReadWrite,
             ],
-            count,
-        );
-        if self
-            .cached
-            .as_ref()
-            .is_none_or(|(cached, _)| *cached != key)
-        {
-            let slots = UniformSlots::new(
-                context,
-                "prepare params",
-                &[PrepareParams {
-                    count: count as u32,
-                    _pad0: 0,
-                    _pad1: 0,
-                    _pad2: 0,
-                }],
-            );
-            let group = self.kernel.bind(
-                context,
-                &[
-                    slots.binding(0),
-                    velocities.whole(),
-                    masses.whole(),
-                    bodies.whole(),
-                ],
-            );
-            let dispatch = self
-                .kernel
-                .dispatch(group, workgroups_for(count, WORKGROUP_SIZE));
-            self.cached = Some((key, dispatch));
-        }
-        if let Some((_, dispatch)) = &self.cached {
-            encode_all(pass, std::slice::from_ref(dispatch));
-        }
+        ))
+    }
+
+    /// Encodes the step's motion `bodies[i]` into pose `i` and velocity `i`, for `bodies.len()`
+    /// bodies (poses and velocities hold at least as many).
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        bodies: &GpuVec<SolverBody>,
+        poses: &GpuVec<BodyPose>,
+        velocities: &GpuVec<BodyVelocity>,
+    ) {
+        let buffers = [bodies.buffer(), poses.buffer(), velocities.buffer()];
+        self.0.encode(context, pass, buffers, bodies.len());
     }
 }

@@ -1,16 +1,9 @@
 // integrate::prepare_bodies on the device: the solver's bodies at the start of the step, from
 // the bodies' velocities and masses already there (stages/integrate/gpu.rs), so the step
 // uploads no solver body. Dynamic bodies keep their velocities, the rest get none; no motion
-// yet. Needs body.wgsl and solver_body.wgsl.
+// yet. Needs body.wgsl, solver_body.wgsl and body_count.wgsl.
 
-struct PrepareParams {
-    count: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
-@group(0) @binding(0) var<uniform> params: PrepareParams;
+@group(0) @binding(0) var<uniform> params: BodyCount;
 @group(0) @binding(1) var<storage, read> velocities: array<BodyVelocity>;
 @group(0) @binding(2) var<storage, read> masses: array<BodyMass>;
 @group(0) @binding(3) var<storage, read_write> bodies: array<SolverBody>;
