@@ -139,3 +139,76 @@ fn a_pile_integrated_on_the_gpu_follows_the_host_integration() {
     assert!(on_gpu.len() > 10);
     assert!(worst < 1e-4, "the piles are {worst} m apart");
 }
+
+/// A step whose GPU integration fails (here its motion is past the device's binding limit)
+/// leaves the bodies and the contacts' impulses as they were, and fails the same way again:
+/// the integration runs before the solved impulses are stored.
+#[test]
+fn a_failed_gpu_integration_leaves_the_bodies_as_they_were() {
+    let _turn = context();
+    let small = tumble::gpu::GpuContext::with_limits(|limits| {
+        limits.max_storage_buffer_binding_size = 64 << 10;
+    })
+    .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+    let mut world = tumble::World::new(tumble::StepConfig::default()).unwrap();
+    world.set_gpu_context(small).unwrap();
+    world
+        .add_body(tumble::BodyDesc::fixed(tumble::Shape::plane(Vec3::Y, 0.0)))
+        .unwrap();
+    // 1100 balls landing on the plane: 35 KB of poses fit a binding, 70 KB of the solver's
+    // motion do not.
+    let bodies: Vec<_> = (0..1100)
+        .map(|i| {
+            let position = Vec3::new((i % 40) as f32, 0.25, (i / 40) as f32) * 2.0;
+            let desc = tumble::BodyDesc::dynamic(tumble::Shape::sphere(0.5))
+                .position(position)
+                .linear_velocity(Vec3::new(0.1, -1.0, 0.0));
+            world.add_body(desc).unwrap()
+        })
+        .collect();
+    // A step on the host, so the contacts carry impulses.
+    world.try_step().unwrap();
+    let mut devices = StageDevices::all(Executor::Cpu);
+    devices.set(Stage::Integrate, Executor::Gpu);
+    world.set_stage_devices(devices).unwrap();
+    let state = |world: &tumble::World| -> (Vec<(Vec3, Quat, Vec3)>, Vec<f32>) {
+        let bodies = bodies
+            .iter()
+            .map(|&body| {
+                let pose = world.pose(body).unwrap();
+                let velocity = world.linear_velocity(body).unwrap();
+                (pose.position, pose.rotation, velocity)
+            })
+            .collect();
+        let impulses = world
+            .contacts()
+            .flat_map(|(_, _, contact)| contact.impulses.map(|impulse| impulse.normal))
+            .collect();
+        (bodies, impulses)
+    };
+    let before = state(&world);
+    assert!(before.1.iter().filter(|&&impulse| impulse > 0.0).count() >= 1100);
+    let error = world.try_step().unwrap_err();
+    assert!(
+        matches!(
+            error,
+            tumble::gpu::GpuError::BufferTooLarge {
+                what: "solver bodies",
+                ..
+            }
+        ),
+        "{error}"
+    );
+    assert_eq!(state(&world), before);
+    assert!(world.try_step().is_err());
+    assert_eq!(state(&world), before);
+    // On the host the same world steps.
+    world
+        .set_stage_devices(StageDevices::all(Executor::Cpu))
+        .unwrap();
+    // ... and its impulses change: had the failed steps stored theirs, the test would see it.
+    world.try_step().unwrap();
+    let after = state(&world);
+    assert_ne!(after.0, before.0);
+    assert_ne!(after.1, before.1);
+}
