@@ -8,6 +8,7 @@ use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots};
+use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
@@ -50,6 +51,8 @@ pub(crate) struct StepScratch {
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     row_summaries: Vec<RowSummary>,
+    /// [`filter_map_ordered`]'s scratch.
+    chunk_counts: Vec<usize>,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
     coloring: Coloring,
@@ -189,16 +192,20 @@ impl World {
                 }
                 built?;
                 if chained && self.contacts_on_device {
-                    // The contacts are on the device: their point counts came back.
-                    let counts = self.pair_summaries.iter().map(|s| s.point_count);
-                    let slots = self.pairs.keys().iter().zip(counts).enumerate();
-                    let colliders = &self.colliders;
-                    scratch.row_summaries.extend(
-                        slots
-                            .filter(|&(_, (&key, count))| has_constraint(key, count, &self.masses))
-                            .map(|(slot, (&key, count))| {
-                                RowSummary::new(slot as u32, key, count, &self.masses, colliders)
-                            }),
+                    // The contacts are on the device: their point counts came back. A pass
+                    // over every pair, on every core.
+                    let (keys, summaries) = (self.pairs.keys(), &self.pair_summaries);
+                    let (masses, colliders) = (&self.masses, &self.colliders);
+                    let row = |slot: usize| {
+                        let (key, count) = (keys[slot], summaries[slot].point_count);
+                        has_constraint(key, count, masses)
+                            .then(|| RowSummary::new(slot as u32, key, count, masses, colliders))
+                    };
+                    filter_map_ordered(
+                        keys.len(),
+                        row,
+                        &mut scratch.chunk_counts,
+                        &mut scratch.row_summaries,
                     );
                 } else if chained {
                     let slots = constraint_slots(
@@ -921,7 +928,7 @@ fn store_contact_impulses(
 
 /// What the host keeps of a contact row that stays on the device: its manifold slot, the
 /// bodies the batching sees, its point count, whether it bounces.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct RowSummary {
     slot: u32,
     bodies: (u32, u32),
