@@ -520,6 +520,8 @@ impl GpuStages {
             self.aabbs.upload(context, aabbs)?;
         }
         self.broadphase.set_bodies(context, is_static)?;
+        // The host merges the resting pairs into these.
+        self.broadphase.set_extra_pairs(context, &[])?;
         record_copy(profiler, BROADPHASE.upload, elapsed_ms(start));
         loop {
             let (broadphase, aabbs) = (&mut self.broadphase, &self.aabbs);
@@ -548,12 +550,15 @@ impl GpuStages {
     /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
     /// again (from the same inputs). When the step fails (pairs past the adapter's limits),
     /// the pair buffers keep their size from before it, so that a smaller scene steps again.
+    /// `resting` (sorted keys) are pairs of bodies that `is_static` holds still, asleep on
+    /// each other or on a static body: no tree finds them, so the broadphase adds them
+    /// ([`GpuBroadphase::set_extra_pairs`]) and they keep their contacts while they sleep.
     #[allow(clippy::too_many_arguments)]
     pub fn collide(
         &mut self,
         profiler: &mut Profiler,
         bodies: &BodyInputs,
-        is_static: &[bool],
+        (is_static, resting): (&[bool], &[u64]),
         old: (&[u64], &[PairContact], u64),
         skipped: &[u64],
         margin_dt: (f32, f32),
@@ -562,7 +567,14 @@ impl GpuStages {
     ) -> Result<(), GpuError> {
         let capacity = self.broadphase.capacity();
         let collided = self.collide_growing(
-            profiler, bodies, is_static, old, skipped, margin_dt, keys, output,
+            profiler,
+            bodies,
+            (is_static, resting),
+            old,
+            skipped,
+            margin_dt,
+            keys,
+            output,
         );
         if collided.is_err() && self.broadphase.capacity() != capacity {
             // Smaller than what failed, and allocated before: the original error is the one
@@ -578,7 +590,7 @@ impl GpuStages {
         &mut self,
         profiler: &mut Profiler,
         bodies: &BodyInputs,
-        is_static: &[bool],
+        (is_static, resting): (&[bool], &[u64]),
         (old_keys, old_contacts, old_version): (&[u64], &[PairContact], u64),
         skipped: &[u64],
         (margin, dt): (f32, f32),
@@ -590,6 +602,7 @@ impl GpuStages {
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         self.broadphase.set_bodies(context, is_static)?;
+        self.broadphase.set_extra_pairs(context, resting)?;
         self.skipped.upload(context, skipped)?;
         record_copy(profiler, COLLISION.upload, elapsed_ms(start));
         // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
@@ -1997,13 +2010,14 @@ mod tests {
         assert!(kept.0 == brought.0, "the poses differ");
     }
 
-    /// Bodies falling asleep take the step off the one-submission path: the contacts come
-    /// back first, and the run stays bitwise the one that never left them on the device.
+    /// Bodies falling asleep keep the step on the one-submission path, their resting pairs
+    /// going down with the bodies: the contacts stay on the device, and the run stays bitwise
+    /// the one that brings them back every step.
     #[test]
-    fn contacts_come_back_when_bodies_fall_asleep() {
+    fn contacts_stay_on_the_device_while_bodies_sleep() {
         let kept = steps_on_the_gpu(true, true, 150);
         let brought = steps_on_the_gpu(false, true, 150);
-        assert!(kept.3 > 10 && kept.3 < 150, "{} steps left them", kept.3);
+        assert_eq!(kept.3, 150, "steps that left them there");
         assert!(kept.4 > 0 && kept.4 == brought.4, "asleep: {}", kept.4);
         assert!(kept.1 == brought.1, "the contacts differ");
         assert!(kept.0 == brought.0, "the poses differ");
@@ -2103,6 +2117,18 @@ mod tests {
     /// host's cache), and lose no pair when the broadphase's buffers start too small.
     #[test]
     fn one_submission_collision_equals_the_stages_one_by_one() {
+        one_submission_against_the_stages(false);
+    }
+
+    /// The same with the bottom layer of the pile held still, as sleeping bodies are: their
+    /// pairs with the plane and each other are in no tree, and the one submission gets them
+    /// from the host's resting pairs, where the stages one by one merge them on the host.
+    #[test]
+    fn one_submission_collision_keeps_resting_pairs() {
+        one_submission_against_the_stages(true);
+    }
+
+    fn one_submission_against_the_stages(bottom_asleep: bool) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = awake_world_on_a_plane();
@@ -2117,7 +2143,23 @@ mod tests {
         let (old_keys, old_contacts) = (world.pairs.keys().to_vec(), world.pairs.values().to_vec());
         assert!(old_contacts.iter().any(|c| c.impulses[0].normal > 0.0));
         let config = *world.config();
-        let is_static: Vec<bool> = world.masses.iter().map(|m| m.inverse_mass == 0.0).collect();
+        // Bodies 1 to 16 are the bottom layer (`block_member`).
+        let held = |body: usize| bottom_asleep && (1..=16).contains(&body);
+        let is_static: Vec<bool> = (world.masses.iter().enumerate())
+            .map(|(body, m)| m.inverse_mass == 0.0 || held(body))
+            .collect();
+        let resting: Vec<u64> = (old_keys.iter().copied())
+            .filter(|&key| {
+                let (a, b) = crate::stages::pairs::pair_bodies(key);
+                is_static[a as usize] && is_static[b as usize]
+            })
+            .collect();
+        assert_eq!(
+            resting.len() > 16,
+            bottom_asleep,
+            "{} resting pairs",
+            resting.len()
+        );
         let bodies = BodyInputs {
             poses: &world.poses,
             velocities: &world.velocities,
@@ -2134,7 +2176,7 @@ mod tests {
         one.collide(
             &mut profiler,
             &bodies,
-            &is_static,
+            (&is_static, &resting),
             (&old_keys, &old_contacts, world.pairs.version()),
             &world.jointed_pairs,
             (config.contact_margin, config.dt),
@@ -2159,6 +2201,12 @@ mod tests {
         stages
             .find_pairs(&mut profiler, None, &is_static, &mut stage_keys)
             .unwrap();
+        assert!(
+            resting
+                .iter()
+                .all(|key| stage_keys.binary_search(key).is_err())
+        );
+        super::super::step::merge_sorted(&mut stage_keys, &resting);
         let mut cache = world.pairs.clone();
         cache.update(&stage_keys);
         let inputs = NarrowphaseInputs {

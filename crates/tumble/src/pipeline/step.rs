@@ -576,16 +576,14 @@ impl World {
     }
 
     /// Whether stages 1 to 4 run as one GPU submission ([`GpuStages::collide`]): all four on
-    /// the GPU, and no pair that the broadphase's trees do not give (a sleeping body's resting
-    /// pairs, which the host merges in) or that the host must drop (pairs of removed bodies).
+    /// the GPU, and no pair that the host must drop (pairs of removed bodies). Sleeping
+    /// bodies' resting pairs, which no tree finds, go down with the bodies.
     fn collides_in_one_submission(&self) -> bool {
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         self.gpu.is_some()
             && on_gpu(Stage::Aabb)
             && on_gpu(Stage::Broadphase)
             && on_gpu(Stage::Narrowphase)
-            && self.resting_pairs.is_empty()
-            && self.islands.sleeping_count() == 0
             && self.slots.iter().all(|slot| slot.is_live())
     }
 
@@ -618,7 +616,7 @@ impl World {
         let collided = gpu.collide(
             profiler,
             &bodies,
-            &scratch.is_static,
+            (&scratch.is_static, &self.resting_pairs),
             (self.pairs.keys(), self.pairs.values(), self.pairs.version()),
             &self.jointed_pairs,
             (config.contact_margin, config.dt),
@@ -1020,7 +1018,7 @@ fn store_joint_impulses(
 }
 
 /// Merges the sorted, disjoint `extra` keys into the sorted `keys`.
-fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
+pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
     keys.extend_from_slice(extra);
     // Two sorted runs: the standard library's stable sort finds them and merges in O(n).
     keys.sort();

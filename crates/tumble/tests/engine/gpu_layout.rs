@@ -424,7 +424,11 @@ fn collision_front_half_parameter_blocks_match_rust() {
             dynamic_leaves,
             static_leaves,
             capacity,
-            body_bits
+            body_bits,
+            extra_count,
+            _pad0,
+            _pad1,
+            _pad2
         })],
     );
     check(

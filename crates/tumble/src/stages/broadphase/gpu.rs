@@ -11,10 +11,13 @@
 //! ([`Traversal`]). Pair keys ([`pair_key`](crate::stages::pairs::pair_key)) are appended with
 //! an atomic counter, then the whole key buffer is radix sorted (packed to 2 × the bits of a
 //! body index, then unpacked), so the order never depends on which thread appended first.
+//! Pairs that no tree can give (both bodies static to the trees: a sleeping body's resting
+//! pairs) are appended the same way from a list the host keeps
+//! ([`GpuBroadphase::set_extra_pairs`]), and the sort merges them in.
 //!
 //! Dispatches per step at 10 000 bodies (8 000 dynamic, 16 384 key slots): 17 for the dynamic
 //! tree (bounds 2, codes 1, 4 sort passes of 3, build 2) and 24 for the pairs (2 fills, the
-//! traversal, 4 sort passes of 5, unpacking).
+//! traversal, 4 sort passes of 5, unpacking), one more with extra pairs.
 //!
 //! Dispatch sizes: the traversal's thread count is the dynamic body count, known on the host
 //! (the body lists change only with [`GpuBroadphase::set_bodies`]); the only count produced on
@@ -110,6 +113,11 @@ pub struct TraverseParams {
     pub capacity: u32,
     /// Bits of a body index: the bit length of the body count.
     pub body_bits: u32,
+    /// Pairs given to append ([`GpuBroadphase::set_extra_pairs`]).
+    pub extra_count: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
 /// The kernel files' sources, for the pipelines and the layout test: codes, build, traverse.
@@ -137,7 +145,7 @@ const BUILD_BINDINGS: [Binding; 7] = [
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
-const TRAVERSE_BINDINGS: [Binding; 9] = [
+const TRAVERSE_BINDINGS: [Binding; 10] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -147,6 +155,7 @@ const TRAVERSE_BINDINGS: [Binding; 9] = [
     Binding::StorageReadWrite,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageRead,
 ];
 
 /// One LBVH over a fixed list of bodies; layout in `lbvh_build.wgsl`.
@@ -338,7 +347,7 @@ impl Lbvh {
 }
 
 /// What the cached traversal dispatches were built for.
-type PairsKey = (Traversal, [wgpu::Buffer; 8], [usize; 4]);
+type PairsKey = (Traversal, [wgpu::Buffer; 9], [usize; 5]);
 
 /// The GPU broadphase; see the module documentation.
 #[derive(Debug)]
@@ -365,6 +374,8 @@ pub struct GpuBroadphase {
     count: GpuVec<u32>,
     /// The count read back, reused.
     count_host: Vec<u32>,
+    /// Pairs appended to the trees' ([`Self::set_extra_pairs`]).
+    extra: GpuVec<u64>,
     sort: RadixSort,
     /// Dispatches before the key sort (fills, traversal) and after it (unpacking).
     cached: Option<(PairsKey, Vec<Dispatch>, Vec<Dispatch>)>,
@@ -387,6 +398,7 @@ impl GpuBroadphase {
             sorted_keys: GpuVec::with_capacity(context, "sorted pair keys", 0)?,
             count: GpuVec::from_slice(context, "pair count", &[0])?,
             count_host: Vec::with_capacity(1),
+            extra: GpuVec::with_capacity(context, "extra pair keys", 0)?,
             sort: RadixSort::new(),
             cached: None,
         };
@@ -443,6 +455,17 @@ impl GpuBroadphase {
         self.fixed_stale = true;
         self.cached = None;
         Ok(())
+    }
+
+    /// Sorted pair keys that the stage reports besides the trees' pairs, from the next encode
+    /// on: pairs whose bodies are both static to the trees (a sleeping body's resting pairs,
+    /// which the host keeps), so none is found twice. Empty by default.
+    pub fn set_extra_pairs(&mut self, context: &GpuContext, keys: &[u64]) -> Result<(), GpuError> {
+        debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "sorted, distinct");
+        if keys.is_empty() && self.extra.is_empty() {
+            return Ok(());
+        }
+        self.extra.upload(context, keys)
     }
 
     /// Rebuilds the static tree at the next encode (static bodies moved).
@@ -507,12 +530,14 @@ impl GpuBroadphase {
                 self.count.buffer().clone(),
                 self.sorted_packed.buffer().clone(),
                 self.sorted_keys.buffer().clone(),
+                self.extra.buffer().clone(),
             ],
             [
                 self.dynamic.leaves(),
                 self.fixed.leaves(),
                 self.capacity(),
                 self.is_static.len(),
+                self.extra.len(),
             ],
         );
         if self
@@ -559,10 +584,15 @@ impl GpuBroadphase {
                 static_leaves: self.fixed.leaves() as u32,
                 capacity: self.capacity() as u32,
                 body_bits: self.body_bits(),
+                extra_count: self.extra.len() as u32,
+                _pad0: 0,
+                _pad1: 0,
+                _pad2: 0,
             }],
         );
         let kernel = |entry| Kernel::new(context, entry, &source, entry, &TRAVERSE_BINDINGS);
-        let [traverse, unpack] = [self.traversal.entry(), "unpack_keys"].map(kernel);
+        let [traverse, append, unpack] =
+            [self.traversal.entry(), "append_extra", "unpack_keys"].map(kernel);
         let bind = |kernel: &Kernel| {
             kernel.bind(
                 context,
@@ -576,6 +606,7 @@ impl GpuBroadphase {
                     self.count.whole(),
                     self.sorted_packed.whole(),
                     self.sorted_keys.whole(),
+                    self.extra.whole(),
                 ],
             )
         };
@@ -590,6 +621,12 @@ impl GpuBroadphase {
             bind(&traverse),
             workgroups_for(self.dynamic.leaves(), WORKGROUP_SIZE),
         ));
+        if !self.extra.is_empty() {
+            search.push(append.dispatch(
+                bind(&append),
+                workgroups_for(self.extra.len(), WORKGROUP_SIZE),
+            ));
+        }
         let unpack = vec![unpack.dispatch(
             bind(&unpack),
             workgroups_for(self.capacity(), WORKGROUP_SIZE),

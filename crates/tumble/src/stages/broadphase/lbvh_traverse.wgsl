@@ -12,6 +12,8 @@
 // - `traverse_ropes`: escape indices: overlap → first child, else (or after a leaf) → escape.
 //
 // Pairs are appended with an atomic counter; the order is fixed afterwards by sorting the keys.
+// `append_extra` appends given pairs the same way (the host's resting pairs, whose bodies are
+// both static to the trees, so no walk finds them), which the sort then merges in.
 // A pair past `capacity` is counted but not written: the host sees count > capacity, grows the
 // buffer and runs the stage again.
 //
@@ -27,6 +29,11 @@ struct TraverseParams {
     capacity: u32,
     // Bit length of the body count, 1 to 32.
     body_bits: u32,
+    // Pair keys in `extra`.
+    extra_count: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: TraverseParams;
@@ -41,6 +48,8 @@ struct TraverseParams {
 // `unpack_keys`: sorted packed keys in, pair keys (higher body, lower body) out.
 @group(0) @binding(7) var<storage, read> sorted_packed: array<u32>;
 @group(0) @binding(8) var<storage, read_write> sorted_keys: array<u32>;
+// `append_extra`: pair keys as (low word: higher body, high word: lower body).
+@group(0) @binding(9) var<storage, read> extra: array<vec2<u32>>;
 
 const NONE: u32 = 0xffffffffu;
 const DYNAMIC: u32 = 0u;
@@ -119,10 +128,13 @@ fn enters(tree: u32, node: u32) -> bool {
 // A leaf the walk entered: its pair with the query.
 fn report(tree: u32, node: u32) {
     let other = left_child(tree, node);
+    append(min(other, query_body), max(other, query_body));
+}
+
+// Appends the pair of bodies `low` < `high`, packed, when it fits (it is counted either way).
+fn append(low: u32, high: u32) {
     let slot = atomicAdd(&count[0], 1u);
     if slot < params.capacity {
-        let low = min(other, query_body);
-        let high = max(other, query_body);
         if params.body_bits == 32u {
             keys[2u * slot] = high;
             keys[2u * slot + 1u] = low;
@@ -261,6 +273,19 @@ fn traverse_ropes(
     walk_ropes(DYNAMIC, 0u, NONE);
     if params.static_leaves > 0u {
         walk_ropes(STATIC, 0u, NONE);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn append_extra(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = query_index(workgroup, groups, local);
+    if index < params.extra_count {
+        let key = extra[index];
+        append(key.y, key.x);
     }
 }
 
