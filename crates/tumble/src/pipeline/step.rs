@@ -827,23 +827,30 @@ impl World {
         loop {
             let awake = |i: u32| self.masses[i as usize].inverse_mass > 0.0;
             let asleep = |i: u32| self.islands.state(i).is_asleep();
-            let mut edge = |a: u32, b: u32| {
+            let touches = |a: u32, b: u32| {
                 if awake(a) && asleep(b) {
-                    touched.push(b);
+                    Some(b)
                 } else if awake(b) && asleep(a) {
-                    touched.push(a);
+                    Some(a)
+                } else {
+                    None
                 }
             };
-            for key in touching_pairs(
-                &self.pairs,
-                self.contacts_on_device.then_some(&self.pair_summaries),
-            ) {
-                let (a, b) = crate::stages::pairs::pair_bodies(key);
-                edge(a, b);
-            }
-            for joint in self.joints.iter().flatten().filter(|j| !j.broken) {
-                edge(joint.body_a, joint.body_b);
-            }
+            // A pass over every pair, on every core, in pair order.
+            let (keys, values) = (self.pairs.keys(), self.pairs.values());
+            let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
+            let touching = |pair: usize| match summaries {
+                Some(summaries) => summaries[pair].point_count > 0,
+                None => values[pair].manifold.count > 0,
+            };
+            let touched_by = |pair: usize| {
+                let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
+                touches(a, b).filter(|_| touching(pair))
+            };
+            let chunk_counts = &mut self.scratch.chunk_counts;
+            filter_map_ordered(keys.len(), touched_by, chunk_counts, &mut touched);
+            let joints = self.joints.iter().flatten().filter(|j| !j.broken);
+            touched.extend(joints.filter_map(|joint| touches(joint.body_a, joint.body_b)));
             if touched.is_empty() {
                 return;
             }
