@@ -15,7 +15,12 @@
 //! index under the lower and visits edges in pair-key order, so the islands and the ids they
 //! get do not depend on threads.
 
+use rayon::prelude::*;
+
 use crate::dynamics::body::{BodyMass, BodyVelocity};
+
+/// Bodies per rayon task of [`Islands::update_timers`].
+const MIN_BODIES_PER_TASK: usize = 1024;
 
 /// A body whose fastest point moves slower than this (m/s) is resting (Box2D's 5 cm/s).
 pub const SLEEP_SPEED: f32 = 0.05;
@@ -100,24 +105,29 @@ impl Islands {
         &mut self,
         velocities: &[BodyVelocity],
         masses: &[BodyMass],
-        bounding_radius: impl Fn(usize) -> f32,
+        bounding_radius: impl Fn(usize) -> f32 + Sync,
         dt: f32,
     ) -> bool {
-        let mut any_rested = false;
-        for (i, state) in self.states.iter_mut().enumerate() {
-            if state.is_asleep() || masses[i].inverse_mass == 0.0 {
-                continue;
-            }
-            let velocity = &velocities[i];
-            let linear = velocity.linear.length();
-            // The angular term is ≥ 0 and rounding is monotone, so a body whose centre alone
-            // moves at SLEEP_SPEED is not resting: a falling body needs no bounding radius.
-            let resting = linear < SLEEP_SPEED
-                && linear + bounding_radius(i) * velocity.angular.length() < SLEEP_SPEED;
-            state.timer = if resting { state.timer + dt } else { 0.0 };
-            any_rested |= state.timer >= TIME_TO_SLEEP;
-        }
-        any_rested
+        // Body by body, on every core.
+        self.states
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .map(|(i, state)| {
+                if state.is_asleep() || masses[i].inverse_mass == 0.0 {
+                    return false;
+                }
+                let velocity = &velocities[i];
+                let linear = velocity.linear.length();
+                // The angular term is ≥ 0 and rounding is monotone, so a body whose centre
+                // alone moves at SLEEP_SPEED is not resting: a falling body needs no bounding
+                // radius.
+                let resting = linear < SLEEP_SPEED
+                    && linear + bounding_radius(i) * velocity.angular.length() < SLEEP_SPEED;
+                state.timer = if resting { state.timer + dt } else { 0.0 };
+                state.timer >= TIME_TO_SLEEP
+            })
+            .reduce(|| false, |a, b| a || b)
     }
 
     /// Finds the islands of the awake dynamic bodies joined by `edges` (body pairs of contacts
