@@ -19,8 +19,9 @@ use rayon::prelude::*;
 
 use crate::dynamics::body::{BodyMass, BodyVelocity};
 
-/// Bodies per rayon task of [`Islands::update_timers`].
-const MIN_BODIES_PER_TASK: usize = 1024;
+/// Bodies per rayon task of [`Islands::update_timers`]; a world of at most this many bodies
+/// updates them on the calling thread.
+const MIN_BODIES_PER_TASK: usize = 8192;
 
 /// A body whose fastest point moves slower than this (m/s) is resting (Box2D's 5 cm/s).
 pub const SLEEP_SPEED: f32 = 0.05;
@@ -108,25 +109,35 @@ impl Islands {
         bounding_radius: impl Fn(usize) -> f32 + Sync,
         dt: f32,
     ) -> bool {
+        let update = |(i, state): (usize, &mut SleepState)| {
+            if state.is_asleep() || masses[i].inverse_mass == 0.0 {
+                return false;
+            }
+            let velocity = &velocities[i];
+            let linear = velocity.linear.length();
+            // The angular term is ≥ 0 and rounding is monotone, so a body whose centre
+            // alone moves at SLEEP_SPEED is not resting: a falling body needs no bounding
+            // radius.
+            let resting = linear < SLEEP_SPEED
+                && linear + bounding_radius(i) * velocity.angular.length() < SLEEP_SPEED;
+            state.timer = if resting { state.timer + dt } else { 0.0 };
+            state.timer >= TIME_TO_SLEEP
+        };
+        // A small world stays on this thread: waking the pool costs more than the pass.
+        if self.states.len() <= MIN_BODIES_PER_TASK {
+            return self
+                .states
+                .iter_mut()
+                .enumerate()
+                .map(update)
+                .fold(false, |a, b| a || b);
+        }
         // Body by body, on every core.
         self.states
             .par_iter_mut()
             .enumerate()
             .with_min_len(MIN_BODIES_PER_TASK)
-            .map(|(i, state)| {
-                if state.is_asleep() || masses[i].inverse_mass == 0.0 {
-                    return false;
-                }
-                let velocity = &velocities[i];
-                let linear = velocity.linear.length();
-                // The angular term is ≥ 0 and rounding is monotone, so a body whose centre
-                // alone moves at SLEEP_SPEED is not resting: a falling body needs no bounding
-                // radius.
-                let resting = linear < SLEEP_SPEED
-                    && linear + bounding_radius(i) * velocity.angular.length() < SLEEP_SPEED;
-                state.timer = if resting { state.timer + dt } else { 0.0 };
-                state.timer >= TIME_TO_SLEEP
-            })
+            .map(update)
             .reduce(|| false, |a, b| a || b)
     }
 

@@ -17,6 +17,12 @@ pub(crate) fn filter_map_ordered<T: Copy + Default + Send>(
     chunk_counts: &mut Vec<usize>,
     out: &mut Vec<T>,
 ) {
+    if count <= CHUNK {
+        // One chunk: on this thread, without waking the pool (tens of microseconds).
+        out.clear();
+        out.extend((0..count).filter_map(f));
+        return;
+    }
     let chunks = count.div_ceil(CHUNK);
     let range = |chunk: usize| chunk * CHUNK..((chunk + 1) * CHUNK).min(count);
     chunk_counts.clear();
