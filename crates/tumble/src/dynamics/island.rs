@@ -125,12 +125,12 @@ impl Islands {
         };
         // A small world stays on this thread: waking the pool costs more than the pass.
         if self.states.len() <= MIN_BODIES_PER_TASK {
-            return self
-                .states
-                .iter_mut()
-                .enumerate()
-                .map(update)
-                .fold(false, |a, b| a || b);
+            let mut any_rested = false;
+            for body in self.states.iter_mut().enumerate() {
+                // Every body's timer, not only up to the first that rested.
+                any_rested |= update(body);
+            }
+            return any_rested;
         }
         // Body by body, on every core.
         self.states
