@@ -244,18 +244,7 @@ impl<T: bytemuck::Pod> GpuVec<T> {
     /// wait came first).
     pub fn read_download(&self, context: &GpuContext, out: &mut Vec<T>) -> Result<(), GpuError> {
         out.clear();
-        let Some(staging) = self.staging.as_ref().filter(|_| self.staged > 0) else {
-            return Ok(());
-        };
-        read_mapped(
-            context,
-            staging,
-            Self::bytes(self.staged),
-            self.label,
-            |bytes| {
-                out.extend_from_slice(bytemuck::cast_slice(bytes));
-            },
-        )
+        self.read_staged(context, |items| out.extend_from_slice(items))
     }
 
     /// [`read_download`](Self::read_download) into a slice of the downloaded length, with no
@@ -267,7 +256,14 @@ impl<T: bytemuck::Pod> GpuVec<T> {
                 reason: format!("{} elements downloaded into {}", self.staged, out.len()),
             });
         }
+        self.read_staged(context, |items| out.copy_from_slice(items))
+    }
+
+    /// Hands the elements the last [`encode_download`](Self::encode_download) staged to
+    /// `read` (none when it staged none).
+    fn read_staged(&self, context: &GpuContext, read: impl FnOnce(&[T])) -> Result<(), GpuError> {
         let Some(staging) = self.staging.as_ref().filter(|_| self.staged > 0) else {
+            read(&[]);
             return Ok(());
         };
         read_mapped(
@@ -275,9 +271,7 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             staging,
             Self::bytes(self.staged),
             self.label,
-            |bytes| {
-                out.copy_from_slice(bytemuck::cast_slice(bytes));
-            },
+            |bytes| read(bytemuck::cast_slice(bytes)),
         )
     }
 }

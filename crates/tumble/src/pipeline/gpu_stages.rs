@@ -267,7 +267,8 @@ pub(crate) struct GpuStages {
     /// The narrowphase ran on the GPU this step and computed every pair there: its output
     /// (`contacts`, keyed by `keys`) equals the host's pair cache, so the rows can read it.
     pair_contacts_fresh: bool,
-    /// This step integrated on the GPU: the device's poses are the step's end poses.
+    /// This step integrated on the GPU and the host took the result: the device's poses are
+    /// the step's end poses.
     integrated_this_step: bool,
     /// This step: stages 1–4 ran as [`Self::collide`]; the rows were built from its output
     /// ([`RowSlots::Narrowphase`]); the solver wrote their impulses into `contacts`.
@@ -1102,8 +1103,8 @@ impl GpuStages {
         match &mut integrate {
             Some(state) => {
                 self.bodies.synced = None;
-                self.integrated_this_step = true;
                 download_bodies(context, &mut self.bodies, state)?;
+                self.integrated_this_step = true;
                 record_copy(profiler, SOLVER_BODIES_DOWNLOAD, elapsed_ms(start));
             }
             None => {
@@ -1148,8 +1149,8 @@ impl GpuStages {
         )?;
         self.solver_bodies.upload(context, bodies)?;
         record_copy(profiler, INTEGRATE.upload, elapsed_ms(start));
+        // The kernel moves the device's bodies: not the host's until they came back.
         self.bodies.synced = None;
-        self.integrated_this_step = true;
         let (finalize, motion, device) = (
             &mut self.finalize_bodies,
             &self.solver_bodies,
@@ -1171,6 +1172,7 @@ impl GpuStages {
         )?;
         let start = Instant::now();
         read_body_downloads(context, &self.bodies, &mut state)?;
+        self.integrated_this_step = true;
         record_copy(profiler, INTEGRATE.download, elapsed_ms(start));
         Ok(())
     }
@@ -1290,8 +1292,8 @@ impl GpuStages {
         let device = &mut self.bodies;
         let integrating = integrate.is_some();
         if integrating {
+            // The kernel moves the device's bodies: not the host's until they came back.
             device.synced = None;
-            self.integrated_this_step = true;
         }
         // Rows from this step's one-submission collision: their impulses also go to the
         // pairs' contacts on the device, for the next step's collision ([`Self::collide`]).
@@ -1377,6 +1379,7 @@ impl GpuStages {
         match &mut integrate {
             Some(state) => {
                 read_body_downloads(context, &self.bodies, state)?;
+                self.integrated_this_step = true;
                 record_copy(profiler, SOLVER_BODIES_DOWNLOAD, elapsed_ms(start));
             }
             None => {
@@ -1710,6 +1713,16 @@ mod tests {
 
     /// Body `index` of a block four wide and four deep, layers of 16 a little apart, each
     /// turned a little more than the last.
+    /// [`awake_world_on_a_plane`] with every stage on `context`'s GPU.
+    fn awake_gpu_world_on_a_plane(context: &GpuContext) -> World {
+        let mut world = awake_world_on_a_plane();
+        world.set_gpu_context(context.clone()).unwrap();
+        world
+            .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+            .unwrap();
+        world
+    }
+
     fn block_member(index: usize, shape: Shape) -> BodyDesc {
         let (x, y, z) = (index % 4, index / 16, (index / 4) % 4);
         BodyDesc::dynamic(shape)
@@ -1824,11 +1837,7 @@ mod tests {
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let steps = 40;
         let run = |upload_every_step: bool| {
-            let mut world = awake_world_on_a_plane();
-            world.set_gpu_context(context.clone()).unwrap();
-            world
-                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
-                .unwrap();
+            let mut world = awake_gpu_world_on_a_plane(&context);
             for index in 0..40 {
                 let shape = if index % 3 == 0 {
                     Shape::sphere(0.5)
@@ -1887,11 +1896,7 @@ mod tests {
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let steps = 40;
         let run = |upload_every_step: bool| {
-            let mut world = awake_world_on_a_plane();
-            world.set_gpu_context(context.clone()).unwrap();
-            world
-                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
-                .unwrap();
+            let mut world = awake_gpu_world_on_a_plane(&context);
             let blocks: Vec<_> = (0..24)
                 .map(|index| {
                     let body = block_member(index, Shape::cuboid(Vec3::splat(0.5)));

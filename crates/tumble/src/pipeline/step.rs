@@ -356,7 +356,16 @@ impl World {
 
         // 7. Solver: the soft step's sub-steps over the batches.
         profiler.begin("solver");
-        integrate::prepare_bodies(&self.velocities, &self.masses, &mut scratch.solver_bodies);
+        if chained && config.solver == SolverKind::Pgs {
+            // The batched GPU solve makes its bodies on the device (`prepare.wgsl`): the host's
+            // array only takes what may come back. (The Jacobi solver's adjacency reads their
+            // masses on the host.)
+            scratch
+                .solver_bodies
+                .resize(self.velocities.len(), SolverBody::STATIC);
+        } else {
+            integrate::prepare_bodies(&self.velocities, &self.masses, &mut scratch.solver_bodies);
+        }
         let settings = SolverSettings {
             dt,
             substeps: config.substeps,
