@@ -764,9 +764,9 @@ impl World {
         Ok(())
     }
 
-    /// The last step's poses on the GPU, when it ran there (a stage that reads the bodies and
-    /// the solver on the GPU): see [`DevicePoses`]. The buffers are on the device the GPU stages
-    /// run on: [`Self::set_gpu_context`]'s, else [`GpuContext::shared`].
+    /// The last step's end poses on the GPU, when it integrated there (`integrate=gpu`): see
+    /// [`DevicePoses`]. The buffer is on the device the GPU stages run on:
+    /// [`Self::set_gpu_context`]'s, else [`GpuContext::shared`].
     pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
         self.gpu.as_ref()?.device_poses()
     }
