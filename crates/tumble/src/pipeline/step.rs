@@ -53,6 +53,8 @@ pub(crate) struct StepScratch {
     row_summaries: Vec<RowSummary>,
     /// [`filter_map_ordered`]'s scratch.
     chunk_counts: Vec<usize>,
+    /// The contact edges that can matter to the islands' sleep ([`Islands::may_join`](crate::dynamics::island::Islands::may_join)).
+    sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
     coloring: Coloring,
@@ -872,21 +874,41 @@ impl World {
     /// and into the broadphase's fixed tree.
     fn fall_asleep(&mut self) {
         let colliders = &self.colliders;
+        self.profiler.begin("rest timers");
         let any_rested = self.islands.update_timers(
             &self.velocities,
             &self.masses,
             |i| colliders[i].shape.bounding_radius(),
             self.config.dt,
         );
+        self.profiler.end();
         // No body has rested long enough to sleep: no island can (see update_timers).
         if !any_rested {
             return;
         }
-        let contact_edges = touching_pairs(
-            &self.pairs,
-            self.contacts_on_device.then_some(&self.pair_summaries),
-        )
-        .map(crate::stages::pairs::pair_bodies);
+        // A pass over every pair, on every core: in a scene still settling most edges join
+        // nothing, and the union-find then walks only the few that do.
+        let (islands, masses) = (&self.islands, &self.masses);
+        let (keys, values) = (self.pairs.keys(), self.pairs.values());
+        let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
+        let touching = |pair: usize| match summaries {
+            Some(summaries) => summaries[pair].point_count > 0,
+            None => values[pair].manifold.count > 0,
+        };
+        let edge = |pair: usize| {
+            let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
+            (islands.may_join(a, b, masses) && touching(pair)).then_some((a, b))
+        };
+        let scratch = &mut self.scratch;
+        self.profiler.scope("contact edges", || {
+            filter_map_ordered(
+                keys.len(),
+                edge,
+                &mut scratch.chunk_counts,
+                &mut scratch.sleep_edges,
+            )
+        });
+        let contact_edges = scratch.sleep_edges.iter().copied();
         let joint_edges = self
             .joints
             .iter()
@@ -894,6 +916,7 @@ impl World {
             .filter(|j| !j.broken)
             .map(|j| (j.body_a, j.body_b));
         self.changed_bodies.clear();
+        self.profiler.begin("islands");
         self.islands.fall_asleep(
             contact_edges.chain(joint_edges),
             &mut self.masses,
@@ -901,6 +924,7 @@ impl World {
             self.drag.map(|drag| drag.body),
             &mut self.changed_bodies,
         );
+        self.profiler.end();
         if self.changed_bodies.is_empty() {
             return;
         }
@@ -1039,21 +1063,6 @@ pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
     // Two sorted runs: the standard library's stable sort finds them and merges in O(n).
     keys.sort();
     debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "pair sets overlap");
-}
-
-/// The keys of the pairs whose manifold has points, in pair order; `summaries` stand for the
-/// pairs' contacts when those stayed on the device.
-fn touching_pairs<'a>(
-    pairs: &'a crate::stages::pairs::PairCache<narrowphase::PairContact>,
-    summaries: Option<&'a Vec<PairSummary>>,
-) -> impl Iterator<Item = u64> + 'a {
-    let points = move |pair: usize| match summaries {
-        Some(summaries) => summaries[pair].point_count,
-        None => pairs.values()[pair].manifold.count,
-    };
-    let keys = pairs.keys().iter().enumerate();
-    keys.filter(move |&(pair, _)| points(pair) > 0)
-        .map(|(_, &key)| key)
 }
 
 /// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
