@@ -33,8 +33,7 @@ use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 /// talk's batcher makes one batch a round), the colors batcher as many.
 const FIRST_BATCHING_ROUNDS: usize = 32;
 /// Rounds encoded past those the last batching needed: a pile's contact graph changes a little
-/// from step to step, and a batching that needs more than were encoded costs a second pass
-/// and read-back.
+/// from step to step, and the rounds past those encoded run in one workgroup.
 const BATCHING_ROUND_SLACK: usize = 4;
 
 /// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
@@ -952,31 +951,16 @@ impl GpuStages {
         let start = Instant::now();
         self.batching.upload(context, bodies)?;
         record_copy(profiler, BATCHING.upload, elapsed_ms(start));
-        // Most of the 64 rounds find nothing left: encode as many as the last step needed
-        // and a few more, and the rest only when some constraint is still unbatched after them.
+        // Most of the 64 rounds find nothing left: as many as the last step needed and a few
+        // more get dispatches of their own, the rest one dispatch (`rest_rounds`).
         let rounds = self.batching_rounds;
-        let complete = batching_pass(
+        batching_pass(
             context,
             (&mut self.profiler, profiler),
             &mut self.batching,
             coloring,
-            |batching, pass| {
-                batching.encode_rounds(context, pass, body_count, ordered, batcher, rounds)
-            },
+            |batching, pass| batching.encode(context, pass, body_count, ordered, batcher, rounds),
         )?;
-        if !complete {
-            let complete = batching_pass(
-                context,
-                (&mut self.profiler, profiler),
-                &mut self.batching,
-                coloring,
-                |batching, pass| {
-                    batching.encode_rest(pass, rounds);
-                    Ok(())
-                },
-            )?;
-            debug_assert!(complete, "every round and the finish ran");
-        }
         self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
         Ok(())
     }
@@ -1492,15 +1476,14 @@ fn submit_passes(
     Ok(())
 }
 
-/// One submission of batching kernels (`encode`) with the colors' read-back: whether every
-/// constraint has a color ([`GpuBatching::finish_read_back`]).
+/// One submission of batching kernels (`encode`) with the colors' read-back.
 fn batching_pass(
     context: &GpuContext,
     (gpu_profiler, profiler): (&mut GpuProfiler, &mut Profiler),
     batching: &mut GpuBatching,
     coloring: &mut Coloring,
     encode: impl FnOnce(&mut GpuBatching, &mut wgpu::ComputePass<'_>) -> Result<(), GpuError>,
-) -> Result<bool, GpuError> {
+) -> Result<(), GpuError> {
     run_passes(
         context,
         gpu_profiler,
@@ -1515,9 +1498,9 @@ fn batching_pass(
         },
     )?;
     let start = Instant::now();
-    let complete = batching.finish_read_back(context, coloring)?;
+    batching.finish_read_back(context, coloring)?;
     record_copy(profiler, BATCHING.download, elapsed_ms(start));
-    Ok(complete)
+    Ok(())
 }
 
 /// What [`pair_copies`] were built for: (source, destination) buffers and words of the keys,

@@ -4,7 +4,7 @@
 use crate::gpu_common;
 
 use tumble::stages::batching::gpu::GpuBatching;
-use tumble::stages::batching::{Batcher, Coloring, MAX_COLORS, color_constraints};
+use tumble::stages::batching::{Batcher, Coloring, MAX_COLORS, MAX_ROUNDS, color_constraints};
 use tumble::stages::constraints::STATIC_BODY;
 
 /// Deterministic pseudo-random numbers (xorshift).
@@ -62,6 +62,7 @@ fn gpu_colors_equal_cpu_colors() {
                 *bodies,
                 ordered,
                 batcher,
+                MAX_ROUNDS,
                 &mut from_gpu,
             )
             .unwrap();
@@ -99,6 +100,7 @@ fn gpu_colors_equal_cpu_colors() {
         71,
         0,
         Batcher::Colors,
+        MAX_ROUNDS,
         &mut star,
     )
     .unwrap();
@@ -106,57 +108,33 @@ fn gpu_colors_equal_cpu_colors() {
     assert_eq!(star.histogram.last(), Some(&6));
 }
 
-/// Encoded in two parts (a few rounds, the colors read back unfinished, then the rest), the
-/// batching gives the colors of one pass: what the step does when it encodes fewer rounds.
+/// However many rounds get dispatches of their own, the ones after them (one workgroup's
+/// `rest_rounds`) give the colors and round count of every round dispatched: what the step
+/// does when it encodes the rounds the last step needed and a few more.
 #[test]
-fn rounds_in_two_parts_give_the_same_colors() {
+fn rounds_left_to_one_workgroup_give_the_same_colors() {
     let context = gpu_common::context();
     let mut gpu = GpuBatching::new(&context).unwrap();
     let mut state = 0x5eed_u64;
     let edges = random_edges(&mut state, 400, 3000);
     for batcher in Batcher::ALL {
-        let mut whole = Coloring::default();
-        gpu.run(
-            &context,
-            edges.iter().copied(),
-            400,
-            30,
-            batcher,
-            &mut whole,
-        )
-        .unwrap();
-        gpu.upload(&context, edges.iter().copied()).unwrap();
-        context
-            .submit_pass("first rounds", |pass| {
-                gpu.encode_rounds(&context, pass, 400, 30, batcher, 2)
-            })
-            .unwrap();
-        let mut parts = Coloring::default();
-        assert!(
-            !gpu.read_back(&context, &mut parts).unwrap(),
-            "{batcher}: two rounds batched all {} constraints",
-            edges.len()
-        );
-        context.submit_pass("other rounds", |pass| gpu.encode_rest(pass, 2));
-        assert!(gpu.read_back(&context, &mut parts).unwrap());
-        assert_eq!(parts.colors, whole.colors, "{batcher}");
-        assert_eq!(parts.histogram, whole.histogram, "{batcher}");
-        assert_eq!(parts.rounds, whole.rounds, "{batcher}");
-        // The rounds it says it needed are enough (the step encodes those next time), and
-        // one fewer is not.
-        for (rounds, complete) in [(whole.rounds, true), (whole.rounds - 1, false)] {
-            context
-                .submit_pass("needed rounds", |pass| {
-                    gpu.encode_rounds(&context, pass, 400, 30, batcher, rounds)
-                })
+        let run = |gpu: &mut GpuBatching, rounds| {
+            let mut coloring = Coloring::default();
+            let edges = edges.iter().copied();
+            gpu.run(&context, edges, 400, 30, batcher, rounds, &mut coloring)
                 .unwrap();
-            let mut cut = Coloring::default();
+            coloring
+        };
+        let whole = run(&mut gpu, MAX_ROUNDS);
+        assert!(whole.rounds > 3, "{batcher}: {} rounds", whole.rounds);
+        for rounds in [0, 2, whole.rounds - 1, whole.rounds] {
+            let parts = run(&mut gpu, rounds);
+            assert_eq!(parts.colors, whole.colors, "{batcher}, {rounds} rounds");
             assert_eq!(
-                gpu.read_back(&context, &mut cut).unwrap(),
-                complete,
-                "{batcher}: {rounds} of {} rounds",
-                whole.rounds
+                parts.histogram, whole.histogram,
+                "{batcher}, {rounds} rounds"
             );
+            assert_eq!(parts.rounds, whole.rounds, "{batcher}, {rounds} rounds");
         }
     }
 }

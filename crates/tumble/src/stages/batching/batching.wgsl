@@ -82,21 +82,16 @@ fn start(
     }
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn claim(
-    @builtin(local_invocation_id) id: vec3<u32>,
-    @builtin(workgroup_id) workgroup: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let i = thread_index(id, workgroup, groups);
-    // Commits happen in the next dispatch: no thread of this one changes what it sees here.
+// Round `round`'s claim by constraint `i`: its priority into its dynamic bodies' locks.
+fn claim_one(i: u32, round: u32) {
+    // Commits happen after every claim of the round: no claim changes what another sees here.
     if i == 0u && !all_batched() {
-        tally.rounds = params.round + 1u;
+        tally.rounds = round + 1u;
     }
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
-    let half = (params.round % 2u) * params.body_count;
+    let half = (round % 2u) * params.body_count;
     let pair = bodies[i];
     let p = priority(i);
     for (var k = 0u; k < 2u; k++) {
@@ -104,6 +99,15 @@ fn claim(
             atomicMin(&locks[half + pair[k]], p);
         }
     }
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn claim(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    claim_one(thread_index(id, workgroup, groups), params.round);
 }
 
 // The lowest color in neither mask, or MAX_COLORS when all 64 are taken.
@@ -117,17 +121,12 @@ fn lowest_free_color(used: vec2<u32>) -> u32 {
     return MAX_COLORS;
 }
 
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn commit(
-    @builtin(local_invocation_id) id: vec3<u32>,
-    @builtin(workgroup_id) workgroup: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let i = thread_index(id, workgroup, groups);
+// Round `round`'s commit by constraint `i`: batched when it holds all its bodies' locks.
+fn commit_one(i: u32, round: u32) {
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
-    let half = (params.round % 2u) * params.body_count;
+    let half = (round % 2u) * params.body_count;
     let next_half = params.body_count - half;
     let pair = bodies[i];
     let p = priority(i);
@@ -142,7 +141,7 @@ fn commit(
         return;
     }
     // Winners share no body, so only this thread reads and writes these masks.
-    var color = params.round;
+    var color = round;
     if params.batcher == BATCHER_COLORS {
         var used = vec2<u32>(0u);
         for (var k = 0u; k < 2u; k++) {
@@ -163,6 +162,41 @@ fn commit(
     }
     colors[i] = color;
     atomicAdd(&tally.batched, 1u);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn commit(
+    @builtin(local_invocation_id) id: vec3<u32>,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    commit_one(thread_index(id, workgroup, groups), params.round);
+}
+
+var<workgroup> rest_done: u32;
+
+// Rounds params.round to MAX_ROUNDS − 1 in one workgroup, a barrier between each claim and
+// commit: the same rounds as their dispatches, for the few constraints a step's encoded
+// rounds left unbatched (usually none: it returns at once). One dispatch whatever is left,
+// so no host has to read back whether anything was.
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn rest_rounds(@builtin(local_invocation_index) local: u32) {
+    for (var round = params.round; round < MAX_ROUNDS; round++) {
+        if local == 0u {
+            rest_done = u32(all_batched());
+        }
+        if workgroupUniformLoad(&rest_done) != 0u {
+            break;
+        }
+        for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+            claim_one(i, round);
+        }
+        storageBarrier();
+        for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+            commit_one(i, round);
+        }
+        storageBarrier();
+    }
 }
 
 // After the last round: what is left goes to the overflow batch.

@@ -1,8 +1,10 @@
 //! GPU executor of the batchers: the rounds of [`color_constraints`](super::color_constraints)
 //! as kernels (`batching.wgsl`), giving the same colors as the CPU executor (the parity test
-//! checks it bit for bit). A batching is one `start` dispatch, [`MAX_ROUNDS`] rounds of a
-//! `claim` and a `commit` dispatch, and a `finish` dispatch; rounds after the last constraint
-//! is batched return at once.
+//! checks it bit for bit). A batching is one `start` dispatch, a number of rounds chosen by
+//! the caller as a `claim` and a `commit` dispatch each, one `rest_rounds` dispatch that runs
+//! the rounds left up to [`MAX_ROUNDS`] in one workgroup, and a `finish` dispatch. Rounds after
+//! the last constraint is batched return at once, so the count encoded changes the time, never
+//! the colors.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -39,6 +41,7 @@ pub struct BatchParams {
 pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("MAX_COLORS", MAX_COLORS as u32)
+        .constant_u32("MAX_ROUNDS", MAX_ROUNDS as u32)
         .constant_u32("STATIC_BODY", STATIC_BODY)
         .constant_u32("UNBATCHED", UNBATCHED)
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
@@ -49,6 +52,16 @@ pub fn wgsl() -> Source {
 /// tally), constraint capacity, body count, ordered count, batcher. Not the constraint count,
 /// which changes every step: the kernels read it from the tally.
 type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
+
+/// A batching's dispatches for every number of rounds encoded on their own.
+#[derive(Debug)]
+struct Dispatches {
+    /// The start, then each round's claim and commit.
+    rounds: Vec<Dispatch>,
+    /// `rest[r]`: rounds r to [`MAX_ROUNDS`] − 1 in one workgroup.
+    rest: Vec<Dispatch>,
+    finish: Dispatch,
+}
 
 /// The GPU batching of one world, its buffers reused from step to step.
 #[derive(Debug)]
@@ -62,7 +75,7 @@ pub struct GpuBatching {
     /// How many constraints have a batch (the rounds' early exit), how many there are, and
     /// how many rounds found one left to batch ([`Coloring::rounds`]).
     tally: GpuVec<[u32; 3]>,
-    cached: Option<(BatchKey, Vec<Dispatch>)>,
+    cached: Option<(BatchKey, Dispatches)>,
     /// Host scratch: the bodies to upload, the colors and the tally read back.
     host_bodies: Vec<[u32; 2]>,
     host_colors: Vec<u32>,
@@ -85,26 +98,11 @@ impl GpuBatching {
     }
 
     /// Encodes the batching of the `bodies` buffer's constraints among `body_count` bodies,
-    /// the first `ordered` ranked by index; the colors land in `colors`.
+    /// the first `ordered` ranked by index; the colors land in `colors`. `rounds` of the
+    /// rounds are dispatches of their own, the rest one workgroup's: a caller that expects
+    /// about as many rounds as the last step needed ([`Coloring::rounds`]) encodes those and a
+    /// few more. The colors are the same for any `rounds`.
     pub fn encode(
-        &mut self,
-        context: &GpuContext,
-        pass: &mut wgpu::ComputePass<'_>,
-        body_count: usize,
-        ordered: usize,
-        batcher: Batcher,
-    ) -> Result<(), GpuError> {
-        self.encode_rounds(context, pass, body_count, ordered, batcher, MAX_ROUNDS)?;
-        self.encode_rest(pass, MAX_ROUNDS);
-        Ok(())
-    }
-
-    /// The first part of [`Self::encode`]: the start and rounds `0..rounds`. Rounds after the
-    /// last constraint is batched only return, but each is two dispatches: a caller that expects
-    /// fewer rounds encodes these, reads the colors back and, if some constraint has none yet
-    /// ([`Self::read_back`] says so), finishes with [`Self::encode_rest`] in a second pass.
-    /// The colors are the same either way.
-    pub fn encode_rounds(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
@@ -141,20 +139,15 @@ impl GpuBatching {
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
-            encode_all(pass, &dispatches[..1 + 2 * rounds.min(MAX_ROUNDS)]);
+            // The start, the rounds, then the rest from round `rounds`, then the finish.
+            let rounds = rounds.min(MAX_ROUNDS);
+            encode_all(pass, &dispatches.rounds[..1 + 2 * rounds]);
+            if rounds < MAX_ROUNDS {
+                dispatches.rest[rounds].encode(pass);
+            }
+            dispatches.finish.encode(pass);
         }
         Ok(())
-    }
-
-    /// The rest of [`Self::encode`] after [`Self::encode_rounds`] with `rounds`: the remaining
-    /// rounds and the finish, which sends what is still unbatched to the overflow batch.
-    pub fn encode_rest(&self, pass: &mut wgpu::ComputePass<'_>, rounds: usize) {
-        if self.bodies.is_empty() {
-            return;
-        }
-        if let Some((_, dispatches)) = &self.cached {
-            encode_all(pass, &dispatches[1 + 2 * rounds.min(MAX_ROUNDS)..]);
-        }
     }
 
     /// The dispatches for up to `capacity` constraints.
@@ -165,7 +158,7 @@ impl GpuBatching {
         body_count: usize,
         ordered: usize,
         batcher: Batcher,
-    ) -> Vec<Dispatch> {
+    ) -> Dispatches {
         let source = wgsl();
         let kernel = |entry: &str| {
             Kernel::new(
@@ -176,10 +169,11 @@ impl GpuBatching {
                 &BINDINGS,
             )
         };
-        let (start, claim, commit, finish) = (
+        let (start, claim, commit, rest, finish) = (
             kernel("start"),
             kernel("claim"),
             kernel("commit"),
+            kernel("rest_rounds"),
             kernel("finish"),
         );
         let blocks: Vec<BatchParams> = (0..MAX_ROUNDS as u32)
@@ -206,18 +200,24 @@ impl GpuBatching {
         };
         let groups = workgroups_for(capacity, WORKGROUP_SIZE);
         let start_groups = workgroups_for(capacity.max(body_count), WORKGROUP_SIZE);
-        let mut dispatches = vec![start.dispatch(bind(&start, 0), start_groups)];
+        let mut rounds = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
-            dispatches.push(claim.dispatch(bind(&claim, round), groups));
-            dispatches.push(commit.dispatch(bind(&commit, round), groups));
+            rounds.push(claim.dispatch(bind(&claim, round), groups));
+            rounds.push(commit.dispatch(bind(&commit, round), groups));
         }
-        dispatches.push(finish.dispatch(bind(&finish, 0), groups));
-        dispatches
+        Dispatches {
+            rounds,
+            rest: (0..MAX_ROUNDS)
+                .map(|round| rest.dispatch(bind(&rest, round), 1))
+                .collect(),
+            finish: finish.dispatch(bind(&finish, 0), groups),
+        }
     }
 
-    /// Upload, encode, submit, read back: colors `bodies` into `coloring` as
-    /// [`color_constraints`](super::color_constraints) does, for the step's mixed executor
-    /// and the parity tests.
+    /// Upload, encode (`rounds` as in [`Self::encode`]), submit, read back: colors `bodies`
+    /// into `coloring` as [`color_constraints`](super::color_constraints) does, for the parity
+    /// tests.
+    #[allow(clippy::too_many_arguments)]
     pub fn run(
         &mut self,
         context: &GpuContext,
@@ -225,15 +225,14 @@ impl GpuBatching {
         body_count: usize,
         ordered: usize,
         batcher: Batcher,
+        rounds: usize,
         coloring: &mut Coloring,
     ) -> Result<(), GpuError> {
         self.upload(context, bodies)?;
         context.submit_pass("batching", |pass| {
-            self.encode(context, pass, body_count, ordered, batcher)
+            self.encode(context, pass, body_count, ordered, batcher, rounds)
         })?;
-        let complete = self.read_back(context, coloring)?;
-        debug_assert!(complete, "every round and the finish ran");
-        Ok(())
+        self.read_back(context, coloring)
     }
 
     /// Uploads the constraints' bodies.
@@ -247,14 +246,12 @@ impl GpuBatching {
         self.bodies.upload(context, &self.host_bodies)
     }
 
-    /// Reads the colors of the last encoded batching into `coloring`. Returns false when some
-    /// constraint has no color yet (only after [`Self::encode_rounds`] without the rest):
-    /// `coloring` is then left as it was.
+    /// Reads the colors of the last encoded batching into `coloring`.
     pub fn read_back(
         &mut self,
         context: &GpuContext,
         coloring: &mut Coloring,
-    ) -> Result<bool, GpuError> {
+    ) -> Result<(), GpuError> {
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -278,11 +275,12 @@ impl GpuBatching {
         &mut self,
         context: &GpuContext,
         coloring: &mut Coloring,
-    ) -> Result<bool, GpuError> {
+    ) -> Result<(), GpuError> {
         self.colors.read_download(context, &mut self.host_colors)?;
-        if self.host_colors.contains(&UNBATCHED) {
-            return Ok(false);
-        }
+        debug_assert!(
+            !self.host_colors.contains(&UNBATCHED),
+            "the rest and finish give every constraint a color"
+        );
         coloring.rounds = if self.host_colors.is_empty() {
             0
         } else {
@@ -294,6 +292,6 @@ impl GpuBatching {
             .colors
             .extend(self.host_colors.iter().map(|&color| color as u8));
         coloring.count_batches();
-        Ok(true)
+        Ok(())
     }
 }
