@@ -3,9 +3,14 @@
 
 use crate::gpu_common;
 
+use tumble::gpu::buffer::GpuVec;
 use tumble::stages::batching::gpu::GpuBatching;
-use tumble::stages::batching::{Batcher, Coloring, MAX_COLORS, MAX_ROUNDS, color_constraints};
+use tumble::stages::batching::layout::{GpuBatchLayout, LAYOUT_BATCHES};
+use tumble::stages::batching::{
+    Batcher, Coloring, MAX_COLORS, MAX_ROUNDS, batch_order, color_constraints,
+};
 use tumble::stages::constraints::STATIC_BODY;
+use tumble::stages::solver::gpu::SOLVER_WORKGROUP;
 
 /// Deterministic pseudo-random numbers (xorshift).
 fn next(state: &mut u64) -> u64 {
@@ -136,5 +141,91 @@ fn rounds_left_to_one_workgroup_give_the_same_colors() {
             );
             assert_eq!(parts.rounds, whole.rounds, "{batcher}, {rounds} rounds");
         }
+    }
+}
+
+/// The device's batch layout of the GPU's colors is the host's `batch_order` of them, bit for
+/// bit: the same order, each used color's batch at the host's offsets, the overflow batch last,
+/// and dispatch arguments that cover each batch (sizes at the edges of the layout's blocks).
+#[test]
+fn device_layout_is_the_hosts_batch_order() {
+    let context = gpu_common::context();
+    let mut gpu = GpuBatching::new(&context).unwrap();
+    let mut layout = GpuBatchLayout::new(&context, SOLVER_WORKGROUP).unwrap();
+    let mut order = GpuVec::<u32>::with_capacity(&context, "test order", 0).unwrap();
+    let mut arguments =
+        GpuVec::<u32>::with_capacity(&context, "test arguments", 3 * LAYOUT_BATCHES).unwrap();
+    arguments.resize(&context, 3 * LAYOUT_BATCHES).unwrap();
+    let mut state = 0x1a70_u64;
+    let star: Vec<(u32, u32)> = (1..=70).map(|other| (0, other)).collect();
+    let mut graphs = vec![(71, star)];
+    for &(bodies, count) in &[
+        (1usize, 0usize),
+        (2, 1),
+        (10, 255),
+        (100, 256),
+        (100, 257),
+        (3000, 12_001),
+        (50_000, 200_003),
+        (3000, 12_001),
+    ] {
+        graphs.push((bodies, random_edges(&mut state, bodies, count)));
+    }
+    for (bodies, edges) in &graphs {
+        let mut coloring = Coloring::default();
+        let size = edges.len();
+        gpu.run(
+            &context,
+            edges.iter().copied(),
+            *bodies,
+            0,
+            Batcher::Colors,
+            MAX_ROUNDS,
+            &mut coloring,
+        )
+        .unwrap();
+        let (mut host_order, mut host_offsets) = (Vec::new(), Vec::new());
+        batch_order(
+            &coloring.colors,
+            &coloring,
+            &mut host_order,
+            &mut host_offsets,
+        );
+        order.resize(&context, size).unwrap();
+        context
+            .submit_pass("layout", |pass| {
+                layout.encode(&context, pass, gpu.tally(), &gpu.colors, &order)
+            })
+            .unwrap();
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: None });
+        let bytes = (3 * LAYOUT_BATCHES * 4) as u64;
+        encoder.copy_buffer_to_buffer(layout.arguments(), 0, arguments.buffer(), 0, bytes);
+        context.queue.submit([encoder.finish()]);
+        let device_order = order.download(&context).unwrap();
+        let offsets = layout.offsets.download(&context).unwrap();
+        let args = arguments.download(&context).unwrap();
+        assert_eq!(device_order, host_order, "{size} constraints: the order");
+        // Host batch b is color b, the overflow batch (the host's last) is color MAX_COLORS.
+        let used = coloring.batch_count - coloring.has_overflow as usize;
+        for batch in 0..LAYOUT_BATCHES {
+            let (start, end) = (offsets[batch], offsets[batch + 1]);
+            let expected = if batch < used {
+                (host_offsets[batch], host_offsets[batch + 1])
+            } else if batch == MAX_COLORS && coloring.has_overflow {
+                let last = coloring.batch_count;
+                (host_offsets[last - 1], host_offsets[last])
+            } else {
+                (start, start)
+            };
+            assert_eq!((start, end), expected, "{size} constraints: batch {batch}");
+            let threads = u64::from(args[3 * batch]) * u64::from(args[3 * batch + 1]);
+            let threads = threads * u64::from(SOLVER_WORKGROUP);
+            assert!(threads >= u64::from(end - start), "batch {batch}: {args:?}");
+            assert!(threads < u64::from(end - start) + 2 * u64::from(SOLVER_WORKGROUP));
+            assert_eq!(args[3 * batch + 2], 1);
+        }
+        assert_eq!(offsets[LAYOUT_BATCHES], size as u32);
     }
 }

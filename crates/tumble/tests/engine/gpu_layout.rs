@@ -806,4 +806,16 @@ fn row_and_batching_parameters_match_rust() {
         })],
         &["Tally"],
     );
+    // The layout reads the same tally.
+    use tumble::stages::batching::layout::{self, LayoutParams};
+    check_with_gpu_only(
+        layout::wgsl(64),
+        vec![rust_layout!(LayoutParams {
+            blocks,
+            _pad0,
+            _pad1,
+            _pad2
+        })],
+        &["Tally"],
+    );
 }

@@ -112,12 +112,12 @@ impl GpuBatching {
         rounds: usize,
     ) -> Result<(), GpuError> {
         let count = self.bodies.len();
+        // Lands before this submission's commands run (the batch layout reads the count).
+        self.tally.upload(context, &[[0, count as u32, 0]])?;
         if count == 0 {
             self.colors.resize(context, 0)?;
             return Ok(());
         }
-        // Lands before this submission's commands run.
-        self.tally.upload(context, &[[0, count as u32, 0]])?;
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * body_count)?;
         self.masks.resize(context, body_count)?;
@@ -233,6 +233,12 @@ impl GpuBatching {
             self.encode(context, pass, body_count, ordered, batcher, rounds)
         })?;
         self.read_back(context, coloring)
+    }
+
+    /// How many constraints have a batch, how many there are, and the rounds that found one
+    /// left: what the batch layout reads the count from.
+    pub fn tally(&self) -> &GpuVec<[u32; 3]> {
+        &self.tally
     }
 
     /// Uploads the constraints' bodies.

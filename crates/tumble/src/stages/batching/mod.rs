@@ -28,6 +28,7 @@
 //! batch, which the solver walks sequentially (still Gauss-Seidel, just not parallel).
 
 pub mod gpu;
+pub mod layout;
 
 use std::fmt;
 use std::str::FromStr;
