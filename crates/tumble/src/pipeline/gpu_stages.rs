@@ -25,7 +25,7 @@ use crate::stages::narrowphase::{
 };
 use crate::stages::pairs::gpu::GpuPairDiff;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
-use crate::stages::solver::gpu::{DeviceBatched, GpuSolver};
+use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
@@ -1033,9 +1033,11 @@ impl GpuStages {
             contact_offsets: &self.batch_offsets,
             joints: &self.batched_joints,
             joint_offsets: &self.joint_batch_offsets,
-            host_contact_offsets: batched.contact_offsets,
-            host_joint_offsets: batched.joint_offsets,
-            has_overflow: batched.has_overflow,
+            sizes: BatchSizes::Host {
+                contact_offsets: batched.contact_offsets,
+                joint_offsets: batched.joint_offsets,
+                has_overflow: batched.has_overflow,
+            },
         };
         let spans = if jacobi.is_some() {
             &JACOBI_SOLVER
@@ -1313,9 +1315,11 @@ impl GpuStages {
                         contact_offsets: device_offsets,
                         joints: &joint_rows.batched,
                         joint_offsets: device_joint_offsets,
-                        host_contact_offsets: offsets,
-                        host_joint_offsets: joint_offsets,
-                        has_overflow,
+                        sizes: BatchSizes::Host {
+                            contact_offsets: offsets,
+                            joint_offsets,
+                            has_overflow,
+                        },
                     };
                     match jacobi {
                         Some(jacobi) => jacobi.encode(

@@ -593,7 +593,11 @@ fn solver_structs_match_rust() {
                 moved,
                 max_push_velocity,
                 restitution_threshold,
-                body_count
+                body_count,
+                overflow_batch,
+                _pad0,
+                _pad1,
+                _pad2
             }),
             rust_layout!(JointFrame {
                 local_anchor_a,

@@ -31,6 +31,7 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
+use crate::stages::batching::layout::LAYOUT_BATCHES;
 use crate::stages::constraints::{
     CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
 };
@@ -80,8 +81,17 @@ pub struct SolverParams {
     pub max_push_velocity: f32,
     pub restitution_threshold: f32,
     pub body_count: u32,
+    /// The overflow batch, when a [`StageMode::Workgroup`] walk may hold it (a device layout's),
+    /// else [`NO_BATCH`].
+    pub overflow_batch: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
-const _: () = assert!(size_of::<SolverParams>() == 48);
+const _: () = assert!(size_of::<SolverParams>() == 64);
+
+/// [`SolverParams::overflow_batch`] when no walk holds the overflow batch.
+pub const NO_BATCH: u32 = u32::MAX;
 
 /// The solver's WGSL: body and constraint structs, integration helpers, kernels.
 pub fn wgsl() -> Source {
@@ -126,12 +136,37 @@ pub fn stages(contact_offsets: &[u32], joint_offsets: &[u32], has_overflow: bool
         "contacts and joints have the same batches"
     );
     let batch_count = contact_offsets.len().saturating_sub(1) as u32;
+    let size = |batch| batch_size(contact_offsets, joint_offsets, batch as usize);
+    plan(batch_count, size, has_overflow.then(|| batch_count - 1))
+}
+
+/// The dispatches of one sweep over a device layout's [`LAYOUT_BATCHES`] batches, the last the
+/// overflow batch, from `expected[b]`, batch b's size in a recent step: the batches expected
+/// to be large get dispatches of their own, the others are walked, the overflow batch by one
+/// thread (see [`SolverParams::overflow_batch`]). Any plan gives the same results: it only
+/// changes which constraints of one batch share a dispatch.
+pub fn device_stages(expected: &[u32]) -> Vec<Stage> {
+    assert_eq!(expected.len(), LAYOUT_BATCHES, "a size per layout batch");
+    let overflow = LAYOUT_BATCHES as u32 - 1;
+    let size = |batch| {
+        if batch == overflow {
+            0
+        } else {
+            expected[batch as usize]
+        }
+    };
+    plan(LAYOUT_BATCHES as u32, size, None)
+}
+
+/// Stages over `batch_count` batches of `size`s: each batch of at least [`SMALL_BATCH`] a
+/// parallel stage, each run of smaller ones a walk, and the batch `alone` (the overflow batch)
+/// one thread's.
+fn plan(batch_count: u32, size: impl Fn(u32) -> u32, alone: Option<u32>) -> Vec<Stage> {
     let mut stages = Vec::new();
     let mut small_from = 0;
     for batch in 0..batch_count {
-        let size = batch_size(contact_offsets, joint_offsets, batch as usize);
-        let overflow = has_overflow && batch + 1 == batch_count;
-        if size < SMALL_BATCH && !overflow {
+        let overflow = alone == Some(batch);
+        if size(batch) < SMALL_BATCH && !overflow {
             continue;
         }
         if small_from < batch {
@@ -191,7 +226,7 @@ type Key = (
     [wgpu::Buffer; 5],
     usize,
     Vec<(u32, u32, StageMode)>,
-    [u32; 8],
+    [u32; 9],
 );
 
 /// Bind groups for the last key: one per (stage, variant), then one for the body kernels.
@@ -203,15 +238,33 @@ struct Bound {
 }
 
 /// The batched constraints on the device, as [`GpuSolver::encode`] sweeps them: the arrays of
-/// [`Batched`], with the host's copy of the offsets, which sizes the dispatches.
+/// [`Batched`], and what sizes the dispatches.
 pub struct DeviceBatched<'a> {
     pub contacts: &'a GpuVec<ContactConstraint>,
     pub contact_offsets: &'a GpuVec<u32>,
     pub joints: &'a GpuVec<JointConstraint>,
     pub joint_offsets: &'a GpuVec<u32>,
-    pub host_contact_offsets: &'a [u32],
-    pub host_joint_offsets: &'a [u32],
-    pub has_overflow: bool,
+    pub sizes: BatchSizes<'a>,
+}
+
+/// Where the dispatches learn each batch's size.
+#[derive(Clone, Copy)]
+pub enum BatchSizes<'a> {
+    /// The host's copy of the offsets, contacts' and joints' (the last batch is the overflow
+    /// batch when `has_overflow`).
+    Host {
+        contact_offsets: &'a [u32],
+        joint_offsets: &'a [u32],
+        has_overflow: bool,
+    },
+    /// A device layout's ([`GpuBatchLayout`](crate::stages::batching::layout::GpuBatchLayout)):
+    /// [`LAYOUT_BATCHES`] batches of contacts, no joints (`joint_offsets` all zero), the last
+    /// the overflow batch, and batch b's workgroups at byte `12 b` of `arguments`. `expected`
+    /// chooses the plan ([`device_stages`]), never the results.
+    Device {
+        arguments: &'a wgpu::Buffer,
+        expected: &'a [u32],
+    },
 }
 
 /// The GPU solver: its kernels with the bind groups for the arrays it last saw, and its own
@@ -264,9 +317,11 @@ impl HostArrays {
             contact_offsets: &self.contact_offsets,
             joints: &self.joints,
             joint_offsets: &self.joint_offsets,
-            host_contact_offsets: batched.contact_offsets,
-            host_joint_offsets: batched.joint_offsets,
-            has_overflow: batched.has_overflow,
+            sizes: BatchSizes::Host {
+                contact_offsets: batched.contact_offsets,
+                joint_offsets: batched.joint_offsets,
+                has_overflow: batched.has_overflow,
+            },
         };
         context.submit_pass(label, |pass| {
             encode(pass, &self.bodies, &device, restitution)
@@ -384,13 +439,19 @@ impl SolverEncoder {
         settings: SolverSettings,
         restitution: bool,
     ) -> usize {
-        let (host_contact_offsets, host_joint_offsets) =
-            (batched.host_contact_offsets, batched.host_joint_offsets);
-        let stages = stages(
-            host_contact_offsets,
-            host_joint_offsets,
-            batched.has_overflow,
-        );
+        let (stages, overflow_batch) = match batched.sizes {
+            BatchSizes::Host {
+                contact_offsets,
+                joint_offsets,
+                has_overflow,
+            } => (
+                stages(contact_offsets, joint_offsets, has_overflow),
+                NO_BATCH,
+            ),
+            BatchSizes::Device { expected, .. } => {
+                (device_stages(expected), LAYOUT_BATCHES as u32 - 1)
+            }
+        };
         let key: Key = (
             [
                 bodies.buffer().clone(),
@@ -410,34 +471,41 @@ impl SolverEncoder {
                 settings.gravity.z.to_bits(),
                 settings.max_push_velocity.to_bits(),
                 settings.restitution_threshold.to_bits(),
+                overflow_batch,
             ],
         );
         if self.bound.as_ref().is_none_or(|bound| bound.key != key) {
-            self.bound = Some(self.bind(key, &stages, bodies, batched, settings));
+            let bound = self.bind(key, &stages, bodies, batched, settings, overflow_batch);
+            self.bound = Some(bound);
         }
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
         };
         let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
-        let stage_groups: Vec<u32> = stages
+        // Per stage: its workgroups (the offset of its indirect arguments for a device
+        // layout's parallel stages), and whether its batches hold joints.
+        let size: Vec<(StageSize, bool)> = stages
             .iter()
-            .map(|stage| {
-                if stage.mode != StageMode::Parallel {
-                    1
-                } else {
-                    let size = batch_size(
-                        host_contact_offsets,
-                        host_joint_offsets,
-                        stage.first as usize,
-                    );
-                    workgroups_for(size as usize, SOLVER_WORKGROUP)
+            .map(|stage| match batched.sizes {
+                _ if stage.mode != StageMode::Parallel => {
+                    (StageSize::Groups(1), stage_has_joints(batched.sizes, stage))
                 }
-            })
-            .collect();
-        let has_joints: Vec<bool> = stages
-            .iter()
-            .map(|stage| {
-                host_joint_offsets[stage.end as usize] > host_joint_offsets[stage.first as usize]
+                BatchSizes::Host {
+                    contact_offsets,
+                    joint_offsets,
+                    ..
+                } => {
+                    let size = batch_size(contact_offsets, joint_offsets, stage.first as usize);
+                    let groups = workgroups_for(size as usize, SOLVER_WORKGROUP);
+                    (
+                        StageSize::Groups(groups),
+                        stage_has_joints(batched.sizes, stage),
+                    )
+                }
+                BatchSizes::Device { arguments, .. } => {
+                    let offset = 12 * u64::from(stage.first);
+                    (StageSize::Indirect(arguments, offset), false)
+                }
             })
             .collect();
         let group = |stage: usize, variant: Variant| {
@@ -449,13 +517,19 @@ impl SolverEncoder {
         // A stage with joints runs the mixed twin of the contact-only kernel.
         let sweep =
             |dispatches: &mut Vec<Dispatch>, kernels: [Option<&Kernel>; 2], variant: Variant| {
-                for (stage, &groups) in stage_groups.iter().enumerate() {
-                    let kernel = kernels[has_joints[stage] as usize]
+                for (stage, &(size, joints)) in size.iter().enumerate() {
+                    let kernel = kernels[joints as usize]
                         .expect("the mixed kernels are built before a stage with joints");
-                    dispatches.push(kernel.dispatch(group(stage, variant), groups));
+                    let group = group(stage, variant);
+                    dispatches.push(match size {
+                        StageSize::Groups(groups) => kernel.dispatch(group, groups),
+                        StageSize::Indirect(arguments, offset) => {
+                            kernel.dispatch_indirect(group, arguments, offset)
+                        }
+                    });
                 }
             };
-        if has_joints.contains(&true) && self.mixed.is_none() {
+        if size.iter().any(|&(_, joints)| joints) && self.mixed.is_none() {
             self.mixed = Some(MixedKernels::new(&self.context));
         }
         let mixed = self.mixed.as_ref();
@@ -503,6 +577,7 @@ impl SolverEncoder {
         bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
+        overflow_batch: u32,
     ) -> Bound {
         let base = SolverParams {
             gravity: settings.gravity,
@@ -515,6 +590,8 @@ impl SolverEncoder {
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
             body_count: bodies.len() as u32,
+            overflow_batch,
+            ..SolverParams::zeroed()
         };
         let mut blocks = Vec::with_capacity(stages.len() * VARIANTS + 1);
         for stage in stages {
@@ -556,5 +633,22 @@ impl SolverEncoder {
             groups,
             _slots: slots,
         }
+    }
+}
+
+/// A stage's workgroups: counted on the host, or read by the device.
+#[derive(Clone, Copy)]
+enum StageSize<'a> {
+    Groups(u32),
+    Indirect(&'a wgpu::Buffer, u64),
+}
+
+/// Whether `stage`'s batches hold joints (never a device layout's).
+fn stage_has_joints(sizes: BatchSizes, stage: &Stage) -> bool {
+    match sizes {
+        BatchSizes::Host { joint_offsets, .. } => {
+            joint_offsets[stage.end as usize] > joint_offsets[stage.first as usize]
+        }
+        BatchSizes::Device { .. } => false,
     }
 }

@@ -15,7 +15,9 @@
 //! deterministic, since each thread writes its own slots and each body sums its slots in a
 //! fixed order.
 
-use super::gpu::{DeviceBatched, HostArrays, SOLVER_WORKGROUP, SolverParams};
+use bytemuck::Zeroable;
+
+use super::gpu::{DeviceBatched, HostArrays, NO_BATCH, SOLVER_WORKGROUP, SolverParams};
 use super::jacobi::{Adjacency, VelocityDelta};
 use super::{Batched, SolverBody, SolverSettings};
 use crate::gpu::buffer::GpuVec;
@@ -360,6 +362,8 @@ impl JacobiEncoder {
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
             body_count: bodies.len() as u32,
+            overflow_batch: NO_BATCH,
+            ..SolverParams::zeroed()
         };
         // In the order of `Variant`.
         let blocks = [

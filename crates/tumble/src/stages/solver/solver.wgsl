@@ -10,6 +10,8 @@
 //     same body.
 //   - sequential == 1: one workgroup walks a run of small batches in order, its threads
 //     sharing each batch, a storage barrier after each (same results as one dispatch each);
+//     its thread 0 alone takes the overflow batch when the run holds it (overflow_batch:
+//     a device layout's batches are all walked, sizes unknown to the host);
 //   - sequential == 2: thread 0 alone solves the overflow batch in order, contacts first.
 // Dispatches whose batches hold no joint run the contact-only kernels (warm_start, solve);
 // the others their *_mixed twins (see sweep_mixed).
@@ -28,6 +30,11 @@ struct SolverParams {
     max_push_velocity: f32,
     restitution_threshold: f32,
     body_count: u32,
+    // The overflow batch when a walk may hold it, else 0xffffffff.
+    overflow_batch: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SolverParams;
@@ -328,6 +335,9 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
 
 const WALK: u32 = 1u;
 
+// The end of a walk's batches, for all its threads (see `sweep`).
+var<workgroup> walk_end: u32;
+
 // What a sweep does to each of its constraints.
 const WARM_START: u32 = 0u;
 const SOLVE: u32 = 1u;
@@ -368,10 +378,29 @@ fn constraint_range(thread: u32) -> vec2<u32> {
 // restitution sweep (joints do not bounce).
 fn sweep(kind: u32, local: u32, thread: u32) {
     if params.sequential == WALK {
-        for (var batch = params.first_batch; batch < params.end_batch; batch++) {
-            for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                index += SOLVER_WORKGROUP) {
-                apply_sweep(kind, index);
+        // Up to the last batch that holds a constraint: a device layout's walk covers every
+        // batch up to the overflow batch, most of them empty, and a barrier each would cost.
+        if local == 0u {
+            var end = params.end_batch;
+            while end > params.first_batch && offsets[end - 1u] == offsets[end] {
+                end -= 1u;
+            }
+            walk_end = end;
+        }
+        let end = workgroupUniformLoad(&walk_end);
+        for (var batch = params.first_batch; batch < end; batch++) {
+            if batch == params.overflow_batch {
+                // Its constraints may share bodies: in order, by one thread.
+                if local == 0u {
+                    for (var index = offsets[batch]; index < offsets[batch + 1u]; index++) {
+                        apply_sweep(kind, index);
+                    }
+                }
+            } else {
+                for (var index = offsets[batch] + local; index < offsets[batch + 1u];
+                    index += SOLVER_WORKGROUP) {
+                    apply_sweep(kind, index);
+                }
             }
             storageBarrier();
         }
