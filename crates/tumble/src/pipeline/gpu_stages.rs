@@ -12,6 +12,7 @@ use crate::pipeline::config::Softness;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::aabb::gpu::GpuAabbs;
 use crate::stages::batching::gpu::GpuBatching;
+use crate::stages::batching::layout::{GpuBatchLayout, LAYOUT_BATCHES};
 use crate::stages::batching::{Batcher, Coloring, MAX_ROUNDS};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
@@ -25,7 +26,9 @@ use crate::stages::narrowphase::{
 };
 use crate::stages::pairs::gpu::GpuPairDiff;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
-use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver};
+use crate::stages::solver::gpu::{
+    BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH, SOLVER_WORKGROUP,
+};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
@@ -35,6 +38,17 @@ const FIRST_BATCHING_ROUNDS: usize = 32;
 /// Rounds encoded past those the last batching needed: a pile's contact graph changes a little
 /// from step to step, and the rounds past those encoded run in one workgroup.
 const BATCHING_ROUND_SLACK: usize = 4;
+/// The solver's plan for a world's first device layout, before any size is known: falling
+/// boxes use 11 to 15 colors, the first ones large.
+const FIRST_EXPECTED_BATCH_SIZES: [u32; LAYOUT_BATCHES] = {
+    let mut sizes = [0; LAYOUT_BATCHES];
+    let mut batch = 0;
+    while batch < 12 {
+        sizes[batch] = SMALL_BATCH;
+        batch += 1;
+    }
+    sizes
+};
 
 /// Profile lines of one GPU stage: uploads, recording the kernels (host), the kernels (GPU
 /// time), submitting and waiting on the host, downloads.
@@ -79,6 +93,8 @@ const BATCHING: StageSpans = StageSpans {
     wait: &["batching", "submit and wait"],
     download: &["batching", "copy to cpu"],
 };
+/// The batching's submission when its layout stays on the device: nothing to wait for.
+const BATCHING_SUBMIT: SpanPath = &["batching", "submit"];
 const SOLVER: StageSpans = StageSpans {
     upload: &["solver", "copy to gpu"],
     encode: &["solver", "encode"],
@@ -120,6 +136,24 @@ const NARROWPHASE: StageSpans = StageSpans {
     wait: &["narrowphase", "submit and wait"],
     download: &["narrowphase", "copy to cpu"],
 };
+
+/// Where [`GpuStages::solve_batched`] finds the batches.
+pub(crate) enum BatchLayout<'a> {
+    /// Laid out on the host: `order[i]` is the contact row at batched place i,
+    /// `joint_order[i]` the slot of the joint row there, `offsets` and `joint_offsets` the
+    /// batch offsets; the last batch is the overflow batch when `has_overflow`.
+    Host {
+        order: &'a [u32],
+        offsets: &'a [u32],
+        joint_order: &'a [u32],
+        joint_offsets: &'a [u32],
+        has_overflow: bool,
+    },
+    /// Laid out on the device by this step's
+    /// [`color_constraints_on_device`](GpuStages::color_constraints_on_device): the colors come
+    /// back into `coloring` with the solve's results.
+    Device { coloring: &'a mut Coloring },
+}
 
 /// The manifold slots the GPU rows read: pairs, then children.
 pub(crate) enum RowSlots<'a> {
@@ -234,8 +268,19 @@ pub(crate) struct GpuStages {
     row_keys: GpuVec<u64>,
     row_contacts: GpuVec<PairContact>,
     batching: GpuBatching,
-    /// Batching rounds encoded before the colors are first read back (grows when too few).
+    /// Batching rounds encoded as dispatches of their own (the rest run in one workgroup).
     batching_rounds: usize,
+    /// The batch layout on the device ([`Self::color_constraints_on_device`]), and each of its
+    /// batches' size at the last step that used it: the solver's plan for the next one.
+    layout: GpuBatchLayout,
+    expected_batch_sizes: Vec<u32>,
+    /// This step's batching left its layout on the device for [`Self::solve_batched`].
+    laid_out_on_device: bool,
+    /// Lay the batches out on the host even where the device could (for the tests that
+    /// compare both), and how many steps laid them out on the device.
+    host_layout: bool,
+    device_layouts: usize,
+    host_layout_offsets: Vec<u32>,
     solver: GpuSolver,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
@@ -321,6 +366,12 @@ impl GpuStages {
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
             batching: GpuBatching::new(&context)?,
             batching_rounds: FIRST_BATCHING_ROUNDS,
+            layout: GpuBatchLayout::new(&context, SOLVER_WORKGROUP)?,
+            expected_batch_sizes: FIRST_EXPECTED_BATCH_SIZES.to_vec(),
+            laid_out_on_device: false,
+            host_layout: false,
+            device_layouts: 0,
+            host_layout_offsets: Vec::new(),
             solver: GpuSolver::new(&context)?,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
@@ -965,6 +1016,50 @@ impl GpuStages {
         Ok(())
     }
 
+    /// Whether the batches may be laid out on the device
+    /// ([`Self::color_constraints_on_device`]) where the step needs no host layout.
+    pub fn lays_out_batches(&self) -> bool {
+        !self.host_layout
+    }
+
+    /// Stage 6 on the GPU with the batch layout on the device too
+    /// ([`GpuBatchLayout`]): the colors of `bodies` (contacts only: no joint rows), their
+    /// order and offsets stay there for [`Self::solve_batched`] with [`BatchLayout::Device`],
+    /// which brings the colors back after the solve. Submitted, not waited for.
+    pub fn color_constraints_on_device(
+        &mut self,
+        profiler: &mut Profiler,
+        bodies: impl Iterator<Item = (u32, u32)>,
+        body_count: usize,
+        batcher: Batcher,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let start = Instant::now();
+        self.batching.upload(context, bodies)?;
+        let count = self.batching.bodies.len();
+        self.batched.size_for(context, count, 0)?;
+        record_copy(profiler, BATCHING.upload, elapsed_ms(start));
+        let rounds = self.batching_rounds;
+        let (batching, layout, order) =
+            (&mut self.batching, &mut self.layout, self.batched.order());
+        let spans = (&BATCHING, BATCHING_SUBMIT);
+        submit_passes(
+            context,
+            &mut self.profiler,
+            profiler,
+            spans,
+            |encoder, timer| {
+                encode_pass(encoder, timer, BATCHING.kernel, |pass| {
+                    batching.encode(context, pass, body_count, 0, batcher, rounds)?;
+                    layout.encode(context, pass, batching.tally(), &batching.colors, order)
+                })
+            },
+        )?;
+        self.laid_out_on_device = true;
+        self.device_layouts += 1;
+        Ok(())
+    }
+
     /// Stage 7 on the GPU: [`solve`](crate::stages::solver::solve)'s contract, contacts and
     /// joints (the drag included) in the same batches; or, for [`SolverKind::Jacobi`],
     /// [`jacobi::solve`](crate::stages::solver::jacobi::solve)'s. With `integrate`, stage 8
@@ -1166,13 +1261,12 @@ impl GpuStages {
 
 impl GpuStages {
     /// Stage 7 on the GPU after stages 5 and 6 ran there too: the contacts and joints that
-    /// [`Self::build_constraints`] left on the device are gathered in batch order (`order[i]`
-    /// is the contact constraint at batched place i, `joint_order[i]` the slot of the joint
-    /// row there; `offsets` and `joint_offsets` the batch offsets), solved as [`Self::solve`]
-    /// does, and only impulses come back, in batch order: the contacts' into `impulses` (when
-    /// given: with the contacts on the device nobody on the host reads them), the joints' into
-    /// `joint_impulses`. `contact_bodies` and `joint_bodies` are the bodies (A, B)
-    /// of the gathered rows, in batch order: the Jacobi solver's adjacency.
+    /// [`Self::build_constraints`] left on the device are gathered in batch order (`layout`),
+    /// solved as [`Self::solve`] does, and only impulses come back, in batch order: the
+    /// contacts' into `impulses` (when given: with the contacts on the device nobody on the
+    /// host reads them), the joints' into `joint_impulses`. `contact_bodies` and
+    /// `joint_bodies` are the bodies (A, B) of the gathered rows, in batch order: the Jacobi
+    /// solver's adjacency (which needs a host layout).
     #[allow(clippy::too_many_arguments)]
     pub fn solve_batched(
         &mut self,
@@ -1180,27 +1274,28 @@ impl GpuStages {
         kind: SolverKind,
         bodies: &mut [SolverBody],
         contact_bodies: impl Iterator<Item = (u32, u32)> + Clone,
-        order: &[u32],
-        offsets: &[u32],
         joint_bodies: impl Iterator<Item = (u32, u32)> + Clone,
-        joint_order: &[u32],
-        joint_offsets: &[u32],
-        has_overflow: bool,
+        layout: BatchLayout,
         settings: SolverSettings,
         restitution: bool,
         impulses: Option<&mut Vec<BatchedImpulses>>,
         joint_impulses: &mut Vec<BatchedJointImpulses>,
         integrate: Option<BodyState>,
     ) -> Result<(), GpuError> {
+        let on_device = self.laid_out_on_device;
+        self.laid_out_on_device = false;
+        debug_assert_eq!(
+            on_device,
+            matches!(layout, BatchLayout::Device { .. }),
+            "a device layout exactly when the batching left one"
+        );
         let solved = self.solve_batched_rows(
             profiler,
             kind,
             bodies,
             contact_bodies,
-            (order, offsets),
             joint_bodies,
-            (joint_order, joint_offsets),
-            has_overflow,
+            layout,
             settings,
             restitution,
             impulses,
@@ -1223,10 +1318,8 @@ impl GpuStages {
         kind: SolverKind,
         bodies: &mut [SolverBody],
         contact_bodies: impl Iterator<Item = (u32, u32)> + Clone,
-        (order, offsets): (&[u32], &[u32]),
         joint_bodies: impl Iterator<Item = (u32, u32)> + Clone,
-        (joint_order, joint_offsets): (&[u32], &[u32]),
-        has_overflow: bool,
+        mut layout: BatchLayout,
         settings: SolverSettings,
         restitution: bool,
         impulses: Option<&mut Vec<BatchedImpulses>>,
@@ -1250,9 +1343,26 @@ impl GpuStages {
             )?;
         }
         self.solver_bodies.resize(context, bodies.len())?;
-        self.batch_offsets.upload(context, offsets)?;
-        self.joint_batch_offsets.upload(context, joint_offsets)?;
-        self.batched.upload(context, order, joint_order.len())?;
+        let joint_order = match &layout {
+            BatchLayout::Host {
+                order,
+                offsets,
+                joint_order,
+                joint_offsets,
+                ..
+            } => {
+                self.batch_offsets.upload(context, offsets)?;
+                self.joint_batch_offsets.upload(context, joint_offsets)?;
+                self.batched.upload(context, order, joint_order.len())?;
+                *joint_order
+            }
+            BatchLayout::Device { .. } => {
+                // Contacts only: every batch's joints are none.
+                let zeros = [0; LAYOUT_BATCHES + 1];
+                self.joint_batch_offsets.upload(context, &zeros)?;
+                &[]
+            }
+        };
         self.joint_rows.upload_order(context, joint_order)?;
         let jacobi = match kind {
             SolverKind::Pgs => None,
@@ -1266,8 +1376,33 @@ impl GpuStages {
         let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
         let joint_rows = &mut self.joint_rows;
-        let (device_offsets, device_joint_offsets) =
-            (&self.batch_offsets, &self.joint_batch_offsets);
+        // A device layout's offsets are read back after the solve that binds them.
+        let arguments = self.layout.arguments().clone();
+        let (sizes, host_offsets) = match &layout {
+            BatchLayout::Host {
+                offsets,
+                joint_offsets,
+                has_overflow,
+                ..
+            } => (
+                BatchSizes::Host {
+                    contact_offsets: offsets,
+                    joint_offsets,
+                    has_overflow: *has_overflow,
+                },
+                Some(&self.batch_offsets),
+            ),
+            BatchLayout::Device { .. } => (
+                BatchSizes::Device {
+                    arguments: &arguments,
+                    expected: &self.expected_batch_sizes,
+                },
+                None,
+            ),
+        };
+        let device_joint_offsets = &self.joint_batch_offsets;
+        let (batching, layout_offsets) = (&mut self.batching, &mut self.layout.offsets);
+        let device_layout = host_offsets.is_none();
         let spans = if jacobi.is_some() {
             &JACOBI_SOLVER
         } else {
@@ -1312,14 +1447,10 @@ impl GpuStages {
                     );
                     let device_batched = DeviceBatched {
                         contacts: &batched.constraints,
-                        contact_offsets: device_offsets,
+                        contact_offsets: host_offsets.unwrap_or(layout_offsets),
                         joints: &joint_rows.batched,
                         joint_offsets: device_joint_offsets,
-                        sizes: BatchSizes::Host {
-                            contact_offsets: offsets,
-                            joint_offsets,
-                            has_overflow,
-                        },
+                        sizes,
                     };
                     match jacobi {
                         Some(jacobi) => jacobi.encode(
@@ -1360,6 +1491,12 @@ impl GpuStages {
                     batched.impulses.encode_download(context, encoder);
                 }
                 batched.joint_impulses.encode_download(context, encoder);
+                if device_layout {
+                    // The colors for the host's statistics and the viewer, the offsets for
+                    // the next step's plan.
+                    batching.encode_read_back(context, encoder);
+                    layout_offsets.encode_download(context, encoder);
+                }
                 Ok(())
             },
         )?;
@@ -1384,6 +1521,15 @@ impl GpuStages {
         self.batched
             .joint_impulses
             .read_download(context, joint_impulses)?;
+        if let BatchLayout::Device { coloring } = &mut layout {
+            self.batching.finish_read_back(context, coloring)?;
+            self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
+            let offsets = &mut self.host_layout_offsets;
+            self.layout.offsets.read_download(context, offsets)?;
+            for (batch, expected) in self.expected_batch_sizes.iter_mut().enumerate() {
+                *expected = offsets[batch + 1] - offsets[batch];
+            }
+        }
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.impulses_scattered = scatter;
         Ok(())
@@ -1985,6 +2131,71 @@ mod tests {
             left_on_device,
             world.stats().sleeping,
         )
+    }
+
+    /// A pile of boxes and balls (no joints) with every stage on the GPU, sleeping, `steps`
+    /// steps, the batches laid out on the host or (where it can) on the device: (poses, the
+    /// contact batches, the batch histogram, bodies asleep, steps laid out on the device).
+    fn pile_on_the_gpu(
+        host_layout: bool,
+        steps: usize,
+    ) -> (Vec<u8>, Vec<u32>, Vec<u32>, usize, usize) {
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world.set_gpu_context(context).unwrap();
+        world
+            .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+            .unwrap();
+        world.gpu.as_mut().unwrap().host_layout = host_layout;
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        for index in 0..48 {
+            let shape = if index % 4 == 0 {
+                Shape::sphere(0.5)
+            } else {
+                Shape::cuboid(Vec3::splat(0.5))
+            };
+            world.add_body(block_member(index, shape)).unwrap();
+        }
+        let mut histograms = Vec::new();
+        for _ in 0..steps {
+            world.step();
+            histograms.extend_from_slice(&world.stats().batch_histogram);
+            histograms.push(u32::MAX);
+        }
+        let batches = world.contact_batches().map(|(_, _, batch)| batch).collect();
+        let gpu = world.gpu.as_ref().unwrap();
+        (
+            bytemuck::cast_slice::<_, u8>(&world.poses).to_vec(),
+            batches,
+            histograms,
+            world.stats().sleeping,
+            gpu.device_layouts,
+        )
+    }
+
+    /// Where the step needs no host layout of the batches, the device lays them out and the
+    /// solver reads its sizes there: bitwise the run laid out on the host, poses, each
+    /// step's batch histogram, the contacts' batches, sleep.
+    #[test]
+    fn batches_laid_out_on_the_device_step_as_on_the_host() {
+        let device = pile_on_the_gpu(false, 120);
+        let host = pile_on_the_gpu(true, 120);
+        assert_eq!(host.4, 0);
+        // The first step brings the contacts to the device; every later one lays out there
+        // until the pile sleeps.
+        assert!(device.4 > 60, "{} steps laid out on the device", device.4);
+        assert!(
+            device.3 > 0 && device.3 == host.3,
+            "asleep: {} {}",
+            device.3,
+            host.3
+        );
+        assert_eq!(device.2, host.2, "the batch histograms");
+        assert_eq!(device.1, host.1, "the contacts' batches");
+        assert!(device.0 == host.0, "the poses differ");
     }
 
     /// With every stage on the GPU and only pairs it computes, the contacts stay on the device

@@ -7,7 +7,9 @@ use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
-use crate::pipeline::gpu_stages::{BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots};
+use crate::pipeline::gpu_stages::{
+    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots,
+};
 use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
@@ -266,6 +268,14 @@ impl World {
             (scratch.joints.len(), &mut joint_bodies)
         };
         let bodies = joint_bodies.chain(contact_bodies);
+        // The batch layout stays on the device too when nothing on the host needs it: no joint
+        // rows (their layout is the host's), the contacts' impulses going to the pairs on the
+        // device, and the PGS solver (the Jacobi solver's adjacency is built on the host).
+        let device_layout = chained
+            && joint_count == 0
+            && self.contacts_on_device
+            && config.solver == SolverKind::Pgs
+            && self.gpu.as_ref().is_some_and(|gpu| gpu.lays_out_batches());
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
             // The Jacobi solver sweeps every constraint at once: no coloring, one batch in
             // row order (the layout below then copies the rows as they are).
@@ -275,6 +285,9 @@ impl World {
                 coloring.colors.resize(bodies.count(), 0);
                 coloring.count_batches();
                 Ok(())
+            }
+            (Executor::Gpu, Some(gpu)) if device_layout => {
+                gpu.color_constraints_on_device(profiler, bodies, self.poses.len(), config.batcher)
             }
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
                 profiler,
@@ -299,6 +312,11 @@ impl World {
             profiler.end();
         }
         colored?;
+        // Which batch each pair's manifold went to, for the viewer's colored batches (after
+        // the solve, which brings the colors back, when the layout stays on the device).
+        self.pair_batches.clear();
+        self.pair_batches
+            .resize(self.pairs.len() + self.children.len(), NO_BATCH);
         let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(joint_count);
         let coloring = &scratch.coloring;
         if chained {
@@ -327,11 +345,9 @@ impl World {
                 &mut scratch.joint_offsets,
             );
         }
-        // Which batch each pair's manifold went to, for the viewer's colored batches.
-        self.pair_batches.clear();
-        self.pair_batches
-            .resize(self.pairs.len() + self.children.len(), NO_BATCH);
-        if chained {
+        if device_layout {
+            // On the device: the batches of the colors it brings back after the solve.
+        } else if chained {
             // The device gathers the rows into this order.
             batch_order(
                 contact_colors,
@@ -407,17 +423,26 @@ impl World {
                     .batch_order
                     .iter()
                     .map(|&row| rows[row as usize].bodies);
+                let layout = if device_layout {
+                    BatchLayout::Device {
+                        coloring: &mut scratch.coloring,
+                    }
+                } else {
+                    BatchLayout::Host {
+                        order: &scratch.batch_order,
+                        offsets: &scratch.contact_offsets,
+                        joint_order: &scratch.batched_joint_slots,
+                        joint_offsets: batched.joint_offsets,
+                        has_overflow: scratch.coloring.has_overflow,
+                    }
+                };
                 gpu.solve_batched(
                     profiler,
                     config.solver,
                     &mut scratch.solver_bodies,
                     contact_bodies,
-                    &scratch.batch_order,
-                    &scratch.contact_offsets,
                     scratch.batched_joint_bodies.iter().copied(),
-                    &scratch.batched_joint_slots,
-                    batched.joint_offsets,
-                    scratch.coloring.has_overflow,
+                    layout,
                     settings,
                     restitution,
                     // With the contacts on the device the solver writes their impulses there.
@@ -456,6 +481,12 @@ impl World {
             profiler.end();
         }
         solved?;
+        if device_layout {
+            let coloring = &scratch.coloring;
+            for (row, &color) in scratch.row_summaries.iter().zip(&coloring.colors) {
+                self.pair_batches[row.slot as usize] = coloring.batch_of(color) as u32;
+            }
+        }
         profiler.end();
 
         // 8. Integrate: the step's motion into the poses. Before the impulses are stored, so

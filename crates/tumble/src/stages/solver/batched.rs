@@ -143,14 +143,31 @@ impl GpuBatched {
         order: &[u32],
         joint_count: usize,
     ) -> Result<(), GpuError> {
-        let count = u32::try_from(order.len()).expect("constraint count fits in u32");
+        self.size_for(context, order.len(), joint_count)?;
+        self.order.upload(context, order)
+    }
+
+    /// Sizes the order and the outputs for `count` constraints and `joint_count` joints, the
+    /// order to be written on the device ([`Self::order`]).
+    pub fn size_for(
+        &mut self,
+        context: &GpuContext,
+        count: usize,
+        joint_count: usize,
+    ) -> Result<(), GpuError> {
+        let constraints = u32::try_from(count).expect("constraint count fits in u32");
         let joints = u32::try_from(joint_count).expect("joint count fits in u32");
-        self.count.upload(context, &[count, joints])?;
-        self.order.upload(context, order)?;
-        self.constraints.resize(context, order.len())?;
-        self.impulses.resize(context, order.len())?;
+        self.count.upload(context, &[constraints, joints])?;
+        self.order.resize(context, count)?;
+        self.constraints.resize(context, count)?;
+        self.impulses.resize(context, count)?;
         self.joint_impulses.resize(context, joint_count)?;
         Ok(())
+    }
+
+    /// The batch order the gather reads: `order[i]` = the constraint at batched place i.
+    pub fn order(&self) -> &GpuVec<u32> {
+        &self.order
     }
 
     /// Encodes the gather of `rows` (the rows' constraints) into [`Self::constraints`].
