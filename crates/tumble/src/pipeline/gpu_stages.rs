@@ -1023,25 +1023,22 @@ impl GpuStages {
     }
 
     /// Stage 6 on the GPU with the batch layout on the device too
-    /// ([`GpuBatchLayout`]): the colors of `bodies` (contacts only: no joint rows), their
-    /// order and offsets stay there for [`Self::solve_batched`] with [`BatchLayout::Device`],
+    /// ([`GpuBatchLayout`]): the colors of the `count` contact rows that
+    /// [`Self::build_constraints`] left on the device this step (no joint rows), with their
+    /// order and offsets, stay there for [`Self::solve_batched`] with [`BatchLayout::Device`],
     /// which brings the colors back after the solve. Submitted, not waited for.
     pub fn color_constraints_on_device(
         &mut self,
         profiler: &mut Profiler,
-        bodies: impl Iterator<Item = (u32, u32)>,
+        count: usize,
         body_count: usize,
         batcher: Batcher,
     ) -> Result<(), GpuError> {
         let context = &self.context;
-        let start = Instant::now();
-        self.batching.upload(context, bodies)?;
-        let count = self.batching.bodies.len();
         self.batched.size_for(context, count, 0)?;
-        record_copy(profiler, BATCHING.upload, elapsed_ms(start));
         let rounds = self.batching_rounds;
-        let (batching, layout, order) =
-            (&mut self.batching, &mut self.layout, self.batched.order());
+        let (batching, layout) = (&mut self.batching, &mut self.layout);
+        let (order, bodies) = (self.batched.order(), (&self.rows.bodies, count));
         let spans = (&BATCHING, BATCHING_SUBMIT);
         submit_passes(
             context,
@@ -1050,7 +1047,8 @@ impl GpuStages {
             spans,
             |encoder, timer| {
                 encode_pass(encoder, timer, BATCHING.kernel, |pass| {
-                    batching.encode(context, pass, body_count, 0, batcher, rounds)?;
+                    batching
+                        .encode_device_bodies(context, pass, bodies, body_count, batcher, rounds)?;
                     layout.encode(context, pass, batching.tally(), &batching.colors, order)
                 })
             },

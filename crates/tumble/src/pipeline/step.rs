@@ -287,7 +287,9 @@ impl World {
                 Ok(())
             }
             (Executor::Gpu, Some(gpu)) if device_layout => {
-                gpu.color_constraints_on_device(profiler, bodies, self.poses.len(), config.batcher)
+                // The rows' bodies are on the device: nothing to send.
+                let count = scratch.row_summaries.len();
+                gpu.color_constraints_on_device(profiler, count, self.poses.len(), config.batcher)
             }
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
                 profiler,

@@ -111,7 +111,40 @@ impl GpuBatching {
         batcher: Batcher,
         rounds: usize,
     ) -> Result<(), GpuError> {
-        let count = self.bodies.len();
+        let bodies = self.bodies.buffer().clone();
+        let (count, capacity) = (self.bodies.len(), self.bodies.capacity());
+        let input = (&bodies, count, capacity);
+        self.encode_over(context, pass, input, body_count, ordered, batcher, rounds)
+    }
+
+    /// [`Self::encode`] of the first `count` constraints of `bodies` (the rows' bodies left on
+    /// the device, [`GpuRows::bodies`](crate::stages::constraints::gpu::GpuRows::bodies))
+    /// rather than of those uploaded, no joint among them.
+    pub fn encode_device_bodies(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        (bodies, count): (&GpuVec<[u32; 2]>, usize),
+        body_count: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) -> Result<(), GpuError> {
+        let input = (bodies.buffer(), count, bodies.capacity());
+        self.encode_over(context, pass, input, body_count, 0, batcher, rounds)
+    }
+
+    /// [`Self::encode`] over `(buffer, count, capacity)` of constraint bodies.
+    #[allow(clippy::too_many_arguments)]
+    fn encode_over(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        (bodies, count, capacity): (&wgpu::Buffer, usize, usize),
+        body_count: usize,
+        ordered: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) -> Result<(), GpuError> {
         // Lands before this submission's commands run (the batch layout reads the count).
         self.tally.upload(context, &[[0, count as u32, 0]])?;
         if count == 0 {
@@ -121,9 +154,8 @@ impl GpuBatching {
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * body_count)?;
         self.masks.resize(context, body_count)?;
-        let capacity = self.bodies.capacity();
         let buffers = [
-            self.bodies.buffer().clone(),
+            bodies.clone(),
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
@@ -135,7 +167,8 @@ impl GpuBatching {
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let dispatches = self.dispatches(context, capacity, body_count, ordered, batcher);
+            let dispatches =
+                self.dispatches(context, bodies, capacity, body_count, ordered, batcher);
             self.cached = Some((key, dispatches));
         }
         if let Some((_, dispatches)) = &self.cached {
@@ -154,6 +187,7 @@ impl GpuBatching {
     fn dispatches(
         &self,
         context: &GpuContext,
+        bodies: &wgpu::Buffer,
         capacity: usize,
         body_count: usize,
         ordered: usize,
@@ -190,7 +224,7 @@ impl GpuBatching {
                 context,
                 &[
                     slots.binding(round),
-                    self.bodies.whole(),
+                    bodies.as_entire_buffer_binding(),
                     self.colors.whole(),
                     self.locks.whole(),
                     self.masks.whole(),

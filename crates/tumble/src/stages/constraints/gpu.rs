@@ -18,7 +18,7 @@ use crate::pipeline::config::Softness;
 use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
 
 const WGSL: &str = include_str!("rows.wgsl");
-const BINDINGS: [Binding; 9] = [
+const BINDINGS: [Binding; 10] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -27,6 +27,7 @@ const BINDINGS: [Binding; 9] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
+    Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
 
@@ -74,7 +75,7 @@ pub struct GpuRowInputs<'a> {
 }
 
 /// What the cached dispatches were built for: the buffers bound and the parameters.
-type RowKey = ([wgpu::Buffer; 9], usize, [u32; 12]);
+type RowKey = ([wgpu::Buffer; 10], usize, [u32; 12]);
 
 #[derive(Debug)]
 pub struct GpuRows {
@@ -83,6 +84,9 @@ pub struct GpuRows {
     places: GpuVec<u32>,
     /// One per slot at most; the first `count` are the constraints.
     pub constraints: GpuVec<ContactConstraint>,
+    /// Each constraint's bodies (A, B; [`STATIC_BODY`](super::STATIC_BODY) for a side with no
+    /// mass), at the constraint's place: what a batching on the device colors.
+    pub bodies: GpuVec<[u32; 2]>,
     scan: Scan,
     cached: Option<(RowKey, [Dispatch; 2])>,
     host_places: Vec<u32>,
@@ -94,6 +98,7 @@ impl GpuRows {
             flags: GpuVec::with_capacity(context, "row flags", 0)?,
             places: GpuVec::with_capacity(context, "row places", 0)?,
             constraints: GpuVec::with_capacity(context, "contact constraints", 0)?,
+            bodies: GpuVec::with_capacity(context, "row bodies", 0)?,
             scan: Scan::new(),
             cached: None,
             host_places: Vec::new(),
@@ -112,6 +117,7 @@ impl GpuRows {
         self.flags.resize(context, slots + 1)?;
         self.places.resize(context, slots + 1)?;
         self.constraints.resize(context, slots)?;
+        self.bodies.resize(context, slots)?;
         let buffers = [
             inputs.keys.buffer().clone(),
             inputs.contacts.buffer().clone(),
@@ -122,6 +128,7 @@ impl GpuRows {
             self.flags.buffer().clone(),
             self.places.buffer().clone(),
             self.constraints.buffer().clone(),
+            self.bodies.buffer().clone(),
         ];
         let params = RowParams {
             softness: softness_vec(inputs.softness),
@@ -178,6 +185,7 @@ impl GpuRows {
                     inputs.velocities.whole(),
                     inputs.colliders.whole(),
                     self.constraints.whole(),
+                    self.bodies.whole(),
                 ],
             );
             // `flag` also writes the closing 0 past the last slot.

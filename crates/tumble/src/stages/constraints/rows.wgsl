@@ -26,6 +26,8 @@ struct RowParams {
 @group(0) @binding(6) var<storage, read> velocities: array<BodyVelocity>;
 @group(0) @binding(7) var<storage, read> colliders: array<ColliderData>;
 @group(0) @binding(8) var<storage, read_write> constraints: array<ContactConstraint>;
+// Per constraint: its bodies as the constraint has them, for a batching on the device.
+@group(0) @binding(9) var<storage, read_write> row_bodies: array<vec2<u32>>;
 
 fn slot_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
     return flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + id.x;
@@ -132,6 +134,7 @@ fn build(
     // The header with zeroed points, then the points in place.
     let out = &constraints[places[slot]];
     *out = c;
+    row_bodies[places[slot]] = vec2<u32>(c.body_a, c.body_b);
     for (var i = 0u; i < c.point_count; i++) {
         let point = (*contact).manifold.points[i];
         let warm = (*contact).impulses[i];
