@@ -199,7 +199,8 @@ impl World {
                     // The contacts are on the device: their point counts came back. A pass
                     // over every pair, on every core.
                     let (keys, summaries) = (self.pairs.keys(), &self.pair_summaries);
-                    let (masses, colliders) = (&self.masses, &self.colliders);
+                    let masses = &self.masses;
+                    let colliders = self.may_bounce.then_some(&self.colliders[..]);
                     let row = |slot: usize| {
                         let (key, count) = (keys[slot], summaries[slot].point_count);
                         has_constraint(key, count, masses)
@@ -218,7 +219,7 @@ impl World {
                         &self.children,
                         &self.masses,
                     );
-                    let colliders = &self.colliders;
+                    let colliders = self.may_bounce.then_some(&self.colliders[..]);
                     scratch
                         .row_summaries
                         .extend(slots.map(|(slot, key, contact)| {
@@ -1013,18 +1014,21 @@ impl RowSummary {
         key: u64,
         point_count: u32,
         masses: &[crate::dynamics::body::BodyMass],
-        colliders: &[crate::dynamics::body::Collider],
+        colliders: Option<&[crate::dynamics::body::Collider]>,
     ) -> Self {
         let (a, b) = crate::stages::pairs::pair_bodies(key);
         Self {
             slot,
             bodies: constraint_bodies(key, masses),
             point_count,
-            // As the rows compute it: the larger of the two restitutions.
-            restitution: colliders[a as usize]
-                .restitution
-                .max(colliders[b as usize].restitution)
-                > 0.0,
+            // As the rows compute it: the larger of the two restitutions. No colliders: none
+            // in the world bounces.
+            restitution: colliders.is_some_and(|colliders| {
+                colliders[a as usize]
+                    .restitution
+                    .max(colliders[b as usize].restitution)
+                    > 0.0
+            }),
         }
     }
 }

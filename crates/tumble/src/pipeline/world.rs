@@ -166,6 +166,9 @@ pub struct World {
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
     pub(crate) host_shapes: usize,
+    /// Some body added so far bounces (restitution above 0): until one does, no contact row
+    /// can, and the step looks no collider up to know it.
+    pub(crate) may_bounce: bool,
     /// Bumped by every change of `poses`, `velocities` or `masses` ([`Self::bodies_changed`]):
     /// the GPU stages keep their copies of the bodies while it holds, so a step that
     /// integrated on the device uploads no body at the next.
@@ -211,6 +214,7 @@ impl World {
             pair_summaries: Vec::new(),
             device_contacts: OnceLock::new(),
             host_shapes: 0,
+            may_bounce: false,
             bodies_version: 0,
         })
     }
@@ -306,6 +310,7 @@ impl World {
             friction: desc.friction,
             restitution: desc.restitution,
         };
+        self.may_bounce |= desc.restitution > 0.0;
         let state = if dynamic {
             SlotState::Dynamic
         } else {
