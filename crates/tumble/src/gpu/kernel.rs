@@ -201,24 +201,6 @@ impl Kernel {
             pipeline: self.pipeline.clone(),
             bind_group,
             groups: [x, y, 1],
-            indirect: None,
-        }
-    }
-
-    /// A dispatch whose workgroup counts the device reads at `offset` of `arguments` (three
-    /// u32: x, y, z, written by an earlier kernel), so a count computed on the device needs
-    /// no read-back. The buffer needs `INDIRECT` usage.
-    pub fn dispatch_indirect(
-        &self,
-        bind_group: wgpu::BindGroup,
-        arguments: &wgpu::Buffer,
-        offset: u64,
-    ) -> Dispatch {
-        Dispatch {
-            pipeline: self.pipeline.clone(),
-            bind_group,
-            groups: [1, 1, 1],
-            indirect: Some((arguments.clone(), offset)),
         }
     }
 }
@@ -229,8 +211,6 @@ pub struct Dispatch {
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
     groups: [u32; 3],
-    /// The arguments' buffer and offset of an indirect dispatch.
-    indirect: Option<(wgpu::Buffer, u64)>,
 }
 
 impl Dispatch {
@@ -240,10 +220,7 @@ impl Dispatch {
         }
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        match &self.indirect {
-            Some((arguments, offset)) => pass.dispatch_workgroups_indirect(arguments, *offset),
-            None => pass.dispatch_workgroups(self.groups[0], self.groups[1], self.groups[2]),
-        }
+        pass.dispatch_workgroups(self.groups[0], self.groups[1], self.groups[2]);
     }
 }
 

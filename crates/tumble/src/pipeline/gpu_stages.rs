@@ -26,9 +26,7 @@ use crate::stages::narrowphase::{
 };
 use crate::stages::pairs::gpu::GpuPairDiff;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
-use crate::stages::solver::gpu::{
-    BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH, SOLVER_WORKGROUP,
-};
+use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
@@ -366,7 +364,7 @@ impl GpuStages {
             row_contacts: GpuVec::with_capacity(&context, "row contacts", 0)?,
             batching: GpuBatching::new(&context)?,
             batching_rounds: FIRST_BATCHING_ROUNDS,
-            layout: GpuBatchLayout::new(&context, SOLVER_WORKGROUP)?,
+            layout: GpuBatchLayout::new(&context)?,
             expected_batch_sizes: FIRST_EXPECTED_BATCH_SIZES.to_vec(),
             laid_out_on_device: false,
             host_layout: false,
@@ -1374,8 +1372,6 @@ impl GpuStages {
         let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
         let joint_rows = &mut self.joint_rows;
-        // A device layout's offsets are read back after the solve that binds them.
-        let arguments = self.layout.arguments().clone();
         let (sizes, host_offsets) = match &layout {
             BatchLayout::Host {
                 offsets,
@@ -1392,7 +1388,6 @@ impl GpuStages {
             ),
             BatchLayout::Device { .. } => (
                 BatchSizes::Device {
-                    arguments: &arguments,
                     expected: &self.expected_batch_sizes,
                 },
                 None,

@@ -813,7 +813,7 @@ fn row_and_batching_parameters_match_rust() {
     // The layout reads the same tally.
     use tumble::stages::batching::layout::{self, LayoutParams};
     check_with_gpu_only(
-        layout::wgsl(64),
+        layout::wgsl(),
         vec![rust_layout!(LayoutParams {
             blocks,
             _pad0,

@@ -770,22 +770,20 @@ fn jacobi_on_the_gpu_is_deterministic() {
     assert_eq!(first, run(&mut GpuJacobi::new(&context).expect("solver")));
 }
 
-/// A device layout's batch sizes (every color a batch, the overflow batch last, workgroups
-/// read from indirect arguments) solve as the host's offsets do, bit for bit, whichever plan
-/// the expected sizes choose: every batch walked by one workgroup, every batch a dispatch, or
-/// the plan of the actual sizes.
+/// A device layout's batch sizes (every color a batch, the overflow batch last, the end of the
+/// used batches after them) solve as the host's offsets do, bit for bit, whichever plan the
+/// expected sizes choose: every batch walked by one workgroup, every batch a dispatch too
+/// small for it (threads taking several constraints), or the plan of the actual sizes.
 #[test]
 fn device_layout_sizes_solve_as_host_offsets() {
     use tumble::gpu::buffer::GpuVec;
-    use tumble::gpu::kernel::dispatch_grid;
     use tumble::stages::batching::MAX_COLORS;
-    use tumble::stages::batching::layout::LAYOUT_BATCHES;
-    use tumble::stages::solver::gpu::{BatchSizes, DeviceBatched, SOLVER_WORKGROUP};
-    use wgpu::util::DeviceExt;
+    use tumble::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
+    use tumble::stages::solver::gpu::{BatchSizes, DeviceBatched, SMALL_BATCH};
 
     let context = context();
     let settings = substeps();
-    for (seed, bodies, pairs, hub) in [(3, 10, 30, 0), (4, 300, 600, 0), (7, 200, 300, 150)] {
+    for (seed, bodies, pairs, hub) in [(3, 10, 30, 0), (4, 3000, 6000, 0), (7, 200, 300, 150)] {
         let problem = problem(seed, bodies, pairs, hub, Joints::default(), Batcher::Colors);
         assert_eq!(problem.has_overflow, hub > 0);
         let (mut host_bodies, mut host_contacts) =
@@ -820,33 +818,31 @@ fn device_layout_sizes_solve_as_host_offsets() {
         };
         let mut offsets: Vec<u32> = (0..LAYOUT_BATCHES).map(|b| batch_range(b).0).collect();
         offsets.push(*problem.offsets.last().unwrap());
+        offsets.push(if problem.has_overflow {
+            LAYOUT_BATCHES as u32
+        } else {
+            used as u32
+        });
+        assert_eq!(offsets.len(), USED_END + 1);
         let sizes: Vec<u32> = (0..LAYOUT_BATCHES)
             .map(|b| offsets[b + 1] - offsets[b])
             .collect();
-        let arguments: Vec<u32> = sizes
-            .iter()
-            .flat_map(|&size| {
-                let (x, y) = dispatch_grid(size.div_ceil(SOLVER_WORKGROUP));
-                [x, y, 1]
-            })
-            .collect();
-        let arguments = context
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("test arguments"),
-                contents: bytemuck::cast_slice(&arguments),
-                usage: wgpu::BufferUsages::INDIRECT,
-            });
+        // The 6000 pairs have batches larger than the dispatches of `all_small_dispatches`.
+        let largest = sizes.iter().copied().max().unwrap();
+        assert!(
+            pairs < 6000 || largest > 2 * SMALL_BATCH,
+            "{pairs} pairs: {largest}"
+        );
         let contact_offsets = GpuVec::from_slice(&context, "test offsets", &offsets).unwrap();
-        let zeros = vec![0u32; LAYOUT_BATCHES + 1];
+        let zeros = vec![0u32; USED_END + 1];
         let joint_offsets = GpuVec::from_slice(&context, "test joint offsets", &zeros).unwrap();
         let joints = GpuVec::<JointConstraint>::with_capacity(&context, "none", 0).unwrap();
         // As the host's run decides it.
         let restitution = problem.contacts.iter().any(|c| c.restitution > 0.0);
         let all_walked = vec![0; LAYOUT_BATCHES];
-        let all_parallel = vec![1 << 20; LAYOUT_BATCHES];
-        for expected in [&all_walked, &all_parallel, &sizes] {
-            let bodies_on_device =
+        let all_small_dispatches = vec![SMALL_BATCH; LAYOUT_BATCHES];
+        for expected in [&all_walked, &all_small_dispatches, &sizes] {
+            let mut bodies_on_device =
                 GpuVec::from_slice(&context, "test bodies", &problem.bodies).unwrap();
             let mut contacts =
                 GpuVec::from_slice(&context, "test contacts", &problem.contacts).unwrap();
@@ -855,18 +851,11 @@ fn device_layout_sizes_solve_as_host_offsets() {
                 contact_offsets: &contact_offsets,
                 joints: &joints,
                 joint_offsets: &joint_offsets,
-                sizes: BatchSizes::Device {
-                    arguments: &arguments,
-                    expected,
-                },
+                sizes: BatchSizes::Device { expected },
             };
-            context
-                .submit_pass("device sizes", |pass| {
-                    solver.encode(pass, &bodies_on_device, &device, settings, restitution);
-                    Ok::<_, tumble::gpu::context::GpuError>(())
-                })
-                .unwrap();
-            let mut bodies_on_device = bodies_on_device;
+            context.submit_pass("device sizes", |pass| {
+                solver.encode(pass, &bodies_on_device, &device, settings, restitution)
+            });
             let what = format!("{pairs} pairs, hub {hub}, expected {:?}", &expected[..12]);
             let device_bodies = bodies_on_device.download(&context).unwrap();
             assert!(device_bodies == host_bodies, "{what}: bodies");

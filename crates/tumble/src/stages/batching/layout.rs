@@ -1,8 +1,7 @@
 //! GPU executor of the batch layout ([`batch_order`](super::batch_order)'s contract, kernels
 //! in `layout.wgsl`): from the colors a [`GpuBatching`](super::gpu::GpuBatching) left on the
-//! device, the order that gathers the constraints batch after batch, each batch's offsets, and
-//! the solver's workgroup counts per batch as indirect dispatch arguments. Nothing comes back
-//! to the host, so the batching and the solve can share a submission.
+//! device, the order that gathers the constraints batch after batch and each batch's offsets.
+//! Nothing comes back to the host, so the batching and the solve can share a submission.
 //!
 //! The device's batches are the colors themselves: batch k is color k for k < [`MAX_COLORS`],
 //! and batch [`MAX_COLORS`] is the overflow batch, so there are always [`LAYOUT_BATCHES`],
@@ -17,8 +16,7 @@ use super::MAX_COLORS;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, MAX_GROUPS_PER_DIMENSION, Source, UniformSlots, WORKGROUP_SIZE,
-    workgroups_for,
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
 };
 use crate::gpu::prims::scan::{Scan, ScanKind};
 
@@ -27,8 +25,8 @@ const WGSL: &str = include_str!("layout.wgsl");
 /// Batches of the device layout: the colors, then the overflow batch.
 pub const LAYOUT_BATCHES: usize = MAX_COLORS + 1;
 
-/// Parameters, tally, colors, block counts, block starts, order, offsets, dispatch arguments.
-const BINDINGS: [Binding; 8] = [
+/// Parameters, tally, colors, block counts, block starts, order, offsets.
+const BINDINGS: [Binding; 7] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -36,8 +34,11 @@ const BINDINGS: [Binding; 8] = [
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
-    Binding::StorageReadWrite,
 ];
+
+/// Where [`GpuBatchLayout::offsets`] holds the end of the batches that hold a constraint (one
+/// past the last of them; 0 with no constraint).
+pub const USED_END: usize = LAYOUT_BATCHES + 1;
 
 /// Mirrors `LayoutParams` in `layout.wgsl`.
 #[repr(C)]
@@ -49,12 +50,9 @@ pub struct LayoutParams {
     pub _pad2: u32,
 }
 
-/// The layout's WGSL, for workgroups of `solver_workgroup` threads in the solver.
-pub fn wgsl(solver_workgroup: u32) -> Source {
+pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("LAYOUT_BATCHES", LAYOUT_BATCHES as u32)
-        .constant_u32("SOLVER_WORKGROUP", solver_workgroup)
-        .constant_u32("MAX_GROUPS_PER_DIMENSION", MAX_GROUPS_PER_DIMENSION)
         .snippet("layout.wgsl", WGSL)
 }
 
@@ -63,23 +61,20 @@ type LayoutKey = ([wgpu::Buffer; 3], usize);
 
 /// The device's batch layout, its buffers reused from step to step.
 pub struct GpuBatchLayout {
-    /// `LAYOUT_BATCHES + 1` words: batch k is `order[offsets[k]..offsets[k + 1]]`.
+    /// Batch k is `order[offsets[k]..offsets[k + 1]]`, then [`USED_END`].
     pub offsets: GpuVec<u32>,
-    /// Three words per batch: the solver's (x, y, 1) workgroups for it.
-    arguments: wgpu::Buffer,
     block_counts: GpuVec<u32>,
     starts: GpuVec<u32>,
     scan: Scan,
     count_blocks: Kernel,
     scatter: Kernel,
-    batch_args: Kernel,
+    batch_offsets: Kernel,
     cached: Option<(LayoutKey, [Dispatch; 3], UniformSlots)>,
 }
 
 impl GpuBatchLayout {
-    /// A layout whose dispatch arguments size dispatches of `solver_workgroup` threads.
-    pub fn new(context: &GpuContext, solver_workgroup: u32) -> Result<Self, GpuError> {
-        let source = wgsl(solver_workgroup);
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        let source = wgsl();
         let kernel = |entry: &str| {
             Kernel::new(
                 context,
@@ -89,37 +84,22 @@ impl GpuBatchLayout {
                 &BINDINGS,
             )
         };
-        let arguments = context.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("batch dispatch arguments"),
-            size: (3 * LAYOUT_BATCHES * size_of::<u32>()) as u64,
-            usage: wgpu::BufferUsages::STORAGE
-                | wgpu::BufferUsages::INDIRECT
-                | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let mut offsets = GpuVec::with_capacity(context, "layout offsets", LAYOUT_BATCHES + 1)?;
-        offsets.resize(context, LAYOUT_BATCHES + 1)?;
+        let mut offsets = GpuVec::with_capacity(context, "layout offsets", USED_END + 1)?;
+        offsets.resize(context, USED_END + 1)?;
         Ok(Self {
             offsets,
-            arguments,
             block_counts: GpuVec::with_capacity(context, "layout block counts", 0)?,
             starts: GpuVec::with_capacity(context, "layout block starts", 0)?,
             scan: Scan::new(),
             count_blocks: kernel("count_blocks"),
             scatter: kernel("scatter"),
-            batch_args: kernel("batch_args"),
+            batch_offsets: kernel("batch_offsets"),
             cached: None,
         })
     }
 
-    /// The solver's workgroup counts: batch k's at byte offset `12 k`.
-    pub fn arguments(&self) -> &wgpu::Buffer {
-        &self.arguments
-    }
-
     /// Encodes the layout of the `tally`'s count of `colors` (a batching's outputs) into
-    /// `order` (sized for that count by the caller), [`Self::offsets`] and
-    /// [`Self::arguments`].
+    /// `order` (sized for that count by the caller) and [`Self::offsets`].
     pub fn encode(
         &mut self,
         context: &GpuContext,
@@ -162,7 +142,6 @@ impl GpuBatchLayout {
                         self.starts.whole(),
                         order.whole(),
                         self.offsets.whole(),
-                        self.arguments.as_entire_buffer_binding(),
                     ],
                 )
             };
@@ -170,11 +149,11 @@ impl GpuBatchLayout {
                 self.count_blocks
                     .dispatch(group(&self.count_blocks), blocks),
                 self.scatter.dispatch(group(&self.scatter), blocks),
-                self.batch_args.dispatch(group(&self.batch_args), 1),
+                self.batch_offsets.dispatch(group(&self.batch_offsets), 1),
             ];
             self.cached = Some((key, dispatches, slots));
         }
-        let Some((_, [count, scatter, args], _)) = &self.cached else {
+        let Some((_, [count, scatter, offsets], _)) = &self.cached else {
             unreachable!("cached just above")
         };
         count.encode(pass);
@@ -186,7 +165,7 @@ impl GpuBatchLayout {
             ScanKind::Exclusive,
         )?;
         scatter.encode(pass);
-        args.encode(pass);
+        offsets.encode(pass);
         Ok(())
     }
 }

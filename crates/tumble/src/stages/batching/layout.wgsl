@@ -6,11 +6,10 @@
 // constraints) into `block_counts`, batch-major, so that its exclusive scan (`starts`, scanned
 // by the scan primitive) is, for batch k and block b, where block b's constraints of batch k
 // start. `scatter` puts each constraint at its start plus its rank among the earlier ones of
-// its block and batch, which keeps the input order within a batch. `batch_args` writes each
-// batch's offset and the solver's workgroup counts for it (indirect dispatch arguments).
+// its block and batch, which keeps the input order within a batch. `batch_offsets` writes
+// each batch's offset.
 //
-// Constants from Rust: LAYOUT_BATCHES (MAX_COLORS + 1), SOLVER_WORKGROUP,
-// MAX_GROUPS_PER_DIMENSION.
+// Constants from Rust: LAYOUT_BATCHES (MAX_COLORS + 1).
 
 // The batching's tally (batching.wgsl): `count` is the constraint count.
 struct Tally {
@@ -35,17 +34,13 @@ struct LayoutParams {
 @group(0) @binding(3) var<storage, read_write> block_counts: array<u32>;
 @group(0) @binding(4) var<storage, read> starts: array<u32>;
 @group(0) @binding(5) var<storage, read_write> order: array<u32>;
-// LAYOUT_BATCHES + 1 words: batch k is order[offsets[k]..offsets[k + 1]].
+// LAYOUT_BATCHES + 2 words: batch k is order[offsets[k]..offsets[k + 1]], then the end of the
+// batches that hold a constraint.
 @group(0) @binding(6) var<storage, read_write> offsets: array<u32>;
-// Three words a batch: the solver's (x, y, 1) workgroups for it.
-@group(0) @binding(7) var<storage, read_write> args: array<u32>;
 
 var<workgroup> tile_counts: array<atomic<u32>, LAYOUT_BATCHES>;
 var<workgroup> tile_colors: array<u32, WORKGROUP_SIZE>;
 
-fn block_count() -> u32 {
-    return params.blocks;
-}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn count_blocks(
@@ -63,7 +58,7 @@ fn count_blocks(
         atomicAdd(&tile_counts[colors[i]], 1u);
     }
     workgroupBarrier();
-    let blocks = block_count();
+    let blocks = params.blocks;
     if block >= blocks {
         return;
     }
@@ -93,39 +88,26 @@ fn scatter(
     for (var j = 0u; j < local; j++) {
         rank += u32(tile_colors[j] == color);
     }
-    order[starts[color * block_count() + block] + rank] = i;
+    order[starts[color * params.blocks + block] + rank] = i;
 }
 
-// One workgroup: thread k writes batch k's offset and workgroup counts.
+// One workgroup: thread k writes batch k's offset; entry LAYOUT_BATCHES + 1 is the end of the
+// batches that hold a constraint (one past the last), where a walk over them may stop.
 @compute @workgroup_size(WORKGROUP_SIZE)
-fn batch_args(@builtin(local_invocation_index) local: u32) {
+fn batch_offsets(@builtin(local_invocation_index) local: u32) {
     let count = tally.count;
     for (var k = local; k <= LAYOUT_BATCHES; k += WORKGROUP_SIZE) {
         var start = count;
         if k < LAYOUT_BATCHES && count > 0u {
-            start = starts[k * block_count()];
+            start = starts[k * params.blocks];
         }
         offsets[k] = start;
     }
-    for (var k = local; k < LAYOUT_BATCHES; k += WORKGROUP_SIZE) {
-        var end = count;
-        if k + 1u < LAYOUT_BATCHES && count > 0u {
-            end = starts[(k + 1u) * block_count()];
+    if local == 0u {
+        var end = LAYOUT_BATCHES;
+        while end > 0u && (count == 0u || starts[(end - 1u) * params.blocks] == count) {
+            end -= 1u;
         }
-        var start = count;
-        if count > 0u {
-            start = starts[k * block_count()];
-        }
-        // `dispatch_grid` (gpu/kernel.rs): x up to the limit, then rows of x.
-        let workgroups = (end - start + SOLVER_WORKGROUP - 1u) / SOLVER_WORKGROUP;
-        var x = workgroups;
-        var y = 1u;
-        if workgroups > MAX_GROUPS_PER_DIMENSION {
-            y = (workgroups + MAX_GROUPS_PER_DIMENSION - 1u) / MAX_GROUPS_PER_DIMENSION;
-            x = (workgroups + y - 1u) / y;
-        }
-        args[3u * k] = x;
-        args[3u * k + 1u] = y;
-        args[3u * k + 2u] = 1u;
+        offsets[LAYOUT_BATCHES + 1u] = end;
     }
 }

@@ -31,7 +31,7 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
-use crate::stages::batching::layout::LAYOUT_BATCHES;
+use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
 use crate::stages::constraints::{
     CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
 };
@@ -97,6 +97,8 @@ pub const NO_BATCH: u32 = u32::MAX;
 pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("SOLVER_WORKGROUP", SOLVER_WORKGROUP)
+        .constant_u32("NO_BATCH", NO_BATCH)
+        .constant_u32("LAYOUT_USED_END", USED_END as u32)
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
@@ -259,12 +261,10 @@ pub enum BatchSizes<'a> {
     },
     /// A device layout's ([`GpuBatchLayout`](crate::stages::batching::layout::GpuBatchLayout)):
     /// [`LAYOUT_BATCHES`] batches of contacts, no joints (`joint_offsets` all zero), the last
-    /// the overflow batch, and batch b's workgroups at byte `12 b` of `arguments`. `expected`
-    /// chooses the plan ([`device_stages`]), never the results.
-    Device {
-        arguments: &'a wgpu::Buffer,
-        expected: &'a [u32],
-    },
+    /// the overflow batch. `expected[b]` is batch b's size in a recent step: it chooses the
+    /// plan ([`device_stages`]) and sizes each parallel batch's dispatch (whose threads take
+    /// more than one constraint each when the batch grew), never the results.
+    Device { expected: &'a [u32] },
 }
 
 /// The GPU solver: its kernels with the bind groups for the arrays it last saw, and its own
@@ -482,13 +482,12 @@ impl SolverEncoder {
             unreachable!("bound just above")
         };
         let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
-        // Per stage: its workgroups (the offset of its indirect arguments for a device
-        // layout's parallel stages), and whether its batches hold joints.
-        let size: Vec<(StageSize, bool)> = stages
+        // Per stage: its workgroups, and whether its batches hold joints.
+        let stage_sizes: Vec<(u32, bool)> = stages
             .iter()
             .map(|stage| match batched.sizes {
                 _ if stage.mode != StageMode::Parallel => {
-                    (StageSize::Groups(1), stage_has_joints(batched.sizes, stage))
+                    (1, stage_has_joints(batched.sizes, stage))
                 }
                 BatchSizes::Host {
                     contact_offsets,
@@ -497,14 +496,13 @@ impl SolverEncoder {
                 } => {
                     let size = batch_size(contact_offsets, joint_offsets, stage.first as usize);
                     let groups = workgroups_for(size as usize, SOLVER_WORKGROUP);
-                    (
-                        StageSize::Groups(groups),
-                        stage_has_joints(batched.sizes, stage),
-                    )
+                    (groups, stage_has_joints(batched.sizes, stage))
                 }
-                BatchSizes::Device { arguments, .. } => {
-                    let offset = 12 * u64::from(stage.first);
-                    (StageSize::Indirect(arguments, offset), false)
+                BatchSizes::Device { expected } => {
+                    // Room for the batch to grow by an eighth before threads take two each.
+                    let size = expected[stage.first as usize] as usize;
+                    let groups = workgroups_for(size + size / 8, SOLVER_WORKGROUP);
+                    (groups.max(1), false)
                 }
             })
             .collect();
@@ -517,19 +515,13 @@ impl SolverEncoder {
         // A stage with joints runs the mixed twin of the contact-only kernel.
         let sweep =
             |dispatches: &mut Vec<Dispatch>, kernels: [Option<&Kernel>; 2], variant: Variant| {
-                for (stage, &(size, joints)) in size.iter().enumerate() {
+                for (stage, &(groups, joints)) in stage_sizes.iter().enumerate() {
                     let kernel = kernels[joints as usize]
                         .expect("the mixed kernels are built before a stage with joints");
-                    let group = group(stage, variant);
-                    dispatches.push(match size {
-                        StageSize::Groups(groups) => kernel.dispatch(group, groups),
-                        StageSize::Indirect(arguments, offset) => {
-                            kernel.dispatch_indirect(group, arguments, offset)
-                        }
-                    });
+                    dispatches.push(kernel.dispatch(group(stage, variant), groups));
                 }
             };
-        if size.iter().any(|&(_, joints)| joints) && self.mixed.is_none() {
+        if stage_sizes.iter().any(|&(_, joints)| joints) && self.mixed.is_none() {
             self.mixed = Some(MixedKernels::new(&self.context));
         }
         let mixed = self.mixed.as_ref();
@@ -634,13 +626,6 @@ impl SolverEncoder {
             _slots: slots,
         }
     }
-}
-
-/// A stage's workgroups: counted on the host, or read by the device.
-#[derive(Clone, Copy)]
-enum StageSize<'a> {
-    Groups(u32),
-    Indirect(&'a wgpu::Buffer, u64),
 }
 
 /// Whether `stage`'s batches hold joints (never a device layout's).

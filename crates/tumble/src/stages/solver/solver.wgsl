@@ -357,33 +357,18 @@ fn apply_sweep(kind: u32, index: u32) {
     }
 }
 
-// Contacts of this dispatch's thread: a range of one, all of them (the overflow batch,
-// thread 0) or none. Not for WALK dispatches, which the kernels loop over themselves.
-fn constraint_range(thread: u32) -> vec2<u32> {
-    if params.sequential != 0u {
-        if thread == 0u {
-            return vec2<u32>(offsets[params.first_batch], offsets[params.end_batch]);
-        }
-        return vec2<u32>(0u, 0u);
-    }
-    let index = offsets[params.first_batch] + thread;
-    if index < offsets[params.first_batch + 1u] {
-        return vec2<u32>(index, index + 1u);
-    }
-    return vec2<u32>(0u, 0u);
-}
-
 // One sweep of this dispatch's batches' contacts (see the top of the file), by thread `local`
-// of its workgroup, `thread` of the dispatch. For dispatches without joints, and for the
-// restitution sweep (joints do not bounce).
-fn sweep(kind: u32, local: u32, thread: u32) {
+// of its workgroup, `thread` of the dispatch's `threads`. For dispatches without joints, and
+// for the restitution sweep (joints do not bounce).
+fn sweep(kind: u32, local: u32, thread: u32, threads: u32) {
     if params.sequential == WALK {
-        // Up to the last batch that holds a constraint: a device layout's walk covers every
-        // batch up to the overflow batch, most of them empty, and a barrier each would cost.
+        // A device layout's walk ends at the last batch that holds a constraint (its offsets
+        // say which): it covers every batch up to the overflow batch, most of them empty, and
+        // a barrier each would cost.
         if local == 0u {
             var end = params.end_batch;
-            while end > params.first_batch && offsets[end - 1u] == offsets[end] {
-                end -= 1u;
+            if params.overflow_batch != NO_BATCH {
+                end = min(end, offsets[LAYOUT_USED_END]);
             }
             walk_end = end;
         }
@@ -406,8 +391,21 @@ fn sweep(kind: u32, local: u32, thread: u32) {
         }
         return;
     }
-    let range = constraint_range(thread);
-    for (var index = range.x; index < range.y; index++) {
+    let first = offsets[params.first_batch];
+    let end = offsets[params.first_batch + 1u];
+    if params.sequential != 0u {
+        // The overflow batch: thread 0 alone, in order.
+        if thread == 0u {
+            for (var index = first; index < end; index++) {
+                apply_sweep(kind, index);
+            }
+        }
+        return;
+    }
+    // One batch, a constraint a thread; a dispatch sized for a device layout's expected size
+    // may have fewer threads than the batch has constraints: they take one more each, and
+    // more after that. Constraints of one batch share no body, so it changes no result.
+    for (var index = first + thread; index < end; index += threads) {
         apply_sweep(kind, index);
     }
 }
@@ -467,7 +465,8 @@ fn warm_start(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(WARM_START, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
+    sweep(WARM_START, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local,
+        groups.x * groups.y * SOLVER_WORKGROUP);
 }
 
 @compute @workgroup_size(SOLVER_WORKGROUP)
@@ -476,7 +475,8 @@ fn solve(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(SOLVE, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
+    sweep(SOLVE, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local,
+        groups.x * groups.y * SOLVER_WORKGROUP);
 }
 
 @compute @workgroup_size(SOLVER_WORKGROUP)
@@ -485,7 +485,8 @@ fn restitution(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local);
+    sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local,
+        groups.x * groups.y * SOLVER_WORKGROUP);
 }
 
 @compute @workgroup_size(SOLVER_WORKGROUP)
