@@ -18,6 +18,7 @@
 use rayon::prelude::*;
 
 use crate::dynamics::body::{BodyMass, BodyVelocity};
+use crate::pipeline::parallel::filter_map_ordered;
 
 /// Bodies per rayon task of [`Islands::update_timers`]; a world of at most this many bodies
 /// updates them on the calling thread.
@@ -65,10 +66,14 @@ pub struct Islands {
     sleeping: Vec<Vec<(u32, BodyMass)>>,
     free_ids: Vec<u32>,
     // Scratch of [`Islands::fall_asleep`], by body: union-find parents, whether the island
-    // each root stands for stays awake, the sleeping island each root's bodies go to.
+    // each root stands for stays awake, the sleeping island each root's bodies go to (only
+    // the rested bodies' entries are set and read); the rested bodies, and the parallel
+    // filter's counts.
     parent: Vec<u32>,
     held: Vec<bool>,
     island_of_root: Vec<u32>,
+    rested: Vec<u32>,
+    chunk_counts: Vec<usize>,
 }
 
 impl Islands {
@@ -172,12 +177,21 @@ impl Islands {
         let states = &self.states;
         let awake = |i: usize| masses[i].inverse_mass > 0.0;
         let rested = |i: usize| awake(i) && states[i].timer >= TIME_TO_SLEEP;
-        self.parent.clear();
-        self.parent.extend(0..count as u32);
-        // By body, then by root: whether the island stays awake.
-        let held = &mut self.held;
-        held.clear();
+        // Only rested bodies are joined, held or put to sleep: the passes below walk them (in
+        // index order), not every body, and set only their entries of the scratch.
+        let rested_bodies = &mut self.rested;
+        let is_rested = |i: usize| rested(i).then_some(i as u32);
+        filter_map_ordered(count, is_rested, &mut self.chunk_counts, rested_bodies);
+        let (parent, held) = (&mut self.parent, &mut self.held);
+        parent.resize(count, 0);
         held.resize(count, false);
+        self.island_of_root.resize(count, AWAKE);
+        for &i in rested_bodies.iter() {
+            parent[i as usize] = i;
+            held[i as usize] = false;
+            self.island_of_root[i as usize] = AWAKE;
+        }
+        // By body, then by root: whether the island stays awake.
         for (a, b) in edges {
             let (a, b) = (a as usize, b as usize);
             if !(awake(a) && awake(b)) {
@@ -185,38 +199,30 @@ impl Islands {
             }
             match (rested(a), rested(b)) {
                 (true, true) => {
-                    let (ra, rb) = (
-                        find(&mut self.parent, a as u32),
-                        find(&mut self.parent, b as u32),
-                    );
+                    let (ra, rb) = (find(parent, a as u32), find(parent, b as u32));
                     // The lower index is the root: islands do not depend on edge order.
                     let (low, high) = (ra.min(rb), ra.max(rb));
-                    self.parent[high as usize] = low;
+                    parent[high as usize] = low;
                 }
                 (true, false) => held[a] = true,
                 (false, true) => held[b] = true,
                 (false, false) => {}
             }
         }
-        if let Some(body) = keep_awake {
+        if let Some(body) = keep_awake.filter(|&body| rested(body as usize)) {
             held[body as usize] = true;
         }
-        for i in 0..count {
-            if held[i] {
-                let root = find(&mut self.parent, i as u32) as usize;
+        for &i in rested_bodies.iter() {
+            if held[i as usize] {
+                let root = find(parent, i) as usize;
                 held[root] = true;
             }
         }
         // Island ids in the order of their lowest body, members in index order.
         let first_new = asleep.len();
         let island_of_root = &mut self.island_of_root;
-        island_of_root.clear();
-        island_of_root.resize(count, AWAKE);
-        for (i, &mass) in masses.iter().enumerate() {
-            if mass.inverse_mass == 0.0 || self.states[i].timer < TIME_TO_SLEEP {
-                continue;
-            }
-            let root = find(&mut self.parent, i as u32) as usize;
+        for &i in rested_bodies.iter() {
+            let root = find(parent, i) as usize;
             if held[root] {
                 continue;
             }
@@ -224,9 +230,9 @@ impl Islands {
                 island_of_root[root] = new_island(&mut self.sleeping, &mut self.free_ids);
             }
             let island = island_of_root[root];
-            self.sleeping[island as usize].push((i as u32, mass));
-            self.states[i].island = island;
-            asleep.push(i as u32);
+            self.sleeping[island as usize].push((i, masses[i as usize]));
+            self.states[i as usize].island = island;
+            asleep.push(i);
         }
         for &body in &asleep[first_new..] {
             masses[body as usize] = BodyMass::default();

@@ -4,7 +4,7 @@
 pub mod config;
 pub mod devices;
 mod gpu_stages;
-mod parallel;
+pub(crate) mod parallel;
 pub mod query;
 mod step;
 pub mod world;

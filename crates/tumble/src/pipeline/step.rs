@@ -2,6 +2,8 @@
 
 use std::sync::OnceLock;
 
+use rayon::prelude::*;
+
 use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
@@ -581,6 +583,7 @@ impl World {
         profiler.end();
 
         // The histogram's buffer is kept from step to step (no allocation per step).
+        profiler.begin("statistics");
         let mut histogram = std::mem::take(&mut self.stats.batch_histogram);
         histogram.clone_from(&scratch.coloring.histogram);
         self.stats = StepStats {
@@ -593,6 +596,7 @@ impl World {
                 scratch,
             )
         };
+        profiler.end();
         if joint_broke {
             // The bodies of a broken joint collide again from the next step.
             self.joints_changed();
@@ -629,7 +633,17 @@ impl World {
             && on_gpu(Stage::Aabb)
             && on_gpu(Stage::Broadphase)
             && on_gpu(Stage::Narrowphase)
-            && self.slots.iter().all(|slot| slot.is_live())
+            && self.all_slots_live()
+    }
+
+    /// Whether no slot is free (no body removed since its slot was last reused): the free
+    /// list says so without a pass over the slots.
+    fn all_slots_live(&self) -> bool {
+        debug_assert_eq!(
+            self.free_slots.is_empty(),
+            self.slots.iter().all(|slot| slot.is_live())
+        );
+        self.free_slots.is_empty()
     }
 
     /// Stages 1 to 4 in one GPU submission; the pair cache then takes the GPU's keys and
@@ -1102,6 +1116,9 @@ pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
     debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "pair sets overlap");
 }
 
+/// Items a task of [`collect_stats`] takes at least: a few thousand stay on one thread.
+const MIN_PER_TASK: usize = 8192;
+
 /// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
 /// device.
 fn collect_stats(
@@ -1111,8 +1128,14 @@ fn collect_stats(
     summaries: Option<&[PairSummary]>,
     scratch: &StepScratch,
 ) -> StepStats {
+    // Passes over every pair and row, on every core when there are many (max and sum give
+    // the same result in any order).
     let max_penetration = match summaries {
-        Some(summaries) => summaries.iter().map(|s| s.depth).fold(0.0f32, f32::max),
+        Some(summaries) => summaries
+            .par_iter()
+            .with_min_len(MIN_PER_TASK)
+            .map(|s| s.depth)
+            .reduce(|| 0.0f32, f32::max),
         None => pairs
             .values()
             .iter()
@@ -1132,8 +1155,13 @@ fn collect_stats(
             .contacts
             .iter()
             .map(|c| c.point_count as usize)
-            .chain(scratch.row_summaries.iter().map(|r| r.point_count as usize))
-            .sum(),
+            .sum::<usize>()
+            + scratch
+                .row_summaries
+                .par_iter()
+                .with_min_len(MIN_PER_TASK)
+                .map(|r| r.point_count as usize)
+                .sum::<usize>(),
         max_penetration,
         // The rows that stayed on the device are known by their slots.
         joints: scratch.joints.len().max(scratch.joint_row_slots.len()),

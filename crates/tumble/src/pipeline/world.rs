@@ -113,7 +113,7 @@ pub struct World {
     pub(crate) masses: Vec<BodyMass>,
     pub(crate) colliders: Vec<Collider>,
     pub(crate) slots: Vec<Slot>,
-    free_slots: Vec<u32>,
+    pub(crate) free_slots: Vec<u32>,
     // Joints, by slot; `None` is a free slot.
     pub(crate) joints: Vec<Option<Joint>>,
     joint_generations: Vec<u32>,
