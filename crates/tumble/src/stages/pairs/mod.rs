@@ -16,6 +16,8 @@
 
 pub mod gpu;
 
+use rayon::prelude::*;
+
 /// The key of the unordered pair {a, b}: the lower index in the high 32 bits. `a != b`.
 #[inline]
 pub fn pair_key(a: u32, b: u32) -> u64 {
@@ -101,27 +103,11 @@ impl<T: Default> PairCache<T> {
     /// contents unspecified until the caller writes every one. Moves no value.
     pub fn update_keys(&mut self, new_keys: &[u64]) {
         assert!(
-            new_keys.windows(2).all(|window| window[0] < window[1]),
+            sorted_unique(new_keys),
             "pair keys must be sorted ascending and unique"
         );
         self.version += 1;
-        self.added.clear();
-        self.removed.clear();
-        let mut old_keys = self.keys.iter().copied().peekable();
-        for &key in new_keys {
-            while let Some(&old_key) = old_keys.peek()
-                && old_key < key
-            {
-                self.removed.push(old_key);
-                old_keys.next();
-            }
-            if old_keys.peek() == Some(&key) {
-                old_keys.next();
-            } else {
-                self.added.push(key);
-            }
-        }
-        self.removed.extend(old_keys);
+        diff_sorted(&self.keys, new_keys, &mut self.added, &mut self.removed);
         self.keys.clear();
         self.keys.extend_from_slice(new_keys);
         self.values.resize_with(new_keys.len(), T::default);
@@ -186,8 +172,121 @@ impl<T: Default> PairCache<T> {
     }
 }
 
+/// Keys a task of [`diff_sorted`] and [`sorted_unique`] takes: a few thousand pairs stay on
+/// one thread, a few hundred thousand spread over every core.
+const CHUNK: usize = 8192;
+
+/// Whether `keys` ascend strictly, on every core for many keys.
+fn sorted_unique(keys: &[u64]) -> bool {
+    if keys.len() <= CHUNK {
+        return keys.windows(2).all(|window| window[0] < window[1]);
+    }
+    keys.par_windows(2)
+        .with_min_len(CHUNK)
+        .all(|window| window[0] < window[1])
+}
+
+/// `added` = the keys of `new` not in `old`, `removed` = those of `old` not in `new`, both
+/// ascending; `old` and `new` ascend strictly. For many keys, chunks of `new` are merged with
+/// their stretch of `old` on every core: chunk c meets the old keys from the first one not
+/// below its first key (the first chunk: from the start) to the first one not below the next
+/// chunk's first key (the last chunk: to the end), so a key and its equal meet in one chunk.
+fn diff_sorted(old: &[u64], new: &[u64], added: &mut Vec<u64>, removed: &mut Vec<u64>) {
+    added.clear();
+    removed.clear();
+    if new.len() <= CHUNK {
+        merge_diff(old, new, added, removed);
+        return;
+    }
+    let chunks = new.len().div_ceil(CHUNK);
+    let bound = |chunk: usize| match chunk {
+        0 => 0,
+        _ if chunk == chunks => old.len(),
+        _ => old.partition_point(|&key| key < new[chunk * CHUNK]),
+    };
+    let parts: Vec<(Vec<u64>, Vec<u64>)> = (0..chunks)
+        .into_par_iter()
+        .map(|chunk| {
+            let (mut added, mut removed) = (Vec::new(), Vec::new());
+            let new = &new[chunk * CHUNK..((chunk + 1) * CHUNK).min(new.len())];
+            merge_diff(
+                &old[bound(chunk)..bound(chunk + 1)],
+                new,
+                &mut added,
+                &mut removed,
+            );
+            (added, removed)
+        })
+        .collect();
+    for (chunk_added, chunk_removed) in parts {
+        added.extend_from_slice(&chunk_added);
+        removed.extend_from_slice(&chunk_removed);
+    }
+}
+
+/// [`diff_sorted`] on one thread, appending.
+fn merge_diff(old: &[u64], new: &[u64], added: &mut Vec<u64>, removed: &mut Vec<u64>) {
+    let mut old_keys = old.iter().copied().peekable();
+    for &key in new {
+        while let Some(&old_key) = old_keys.peek()
+            && old_key < key
+        {
+            removed.push(old_key);
+            old_keys.next();
+        }
+        if old_keys.peek() == Some(&key) {
+            old_keys.next();
+        } else {
+            added.push(key);
+        }
+    }
+    removed.extend(old_keys);
+}
+
 #[cfg(test)]
 mod tests {
+    use super::*;
+
+    /// The diff on every core is the one-thread merge, for sets at the chunks' edges, with
+    /// old keys before, between and after the new ones.
+    #[test]
+    fn chunked_diff_is_the_merge() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for (old_count, new_count) in [
+            (0, CHUNK + 1),
+            (CHUNK + 1, 0),
+            (CHUNK, CHUNK),
+            (3 * CHUNK + 7, 2 * CHUNK + 1),
+            (50_000, 70_001),
+        ] {
+            // Keys from a range about twice the sets: about half of each set in the other.
+            let range = 2 * (old_count + new_count) as u64 + 1;
+            let mut keyset = |count: usize| {
+                let mut keys: Vec<u64> = (0..count).map(|_| next() % range).collect();
+                keys.sort_unstable();
+                keys.dedup();
+                keys
+            };
+            let (old, new) = (keyset(old_count), keyset(new_count));
+            let (mut added, mut removed) = (Vec::new(), Vec::new());
+            diff_sorted(&old, &new, &mut added, &mut removed);
+            let (mut merged_added, mut merged_removed) = (Vec::new(), Vec::new());
+            merge_diff(&old, &new, &mut merged_added, &mut merged_removed);
+            assert_eq!(added, merged_added, "{old_count} old, {new_count} new");
+            assert_eq!(removed, merged_removed, "{old_count} old, {new_count} new");
+            if old.len() > CHUNK && new.len() > CHUNK {
+                // Both lists non-trivial: the chunks did split a real merge.
+                assert!(!added.is_empty() && !removed.is_empty());
+            }
+        }
+    }
+
     use super::*;
 
     #[test]
