@@ -287,8 +287,6 @@ mod tests {
         }
     }
 
-    use super::*;
-
     #[test]
     fn insert_keeps_keys_sorted_and_update_keeps_inserted_values() {
         let mut cache = PairCache::<u32>::new();
