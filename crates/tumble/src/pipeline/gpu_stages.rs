@@ -25,6 +25,7 @@ use crate::stages::narrowphase::{
     NarrowphaseInputs, PairContact, gpu_pair, pack_hulls, update_contacts_where,
 };
 use crate::stages::pairs::gpu::GpuPairDiff;
+use crate::stages::solver::adjacency::{AdjacencyInputs, GpuBodyAdjacency};
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
@@ -272,6 +273,8 @@ pub(crate) struct GpuStages {
     /// batches' size at the last step that used it: the solver's plan for the next one.
     layout: GpuBatchLayout,
     expected_batch_sizes: Vec<u32>,
+    /// Each body's constraints in a device layout, for the warm start by body.
+    adjacency: GpuBodyAdjacency,
     /// This step's batching left its layout on the device for [`Self::solve_batched`].
     laid_out_on_device: bool,
     /// Lay the batches out on the host even where the device could (for the tests that
@@ -366,6 +369,7 @@ impl GpuStages {
             batching_rounds: FIRST_BATCHING_ROUNDS,
             layout: GpuBatchLayout::new(&context)?,
             expected_batch_sizes: FIRST_EXPECTED_BATCH_SIZES.to_vec(),
+            adjacency: GpuBodyAdjacency::new(&context)?,
             laid_out_on_device: false,
             host_layout: false,
             device_layouts: 0,
@@ -1129,6 +1133,7 @@ impl GpuStages {
                 joint_offsets: batched.joint_offsets,
                 has_overflow: batched.has_overflow,
             },
+            adjacency: None,
         };
         let spans = if jacobi.is_some() {
             &JACOBI_SOLVER
@@ -1395,6 +1400,7 @@ impl GpuStages {
         };
         let device_joint_offsets = &self.joint_batch_offsets;
         let (batching, layout_offsets) = (&mut self.batching, &mut self.layout.offsets);
+        let adjacency = &mut self.adjacency;
         let device_layout = host_offsets.is_none();
         let spans = if jacobi.is_some() {
             &JACOBI_SOLVER
@@ -1438,12 +1444,30 @@ impl GpuStages {
                         &joint_rows.batched,
                         &joint_rows.impulses,
                     );
+                    // A device layout's warm start gathers by body: its adjacency first.
+                    let adjacency = match host_offsets {
+                        Some(_) => None,
+                        None => {
+                            let inputs = AdjacencyInputs {
+                                masks: batching.masks(),
+                                colors: &batching.colors,
+                                order: batched.order(),
+                                row_bodies: &rows.bodies,
+                                offsets: layout_offsets,
+                            };
+                            let capacity = batched.order().capacity();
+                            let bodies = solver_bodies.len();
+                            adjacency.encode(context, pass, &inputs, bodies, capacity)?;
+                            Some((&adjacency.starts, &adjacency.entries))
+                        }
+                    };
                     let device_batched = DeviceBatched {
                         contacts: &batched.constraints,
                         contact_offsets: host_offsets.unwrap_or(layout_offsets),
                         joints: &joint_rows.batched,
                         joint_offsets: device_joint_offsets,
                         sizes,
+                        adjacency,
                     };
                     match jacobi {
                         Some(jacobi) => jacobi.encode(
@@ -2132,6 +2156,7 @@ mod tests {
     fn pile_on_the_gpu(
         host_layout: bool,
         steps: usize,
+        add_bodies: impl Fn(&mut World),
     ) -> (Vec<u8>, Vec<u32>, Vec<u32>, usize, usize) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
@@ -2144,14 +2169,7 @@ mod tests {
         world
             .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
             .unwrap();
-        for index in 0..48 {
-            let shape = if index % 4 == 0 {
-                Shape::sphere(0.5)
-            } else {
-                Shape::cuboid(Vec3::splat(0.5))
-            };
-            world.add_body(block_member(index, shape)).unwrap();
-        }
+        add_bodies(&mut world);
         let mut histograms = Vec::new();
         for _ in 0..steps {
             world.step();
@@ -2174,8 +2192,18 @@ mod tests {
     /// step's batch histogram, the contacts' batches, sleep.
     #[test]
     fn batches_laid_out_on_the_device_step_as_on_the_host() {
-        let device = pile_on_the_gpu(false, 120);
-        let host = pile_on_the_gpu(true, 120);
+        let block = |world: &mut World| {
+            for index in 0..48 {
+                let shape = if index % 4 == 0 {
+                    Shape::sphere(0.5)
+                } else {
+                    Shape::cuboid(Vec3::splat(0.5))
+                };
+                world.add_body(block_member(index, shape)).unwrap();
+            }
+        };
+        let device = pile_on_the_gpu(false, 120, block);
+        let host = pile_on_the_gpu(true, 120, block);
         assert_eq!(host.4, 0);
         // The first step brings the contacts to the device; every later one lays out there
         // until the pile sleeps.
@@ -2186,6 +2214,32 @@ mod tests {
             device.3,
             host.3
         );
+        assert_eq!(device.2, host.2, "the batch histograms");
+        assert_eq!(device.1, host.1, "the contacts' batches");
+        assert!(device.0 == host.0, "the poses differ");
+    }
+
+    /// The same with an overflow batch: 81 balls on one dynamic slab give it more constraints
+    /// than there are colors, so the batches the device lays out, and the warm start gathered
+    /// by body, hold overflow constraints sharing the slab.
+    #[test]
+    fn overflow_batches_laid_out_on_the_device_step_as_on_the_host() {
+        let balls_on_a_slab = |world: &mut World| {
+            let slab = BodyDesc::dynamic(Shape::cuboid(Vec3::new(5.0, 0.25, 5.0)))
+                .position(Vec3::new(0.0, 0.25, 0.0));
+            world.add_body(slab).unwrap();
+            for i in 0..81 {
+                let (x, z) = ((i % 9) as f32 - 4.0, (i / 9) as f32 - 4.0);
+                let ball = BodyDesc::dynamic(Shape::sphere(0.4)).position(Vec3::new(x, 0.9, z));
+                world.add_body(ball).unwrap();
+            }
+        };
+        let device = pile_on_the_gpu(false, 40, balls_on_a_slab);
+        let host = pile_on_the_gpu(true, 40, balls_on_a_slab);
+        assert!(device.4 > 30, "{} steps laid out on the device", device.4);
+        // The slab's 81 ball contacts overflow its 64 colors.
+        let overflowing = host.2.split(|&h| h == u32::MAX).filter(|h| h.len() == 65);
+        assert!(overflowing.count() > 30, "histograms {:?}", &host.2[..80]);
         assert_eq!(device.2, host.2, "the batch histograms");
         assert_eq!(device.1, host.1, "the contacts' batches");
         assert!(device.0 == host.0, "the poses differ");

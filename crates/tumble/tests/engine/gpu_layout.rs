@@ -810,6 +810,18 @@ fn row_and_batching_parameters_match_rust() {
         })],
         &["Tally"],
     );
+    // The warm start by body's adjacency.
+    use tumble::stages::solver::adjacency::{self, AdjacencyParams};
+    check_with_gpu_only(
+        adjacency::wgsl(),
+        vec![rust_layout!(AdjacencyParams {
+            body_count,
+            _pad0,
+            _pad1,
+            _pad2
+        })],
+        &[],
+    );
     // The layout reads the same tally.
     use tumble::stages::batching::layout::{self, LayoutParams};
     check_with_gpu_only(

@@ -852,6 +852,7 @@ fn device_layout_sizes_solve_as_host_offsets() {
                 joints: &joints,
                 joint_offsets: &joint_offsets,
                 sizes: BatchSizes::Device { expected },
+                adjacency: None,
             };
             context.submit_pass("device sizes", |pass| {
                 solver.encode(pass, &bodies_on_device, &device, settings, restitution)

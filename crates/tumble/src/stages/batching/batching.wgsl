@@ -30,7 +30,7 @@ struct Tally {
 // Two halves of body_count locks: round r claims half r % 2 and resets the other half for
 // round r + 1, so no dispatch both claims and clears one lock.
 @group(0) @binding(3) var<storage, read_write> locks: array<atomic<u32>>;
-// Per body: the colors its constraints have (low word, high word).
+// Per body: the colors its constraints have (low word, high word), overflow aside.
 @group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
 @group(0) @binding(5) var<storage, read_write> tally: Tally;
 
@@ -150,13 +150,15 @@ fn commit_one(i: u32, round: u32) {
             }
         }
         color = lowest_free_color(used);
-        if color < MAX_COLORS {
-            var bit = vec2<u32>(0u);
-            bit[color / 32u] = 1u << (color % 32u);
-            for (var k = 0u; k < 2u; k++) {
-                if pair[k] != STATIC_BODY {
-                    masks[pair[k]] |= bit;
-                }
+    }
+    // Both batchers record each body's colors: the colors batcher chooses by them, and the
+    // solver's warm start finds a body's constraints by them (`adjacency.wgsl`).
+    if color < MAX_COLORS {
+        var bit = vec2<u32>(0u);
+        bit[color / 32u] = 1u << (color % 32u);
+        for (var k = 0u; k < 2u; k++) {
+            if pair[k] != STATIC_BODY {
+                masks[pair[k]] |= bit;
             }
         }
     }

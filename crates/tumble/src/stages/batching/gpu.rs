@@ -269,6 +269,12 @@ impl GpuBatching {
         self.read_back(context, coloring)
     }
 
+    /// Per body, the colors its constraints got (two words, overflow aside): what the
+    /// solver's warm start by body ranks a body's constraints by.
+    pub fn masks(&self) -> &GpuVec<[u32; 2]> {
+        &self.masks
+    }
+
     /// How many constraints have a batch, how many there are, and the rounds that found one
     /// left: what the batch layout reads the count from.
     pub fn tally(&self) -> &GpuVec<[u32; 3]> {

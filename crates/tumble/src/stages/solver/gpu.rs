@@ -40,6 +40,7 @@ use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
 const SOLVER_JOINT_WGSL: &str = include_str!("solver_joint.wgsl");
+const WARM_START_BODIES_WGSL: &str = include_str!("warm_start_bodies.wgsl");
 /// Parameters, bodies, contacts, contact offsets, joints, joint offsets.
 const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
@@ -47,6 +48,17 @@ const BINDINGS: [Binding; 6] = [
     Binding::StorageReadWrite,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageRead,
+];
+/// [`BINDINGS`] and a body adjacency's starts and entries: `warm_start_bodies`.
+const ADJACENCY_BINDINGS: [Binding; 8] = [
+    BINDINGS[0],
+    BINDINGS[1],
+    BINDINGS[2],
+    BINDINGS[3],
+    BINDINGS[4],
+    BINDINGS[5],
+    Binding::StorageRead,
     Binding::StorageRead,
 ];
 
@@ -92,6 +104,12 @@ const _: () = assert!(size_of::<SolverParams>() == 64);
 
 /// [`SolverParams::overflow_batch`] when no walk holds the overflow batch.
 pub const NO_BATCH: u32 = u32::MAX;
+
+/// [`wgsl`] with the warm start by body (`warm_start_bodies`; the Jacobi solver's extra
+/// bindings are others).
+fn solver_wgsl() -> Source {
+    wgsl().snippet("warm_start_bodies.wgsl", WARM_START_BODIES_WGSL)
+}
 
 /// The solver's WGSL: body and constraint structs, integration helpers, kernels.
 pub fn wgsl() -> Source {
@@ -205,9 +223,16 @@ fn batch_size(contact_offsets: &[u32], joint_offsets: &[u32], batch: usize) -> u
         - joint_offsets[batch]
 }
 
-/// Dispatches of one step over `stage_count` stages (see the module docs).
-pub fn dispatch_count(stage_count: usize, settings: &SolverSettings, restitution: bool) -> usize {
-    let per_substep = 2 + stage_count * (2 + settings.iterations as usize);
+/// Dispatches of one step over `stage_count` stages (see the module docs); with `by_body`,
+/// the warm start gathers by body in the gravity step's dispatch ([`DeviceBatched::adjacency`]).
+pub fn dispatch_count(
+    stage_count: usize,
+    settings: &SolverSettings,
+    restitution: bool,
+    by_body: bool,
+) -> usize {
+    let warm_start = if by_body { 0 } else { stage_count };
+    let per_substep = 2 + warm_start + stage_count * (1 + settings.iterations as usize);
     settings.substeps as usize * per_substep + if restitution { stage_count } else { 0 }
 }
 
@@ -226,15 +251,18 @@ const VARIANTS: usize = 3;
 /// What the bind groups were built for; rebuilt when any of it changes.
 type Key = (
     [wgpu::Buffer; 5],
+    Option<[wgpu::Buffer; 2]>,
     usize,
     Vec<(u32, u32, StageMode)>,
     [u32; 9],
 );
 
-/// Bind groups for the last key: one per (stage, variant), then one for the body kernels.
+/// Bind groups for the last key: one per (stage, variant), then one for the body kernels,
+/// and one for `warm_start_bodies` when there is an adjacency.
 struct Bound {
     key: Key,
     groups: Vec<wgpu::BindGroup>,
+    by_body: Option<wgpu::BindGroup>,
     /// Keeps the parameter blocks the bind groups point into alive.
     _slots: UniformSlots,
 }
@@ -247,6 +275,11 @@ pub struct DeviceBatched<'a> {
     pub joints: &'a GpuVec<JointConstraint>,
     pub joint_offsets: &'a GpuVec<u32>,
     pub sizes: BatchSizes<'a>,
+    /// Each body's constraints in batch order, as starts and entries
+    /// ([`GpuBodyAdjacency`](super::adjacency::GpuBodyAdjacency)): the warm start then gathers
+    /// by body, one dispatch with the gravity step instead of one per batch (the same
+    /// velocities). Only without joints.
+    pub adjacency: Option<(&'a GpuVec<u32>, &'a GpuVec<u32>)>,
 }
 
 /// Where the dispatches learn each batch's size.
@@ -322,6 +355,7 @@ impl HostArrays {
                 joint_offsets: batched.joint_offsets,
                 has_overflow: batched.has_overflow,
             },
+            adjacency: None,
         };
         context.submit_pass(label, |pass| {
             encode(pass, &self.bodies, &device, restitution)
@@ -350,6 +384,8 @@ struct SolverEncoder {
     mixed: Option<MixedKernels>,
     integrate_velocities: Kernel,
     integrate_positions: Kernel,
+    /// Gravity and the warm start gathered by body ([`DeviceBatched::adjacency`]).
+    warm_start_bodies: Kernel,
     bound: Option<Bound>,
     dispatches: Vec<Dispatch>,
 }
@@ -384,6 +420,13 @@ impl GpuSolver {
                 mixed: None,
                 integrate_velocities: kernel("integrate_velocities"),
                 integrate_positions: kernel("integrate_positions"),
+                warm_start_bodies: Kernel::new(
+                    context,
+                    "warm_start_bodies",
+                    &solver_wgsl(),
+                    "warm_start_bodies",
+                    &ADJACENCY_BINDINGS,
+                ),
                 bound: None,
                 dispatches: Vec::new(),
             },
@@ -460,6 +503,9 @@ impl SolverEncoder {
                 batched.joints.buffer().clone(),
                 batched.joint_offsets.buffer().clone(),
             ],
+            batched
+                .adjacency
+                .map(|(starts, entries)| [starts.buffer().clone(), entries.buffer().clone()]),
             bodies.len(),
             stages.iter().map(|s| (s.first, s.end, s.mode)).collect(),
             [
@@ -527,12 +573,24 @@ impl SolverEncoder {
         let mixed = self.mixed.as_ref();
         let warm_start = [Some(&self.warm_start), mixed.map(|m| &m.warm_start)];
         let solve = [Some(&self.solve), mixed.map(|m| &m.solve)];
+        // The warm start by body needs contacts alone in every stage.
+        let by_body = bound
+            .by_body
+            .as_ref()
+            .filter(|_| stage_sizes.iter().all(|&(_, joints)| !joints));
         for substep in 0..settings.substeps {
-            dispatches.push(
-                self.integrate_velocities
-                    .dispatch(body_group.clone(), body_groups),
-            );
-            sweep(dispatches, warm_start, Variant::Solve);
+            match by_body {
+                Some(group) => {
+                    dispatches.push(self.warm_start_bodies.dispatch(group.clone(), body_groups))
+                }
+                None => {
+                    dispatches.push(
+                        self.integrate_velocities
+                            .dispatch(body_group.clone(), body_groups),
+                    );
+                    sweep(dispatches, warm_start, Variant::Solve);
+                }
+            }
             for iteration in 0..settings.iterations {
                 // As on the CPU: only the first solve of the step starts from positions no
                 // sweep has seen; later ones reuse the last relax sweep's separations.
@@ -557,7 +615,7 @@ impl SolverEncoder {
         encode_all(pass, dispatches);
         debug_assert_eq!(
             dispatches.len(),
-            dispatch_count(stages.len(), &settings, restitution)
+            dispatch_count(stages.len(), &settings, restitution, by_body.is_some())
         );
         dispatches.len()
     }
@@ -620,9 +678,25 @@ impl SolverEncoder {
                 )
             })
             .collect();
+        let by_body = batched.adjacency.map(|(starts, entries)| {
+            self.warm_start_bodies.bind(
+                &self.context,
+                &[
+                    slots.binding(blocks.len() - 1),
+                    bodies.whole(),
+                    batched.contacts.whole(),
+                    batched.contact_offsets.whole(),
+                    batched.joints.whole(),
+                    batched.joint_offsets.whole(),
+                    starts.whole(),
+                    entries.whole(),
+                ],
+            )
+        });
         Bound {
             key,
             groups,
+            by_body,
             _slots: slots,
         }
     }

@@ -29,6 +29,7 @@
 //! [`SolverKind::Jacobi`] runs the same soft step with Jacobi sweeps instead ([`jacobi`]): for
 //! comparison, as DESIGN.md's stage 7 asks.
 
+pub mod adjacency;
 pub mod batched;
 mod contact;
 pub mod gpu;
