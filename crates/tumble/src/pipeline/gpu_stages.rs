@@ -2254,10 +2254,11 @@ mod tests {
 
     /// The warm start gathered by body gives the batch sweeps' velocities up to rounding (the
     /// same operations on each body in the same order; lavapipe rounds them alike, NVIDIA's
-    /// compiler fuses them differently): over 10 steps of the overflowing slab and of the
-    /// block, the poses stay within 10 µm and 20 µrad. (A gather that gave a body the other
-    /// side's impulses moved them by metres, one that ranked the slab's overflow constraints
-    /// wrongly by 0.65 mm.)
+    /// compiler fuses them differently): over 4 steps of the overflowing slab and of the
+    /// block, the poses stay within 10 µm and 20 µrad. The horizon is short because rounding
+    /// differences grow in a pile: on the H200 the slab's balls were 18 µm apart after 10
+    /// steps. (A gather that gave a body the other side's impulses moved them by metres, one
+    /// that ranked the slab's overflow constraints wrongly by 1.4 mm in 4 steps.)
     #[test]
     fn the_warm_start_by_body_follows_the_batch_sweeps() {
         let block = |world: &mut World| {
@@ -2279,9 +2280,9 @@ mod tests {
         };
         let scenes: [&dyn Fn(&mut World); 2] = [&block, &balls_on_a_slab];
         for (scene, add_bodies) in scenes.into_iter().enumerate() {
-            let by_body = pile_on_the_gpu((false, true), 10, add_bodies);
-            let sweeps = pile_on_the_gpu((false, false), 10, add_bodies);
-            assert!(by_body.4 >= 9, "{} steps laid out on the device", by_body.4);
+            let by_body = pile_on_the_gpu((false, true), 4, add_bodies);
+            let sweeps = pile_on_the_gpu((false, false), 4, add_bodies);
+            assert!(by_body.4 >= 3, "{} steps laid out on the device", by_body.4);
             let poses = |bytes: &[u8]| bytemuck::cast_slice::<_, BodyPose>(bytes).to_vec();
             for (i, (a, b)) in poses(&by_body.0).iter().zip(&poses(&sweeps.0)).enumerate() {
                 let moved = (a.position - b.position).length();
