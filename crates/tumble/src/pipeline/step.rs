@@ -1131,11 +1131,15 @@ fn collect_stats(
     // Passes over every pair and row, on every core when there are many (max and sum give
     // the same result in any order).
     let max_penetration = match summaries {
-        Some(summaries) => summaries
+        Some(summaries) => {
+            summaries
             .par_iter()
             .with_min_len(MIN_PER_TASK)
             .map(|s| s.depth)
-            .reduce(|| 0.0f32, f32::max),
+            .reduce(|| 0.0f32, f32::max)
+            // −0 and +0 compare equal, and which one `max` keeps may depend on the order.
+            + 0.0
+        }
         None => pairs
             .values()
             .iter()
