@@ -2245,21 +2245,23 @@ mod tests {
         assert!(device.0 == host.0, "the poses differ");
     }
 
+    /// 81 balls on one dynamic slab: more constraints on the slab than there are colors.
+    fn balls_on_a_slab(world: &mut World) {
+        let slab = BodyDesc::dynamic(Shape::cuboid(Vec3::new(5.0, 0.25, 5.0)))
+            .position(Vec3::new(0.0, 0.25, 0.0));
+        world.add_body(slab).unwrap();
+        for i in 0..81 {
+            let (x, z) = ((i % 9) as f32 - 4.0, (i / 9) as f32 - 4.0);
+            let ball = BodyDesc::dynamic(Shape::sphere(0.4)).position(Vec3::new(x, 0.9, z));
+            world.add_body(ball).unwrap();
+        }
+    }
+
     /// The same with an overflow batch: 81 balls on one dynamic slab give it more constraints
     /// than there are colors, so the batches the device lays out, and the warm start gathered
     /// by body, hold overflow constraints sharing the slab.
     #[test]
     fn overflow_batches_laid_out_on_the_device_step_as_on_the_host() {
-        let balls_on_a_slab = |world: &mut World| {
-            let slab = BodyDesc::dynamic(Shape::cuboid(Vec3::new(5.0, 0.25, 5.0)))
-                .position(Vec3::new(0.0, 0.25, 0.0));
-            world.add_body(slab).unwrap();
-            for i in 0..81 {
-                let (x, z) = ((i % 9) as f32 - 4.0, (i / 9) as f32 - 4.0);
-                let ball = BodyDesc::dynamic(Shape::sphere(0.4)).position(Vec3::new(x, 0.9, z));
-                world.add_body(ball).unwrap();
-            }
-        };
         let device = pile_on_the_gpu((false, false), 40, balls_on_a_slab);
         let host = pile_on_the_gpu((true, false), 40, balls_on_a_slab);
         assert!(device.4 > 30, "{} steps laid out on the device", device.4);
@@ -2285,16 +2287,6 @@ mod tests {
                 world
                     .add_body(block_member(index, Shape::cuboid(Vec3::splat(0.5))))
                     .unwrap();
-            }
-        };
-        let balls_on_a_slab = |world: &mut World| {
-            let slab = BodyDesc::dynamic(Shape::cuboid(Vec3::new(5.0, 0.25, 5.0)))
-                .position(Vec3::new(0.0, 0.25, 0.0));
-            world.add_body(slab).unwrap();
-            for i in 0..81 {
-                let (x, z) = ((i % 9) as f32 - 4.0, (i / 9) as f32 - 4.0);
-                let ball = BodyDesc::dynamic(Shape::sphere(0.4)).position(Vec3::new(x, 0.9, z));
-                world.add_body(ball).unwrap();
             }
         };
         let scenes: [&dyn Fn(&mut World); 2] = [&block, &balls_on_a_slab];
