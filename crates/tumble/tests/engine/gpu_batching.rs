@@ -219,3 +219,81 @@ fn device_layout_is_the_hosts_batch_order() {
         assert_eq!(offsets[USED_END], used_end as u32, "{size} constraints");
     }
 }
+
+/// The body adjacency the warm start gathers by, from the GPU's colors, masks and layout, is
+/// the host's: for each body, its constraints' sides in batch order (entry 2 p + side for the
+/// constraint at batch place p), overflow ones last, for both batchers, with an overflow hub.
+#[test]
+fn body_adjacency_lists_each_bodys_constraints_in_batch_order() {
+    use tumble::stages::solver::adjacency::{AdjacencyInputs, GpuBodyAdjacency};
+    let context = gpu_common::context();
+    let mut gpu = GpuBatching::new(&context).unwrap();
+    let mut layout = GpuBatchLayout::new(&context).unwrap();
+    let mut adjacency = GpuBodyAdjacency::new(&context).unwrap();
+    let mut order = GpuVec::<u32>::with_capacity(&context, "test order", 0).unwrap();
+    let mut state = 0xad1a_u64;
+    // Body 0 is a hub of 80 constraints: 64 colors, then the overflow batch.
+    let mut hub: Vec<(u32, u32)> = (1..=80).map(|other| (0, other)).collect();
+    hub.extend(random_edges(&mut state, 81, 300));
+    for batcher in Batcher::ALL {
+        for (bodies, edges) in [
+            (81, hub.clone()),
+            (3000, random_edges(&mut state, 3000, 12_001)),
+        ] {
+            let mut coloring = Coloring::default();
+            gpu.run(
+                &context,
+                edges.iter().copied(),
+                bodies,
+                0,
+                batcher,
+                MAX_ROUNDS,
+                &mut coloring,
+            )
+            .unwrap();
+            let row_bodies: Vec<[u32; 2]> = edges.iter().map(|&(a, b)| [a, b]).collect();
+            let row_bodies = GpuVec::from_slice(&context, "test row bodies", &row_bodies).unwrap();
+            order.resize(&context, edges.len()).unwrap();
+            context
+                .submit_pass("layout and adjacency", |pass| {
+                    layout.encode(&context, pass, gpu.tally(), &gpu.colors, &order)?;
+                    let inputs = AdjacencyInputs {
+                        masks: gpu.masks(),
+                        colors: &gpu.colors,
+                        order: &order,
+                        row_bodies: &row_bodies,
+                        offsets: &layout.offsets,
+                    };
+                    adjacency.encode(&context, pass, &inputs, bodies, order.capacity())
+                })
+                .unwrap();
+            let (mut host_order, mut host_offsets) = (Vec::new(), Vec::new());
+            batch_order(
+                &coloring.colors,
+                &coloring,
+                &mut host_order,
+                &mut host_offsets,
+            );
+            let mut lists = vec![Vec::new(); bodies];
+            for (place, &row) in host_order.iter().enumerate() {
+                let (a, b) = edges[row as usize];
+                for (side, body) in [(0, a), (1, b)] {
+                    if body != STATIC_BODY {
+                        lists[body as usize].push(2 * place as u32 + side);
+                    }
+                }
+            }
+            let starts = adjacency.starts.download(&context).unwrap();
+            let entries = adjacency.entries.download(&context).unwrap();
+            assert!(coloring.has_overflow || bodies > 81, "the hub overflows");
+            for (body, list) in lists.iter().enumerate() {
+                let (start, end) = (starts[body] as usize, starts[body + 1] as usize);
+                assert_eq!(
+                    &entries[start..end],
+                    &list[..],
+                    "{batcher}, {bodies} bodies: body {body}"
+                );
+            }
+        }
+    }
+}
