@@ -15,7 +15,8 @@
 //! ```
 //!
 //! dispatches, with `stages` the parallel batches plus the sequential runs: see
-//! [`dispatch_count`].
+//! [`dispatch_count`]. With a body adjacency ([`DeviceBatched::adjacency`]) the warm start
+//! gathers by body in the gravity step's dispatch, `substeps · stages` fewer.
 //!
 //! Guarantees: the same results as [`solve`](super::solve) up to float rounding (WGSL may
 //! fuse multiply-adds); deterministic, since threads of a dispatch touch disjoint bodies and
