@@ -136,14 +136,17 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         self.buffer.as_entire_buffer_binding()
     }
 
-    /// Makes room for `capacity` elements, doubling; keeps the first `len` elements (through a
-    /// copy submitted now, so call it between steps, not while an encoder writing this vector is
+    /// Makes room for `capacity` elements, doubling, but never past the largest buffer it may
+    /// have when `capacity` fits in one; keeps the first `len` elements (through a copy
+    /// submitted now, so call it between steps, not while an encoder writing this vector is
     /// open). Returns whether the buffer was replaced.
     pub fn reserve(&mut self, context: &GpuContext, capacity: usize) -> Result<bool, GpuError> {
         if capacity <= self.capacity {
             return Ok(false);
         }
-        let new_capacity = capacity.max(self.capacity * 2);
+        // Doubling a vector past half the limit would fail where the elements asked for fit.
+        let most = (buffer_limit(context, self.windowed) / size_of::<T>() as u64) as usize;
+        let new_capacity = capacity.max((self.capacity * 2).min(most));
         let buffer = create(
             context,
             self.label,
@@ -349,20 +352,26 @@ pub(crate) fn read_mapped(
 /// A storage buffer usable as copy source and destination, checked against the adapter's
 /// limits (one binding, or one buffer when `windowed`) so an oversized request is an error
 /// rather than a validation panic.
+/// The largest buffer a vector may have: one storage binding, or for a windowed vector the
+/// adapter's largest buffer.
+fn buffer_limit(context: &GpuContext, windowed: bool) -> u64 {
+    let limits = context.device.limits();
+    if windowed {
+        limits.max_buffer_size
+    } else {
+        limits
+            .max_buffer_size
+            .min(limits.max_storage_buffer_binding_size)
+    }
+}
+
 fn create(
     context: &GpuContext,
     label: &'static str,
     bytes: u64,
     windowed: bool,
 ) -> Result<wgpu::Buffer, GpuError> {
-    let limits = context.device.limits();
-    let limit = if windowed {
-        limits.max_buffer_size
-    } else {
-        limits
-            .max_buffer_size
-            .min(limits.max_storage_buffer_binding_size)
-    };
+    let limit = buffer_limit(context, windowed);
     if bytes > limit {
         return Err(GpuError::BufferTooLarge {
             what: label,

@@ -166,6 +166,17 @@ pub(crate) enum RowSlots<'a> {
     Narrowphase,
 }
 
+/// Where [`GpuStages::build_constraints`] leaves the rows.
+pub(crate) enum RowsTo<'a> {
+    /// Back to the host: the contacts' rows, and the listed joints'.
+    Host(&'a mut Vec<ContactConstraint>, &'a mut Vec<JointConstraint>),
+    /// On the device, for [`GpuStages::solve_batched`]; `contacts` is their number, which the
+    /// host knows from the pairs' point counts. The rows' buffers are sized by it rather than
+    /// by the manifold slots: a settled pile has about 2.3 pairs for each manifold with points,
+    /// and at 500k bodies one row per pair would not fit one storage binding.
+    Device { contacts: usize },
+}
+
 /// What [`GpuStages::collide`] reads back besides the keys.
 pub(crate) enum CollideOutput<'a> {
     /// Every pair's contact, for the host's pair cache.
@@ -897,8 +908,7 @@ impl GpuStages {
     /// [`build_constraints`](crate::stages::constraints::build_constraints)'s contract over the
     /// manifold `slots`, and
     /// [`build_joint_constraints`](crate::stages::constraints::build_joint_constraints)'s for
-    /// `joints` (the drag's row beside them). With no `out` the rows stay on the device for
-    /// [`Self::solve_batched`]; else the contacts' and the listed joints' come back.
+    /// `joints` (the drag's row beside them), to the host or kept on the device ([`RowsTo`]).
     pub fn build_constraints(
         &mut self,
         profiler: &mut Profiler,
@@ -906,7 +916,7 @@ impl GpuStages {
         inputs: &RowInputs,
         bodies_version: u64,
         joints: &JointRowInputs,
-        out: Option<(&mut Vec<ContactConstraint>, &mut Vec<JointConstraint>)>,
+        to: RowsTo,
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let start = Instant::now();
@@ -964,9 +974,13 @@ impl GpuStages {
             softness: joints.softness,
         };
         let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
+        let count = match to {
+            RowsTo::Host(..) => None,
+            RowsTo::Device { contacts } => Some(contacts),
+        };
         let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
             encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
-                rows.encode(context, pass, &device_inputs)
+                rows.encode(context, pass, &device_inputs, count)
             })?;
             if build_joints {
                 encode_pass(encoder, timer, JOINT_ROWS_KERNEL, |pass| {
@@ -976,7 +990,7 @@ impl GpuStages {
             }
             Ok(())
         };
-        if out.is_some() {
+        if count.is_none() {
             run_passes(context, &mut self.profiler, profiler, &CONSTRAINTS, encode)?;
         } else {
             // The rows stay on the device for the batching and the solver, whose submissions
@@ -984,7 +998,7 @@ impl GpuStages {
             let spans = (&CONSTRAINTS, CONSTRAINTS_SUBMIT);
             submit_passes(context, &mut self.profiler, profiler, spans, encode)?;
         }
-        if let Some((contacts, joint_constraints)) = out {
+        if let RowsTo::Host(contacts, joint_constraints) = to {
             let start = Instant::now();
             self.rows.read_back(context, contacts)?;
             self.joint_rows
@@ -1979,7 +1993,7 @@ mod tests {
             &row_inputs,
             world.bodies_version,
             &no_joints,
-            Some((&mut from_device, &mut Vec::new())),
+            RowsTo::Host(&mut from_device, &mut Vec::new()),
         )
         .unwrap();
         let slots = RowSlots::Host {
@@ -1992,7 +2006,7 @@ mod tests {
             &row_inputs,
             world.bodies_version,
             &no_joints,
-            Some((&mut from_host, &mut Vec::new())),
+            RowsTo::Host(&mut from_host, &mut Vec::new()),
         )
         .unwrap();
         assert!(!from_host.is_empty());
@@ -2422,6 +2436,69 @@ mod tests {
                 .collect()
         };
         assert_eq!(touching(&world), touching(&reference));
+    }
+
+    /// Rows kept on the device take a buffer sized by the manifolds with points, not by the
+    /// pairs: on a device whose bindings hold 252 rows, 64 still balls whose boxes overlap
+    /// (468 pairs without points) and 8 balls that touch them step as on the default device.
+    /// A row per pair would not fit (it did not for a settled pile of 500k boxes on an H200).
+    #[test]
+    fn rows_on_the_device_are_sized_by_the_manifolds_not_the_pairs() {
+        let small = GpuContext::with_limits(|limits| {
+            limits.max_storage_buffer_binding_size = 256 << 10;
+        })
+        .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let config = StepConfig {
+            sleeping: false,
+            gravity: Vec3::ZERO,
+            ..StepConfig::default()
+        };
+        let balls = |context: Option<&GpuContext>| {
+            let mut world = World::new(config).unwrap();
+            if let Some(context) = context {
+                world.set_gpu_context(context.clone()).unwrap();
+            }
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            // 1.03 m apart: each ball's box (grown by the contact margin, 0.02 m) overlaps its
+            // 26 neighbours', and the gaps are past the margin.
+            for index in 0..64 {
+                let (x, y, z) = (index % 4, (index / 4) % 4, index / 16);
+                let position = 1.03 * Vec3::new(x as f32, y as f32, z as f32);
+                world
+                    .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(position))
+                    .unwrap();
+            }
+            // Under half the bottom layer, 5 mm into it.
+            for index in 0..8 {
+                let position =
+                    Vec3::new(1.03 * (index % 4) as f32, 1.03 * (index / 4) as f32, -0.995);
+                world
+                    .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(position))
+                    .unwrap();
+            }
+            world
+        };
+        let mut world = balls(Some(&small));
+        let mut reference = balls(None);
+        for _ in 0..5 {
+            world.try_step().unwrap();
+            reference.try_step().unwrap();
+        }
+        assert!(world.contacts_on_device);
+        let (pairs, rows) = (world.stats().pairs, world.stats().manifolds);
+        assert!(
+            pairs * size_of::<ContactConstraint>() > 256 << 10,
+            "{pairs} pairs"
+        );
+        assert!(
+            rows > 0 && rows * size_of::<ContactConstraint>() <= 256 << 10,
+            "{rows}"
+        );
+        assert_eq!(pairs, reference.stats().pairs);
+        let poses = |world: &World| bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+        assert!(poses(&world) == poses(&reference), "the poses differ");
     }
 
     /// Stages 1 to 4 in one submission give the pairs and contacts that the stages one by one

@@ -10,7 +10,7 @@ use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
-    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots,
+    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo,
 };
 use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
@@ -56,7 +56,7 @@ pub(crate) struct StepScratch {
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     row_summaries: Vec<RowSummary>,
     /// [`filter_map_ordered`]'s scratch.
-    chunk_counts: Vec<usize>,
+    pub(crate) chunk_counts: Vec<usize>,
     /// The contact edges that can matter to the islands' sleep ([`Islands::may_join`](crate::dynamics::island::Islands::may_join)).
     sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
@@ -185,18 +185,8 @@ impl World {
                     drag: drag.as_ref(),
                     softness: joint_softness,
                 };
-                let built = gpu.build_constraints(
-                    profiler,
-                    slots,
-                    &inputs,
-                    self.bodies_version,
-                    &joint_inputs,
-                    (!chained).then_some((&mut scratch.contacts, &mut scratch.joints)),
-                );
-                if built.is_err() {
-                    profiler.end();
-                }
-                built?;
+                // Rows that stay on the device: the host knows which pairs have one (and sizes
+                // their buffers by it).
                 if chained && self.contacts_on_device {
                     // The contacts are on the device: their point counts came back. A pass
                     // over every pair, on every core.
@@ -229,6 +219,25 @@ impl World {
                             RowSummary::new(slot, key, count, &self.masses, colliders)
                         }));
                 }
+                let to = if chained {
+                    RowsTo::Device {
+                        contacts: scratch.row_summaries.len(),
+                    }
+                } else {
+                    RowsTo::Host(&mut scratch.contacts, &mut scratch.joints)
+                };
+                let built = gpu.build_constraints(
+                    profiler,
+                    slots,
+                    &inputs,
+                    self.bodies_version,
+                    &joint_inputs,
+                    to,
+                );
+                if built.is_err() {
+                    profiler.end();
+                }
+                built?;
             }
             _ => {
                 build_joint_constraints(

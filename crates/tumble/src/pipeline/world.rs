@@ -35,6 +35,7 @@ use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::devices::StageDevices;
 pub use crate::pipeline::gpu_stages::DevicePoses;
 use crate::pipeline::gpu_stages::GpuStages;
+use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
 use crate::shape::Shape;
@@ -484,16 +485,19 @@ impl World {
         self.update_resting_pairs();
     }
 
-    /// The pairs of the cache with no awake dynamic body and no removed one.
+    /// The pairs of the cache with no awake dynamic body and no removed one. A pass over every
+    /// pair, on every core: a settling pile has islands waking or falling asleep at most steps.
     pub(crate) fn update_resting_pairs(&mut self) {
         let live = |i: u32| self.slots[i as usize].state != SlotState::Free;
         let resting = |i: u32| self.masses[i as usize].inverse_mass == 0.0;
-        self.resting_pairs.clear();
-        self.resting_pairs
-            .extend(self.pairs.keys().iter().copied().filter(|&key| {
-                let (a, b) = crate::stages::pairs::pair_bodies(key);
-                live(a) && live(b) && resting(a) && resting(b)
-            }));
+        let keys = self.pairs.keys();
+        let rests = |pair: usize| {
+            let key = keys[pair];
+            let (a, b) = crate::stages::pairs::pair_bodies(key);
+            (live(a) && live(b) && resting(a) && resting(b)).then_some(key)
+        };
+        let chunk_counts = &mut self.scratch.chunk_counts;
+        filter_map_ordered(keys.len(), rests, chunk_counts, &mut self.resting_pairs);
     }
 
     /// Adds a joint between two bodies at their current poses.

@@ -46,6 +46,23 @@ fn empty<T: bytemuck::Pod>(context: &GpuContext) -> GpuVec<T> {
 }
 
 #[test]
+fn a_plain_vector_grows_up_to_one_binding_not_past_it() {
+    let _turn = context();
+    let context = small_bindings();
+    let most = (SMALL_BINDING / 4) as usize;
+    // Past half the limit, doubling would ask for more than a binding holds: the vector takes
+    // what fits instead, keeps its elements, and still refuses what does not fit.
+    let data: Vec<u32> = (0..most as u32 / 2 + 1).collect();
+    let mut vector = GpuVec::<u32>::with_capacity(&context, "plain", data.len()).expect("alloc");
+    vector.upload(&context, &data).expect("upload");
+    assert!(vector.reserve(&context, data.len() + 1).expect("grows"));
+    assert_eq!(vector.capacity(), most);
+    assert_eq!(vector.download(&context).expect("download"), data);
+    let error = vector.reserve(&context, most + 1).unwrap_err();
+    assert!(matches!(error, GpuError::BufferTooLarge { .. }), "{error}");
+}
+
+#[test]
 fn a_plain_vector_past_one_binding_is_an_error_and_a_windowed_one_is_not() {
     let _turn = context();
     let context = small_bindings();

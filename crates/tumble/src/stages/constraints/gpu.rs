@@ -105,19 +105,23 @@ impl GpuRows {
         })
     }
 
-    /// Encodes the rows of every slot of `inputs` into `constraints` (room for one per slot).
+    /// Encodes the rows of every slot of `inputs` into `constraints`: room for `count` of them
+    /// when the caller knows how many slots have one, else for one per slot.
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         inputs: &GpuRowInputs,
+        count: Option<usize>,
     ) -> Result<(), GpuError> {
         let slots = inputs.keys.len();
         debug_assert_eq!(inputs.contacts.len(), slots, "one manifold per key");
+        let rows = count.unwrap_or(slots);
+        debug_assert!(rows <= slots, "more rows than manifold slots");
         self.flags.resize(context, slots + 1)?;
         self.places.resize(context, slots + 1)?;
-        self.constraints.resize(context, slots)?;
-        self.bodies.resize(context, slots)?;
+        self.constraints.resize(context, rows)?;
+        self.bodies.resize(context, rows)?;
         let buffers = [
             inputs.keys.buffer().clone(),
             inputs.contacts.buffer().clone(),
