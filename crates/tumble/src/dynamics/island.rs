@@ -11,9 +11,12 @@
 //!
 //! Islands are found afresh at the end of every step by union-find over that step's
 //! contacts (Box2D v2 builds them each step too; v3 keeps them persistent, which saves the
-//! rebuild at the price of splitting logic). Deterministic: the union-find links the higher
-//! index under the lower and visits edges in pair-key order, so the islands and the ids they
-//! get do not depend on threads.
+//! rebuild at the price of splitting logic). Deterministic: the union-find (on every core)
+//! links the higher root under the lower, so each island's root is its lowest body in any
+//! order of the edges, and the ids go to the islands in the order of their lowest bodies: the
+//! islands and their ids do not depend on threads.
+
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use rayon::prelude::*;
 
@@ -23,6 +26,9 @@ use crate::pipeline::parallel::filter_map_ordered;
 /// Bodies per rayon task of [`Islands::update_timers`]; a world of at most this many bodies
 /// updates them on the calling thread.
 const MIN_BODIES_PER_TASK: usize = 8192;
+
+/// Edges per rayon task of [`Islands::fall_asleep`].
+const MIN_EDGES_PER_TASK: usize = 8192;
 
 /// A body whose fastest point moves slower than this (m/s) is resting (Box2D's 5 cm/s).
 pub const SLEEP_SPEED: f32 = 0.05;
@@ -58,21 +64,23 @@ impl SleepState {
 }
 
 /// The sleep state of every body slot and the members of every sleeping island.
-#[derive(Clone, Debug, Default)]
+#[derive(Debug, Default)]
 pub struct Islands {
     states: Vec<SleepState>,
     /// Members of each sleeping island with the masses they had awake; an empty list is a
     /// free island id.
     sleeping: Vec<Vec<(u32, BodyMass)>>,
     free_ids: Vec<u32>,
-    // Scratch of [`Islands::fall_asleep`], by body: union-find parents, whether the island
-    // each root stands for stays awake, the sleeping island each root's bodies go to (only
-    // the rested bodies' entries are set and read); the rested bodies, and the parallel
-    // filter's counts.
-    parent: Vec<u32>,
-    held: Vec<bool>,
+    // Scratch of [`Islands::fall_asleep`], by body: union-find parents (atomic: the edges are
+    // joined on every core), whether the island each root stands for stays awake, the
+    // sleeping island each root's bodies go to (only the rested bodies' entries are set and
+    // read); the rested bodies, and the parallel filter's counts.
+    parent: Vec<AtomicU32>,
+    held: Vec<AtomicBool>,
     island_of_root: Vec<u32>,
     rested: Vec<u32>,
+    /// Each rested body's root, in the order of `rested`.
+    roots: Vec<u32>,
     chunk_counts: Vec<usize>,
 }
 
@@ -167,71 +175,89 @@ impl Islands {
     /// edges then cost a test rather than a union.
     pub fn fall_asleep(
         &mut self,
-        edges: impl Iterator<Item = (u32, u32)>,
+        edges: &[(u32, u32)],
         masses: &mut [BodyMass],
         velocities: &mut [BodyVelocity],
         keep_awake: Option<u32>,
         asleep: &mut Vec<u32>,
     ) {
         let count = self.states.len();
-        let states = &self.states;
-        let awake = |i: usize| masses[i].inverse_mass > 0.0;
+        let Self {
+            states,
+            sleeping,
+            free_ids,
+            parent,
+            held,
+            island_of_root,
+            rested: rested_bodies,
+            roots,
+            chunk_counts,
+        } = self;
+        let awake_masses: &[BodyMass] = masses;
+        let awake = |i: usize| awake_masses[i].inverse_mass > 0.0;
         let rested = |i: usize| awake(i) && states[i].timer >= TIME_TO_SLEEP;
         // Only rested bodies are joined, held or put to sleep: the passes below walk them (in
         // index order), not every body, and set only their entries of the scratch.
-        let rested_bodies = &mut self.rested;
         let is_rested = |i: usize| rested(i).then_some(i as u32);
-        filter_map_ordered(count, is_rested, &mut self.chunk_counts, rested_bodies);
-        let (parent, held) = (&mut self.parent, &mut self.held);
-        parent.resize(count, 0);
-        held.resize(count, false);
-        self.island_of_root.resize(count, AWAKE);
-        for &i in rested_bodies.iter() {
-            parent[i as usize] = i;
-            held[i as usize] = false;
-            self.island_of_root[i as usize] = AWAKE;
+        filter_map_ordered(count, is_rested, chunk_counts, rested_bodies);
+        if parent.len() < count {
+            parent.resize_with(count, || AtomicU32::new(0));
+            held.resize_with(count, || AtomicBool::new(false));
         }
-        // By body, then by root: whether the island stays awake.
-        for (a, b) in edges {
-            let (a, b) = (a as usize, b as usize);
-            if !(awake(a) && awake(b)) {
-                continue;
+        island_of_root.resize(count, AWAKE);
+        for &i in rested_bodies.iter() {
+            *parent[i as usize].get_mut() = i;
+            *held[i as usize].get_mut() = false;
+            island_of_root[i as usize] = AWAKE;
+        }
+        // By edge, on every core: two rested bodies are joined, a rested body touching an
+        // awake one that has not rested is held. The joins link the higher root under the
+        // lower, so whatever their order each island's root is its lowest body.
+        let (parent, held) = (&parent[..], &held[..]);
+        let visit = |&(a, b): &(u32, u32)| {
+            let (i, j) = (a as usize, b as usize);
+            if !(awake(i) && awake(j)) {
+                return;
             }
-            match (rested(a), rested(b)) {
-                (true, true) => {
-                    let (ra, rb) = (find(parent, a as u32), find(parent, b as u32));
-                    // The lower index is the root: islands do not depend on edge order.
-                    let (low, high) = (ra.min(rb), ra.max(rb));
-                    parent[high as usize] = low;
-                }
-                (true, false) => held[a] = true,
-                (false, true) => held[b] = true,
+            match (rested(i), rested(j)) {
+                (true, true) => join(parent, a, b),
+                (true, false) => held[i].store(true, Ordering::Relaxed),
+                (false, true) => held[j].store(true, Ordering::Relaxed),
                 (false, false) => {}
             }
-        }
+        };
+        edges
+            .par_iter()
+            .with_min_len(MIN_EDGES_PER_TASK)
+            .for_each(visit);
         if let Some(body) = keep_awake.filter(|&body| rested(body as usize)) {
-            held[body as usize] = true;
+            held[body as usize].store(true, Ordering::Relaxed);
         }
-        for &i in rested_bodies.iter() {
-            if held[i as usize] {
-                let root = find(parent, i) as usize;
-                held[root] = true;
-            }
-        }
+        // Each rested body's root; an island is held when any of its bodies is.
+        rested_bodies
+            .par_iter()
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .map(|&i| root(parent, i))
+            .collect_into_vec(roots);
+        rested_bodies
+            .par_iter()
+            .zip(&roots[..])
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .filter(|&(&i, _)| held[i as usize].load(Ordering::Relaxed))
+            .for_each(|(_, &root)| held[root as usize].store(true, Ordering::Relaxed));
         // Island ids in the order of their lowest body, members in index order.
         let first_new = asleep.len();
-        let island_of_root = &mut self.island_of_root;
-        for &i in rested_bodies.iter() {
-            let root = find(parent, i) as usize;
-            if held[root] {
+        for (&i, &root) in rested_bodies.iter().zip(&roots[..]) {
+            let root = root as usize;
+            if held[root].load(Ordering::Relaxed) {
                 continue;
             }
             if island_of_root[root] == AWAKE {
-                island_of_root[root] = new_island(&mut self.sleeping, &mut self.free_ids);
+                island_of_root[root] = new_island(sleeping, free_ids);
             }
             let island = island_of_root[root];
-            self.sleeping[island as usize].push((i, masses[i as usize]));
-            self.states[i as usize].island = island;
+            sleeping[island as usize].push((i, masses[i as usize]));
+            states[i as usize].island = island;
             asleep.push(i);
         }
         for &body in &asleep[first_new..] {
@@ -291,19 +317,62 @@ fn new_island(sleeping: &mut Vec<Vec<(u32, BodyMass)>>, free_ids: &mut Vec<u32>)
     })
 }
 
-/// Root of `body` in the union-find forest, halving paths on the way.
-fn find(parent: &mut [u32], mut body: u32) -> u32 {
-    while parent[body as usize] != body {
-        let grandparent = parent[parent[body as usize] as usize];
-        parent[body as usize] = grandparent;
+/// Root of `body` in the union-find forest: the lowest body of its tree. Halves the path on
+/// the way. Parents only ever move to lower bodies of the same tree (a halving, or a root
+/// linked under a lower root), so a parent read while another thread changes it is still an
+/// ancestor, and the walk ends at a root.
+fn root(parent: &[AtomicU32], mut body: u32) -> u32 {
+    loop {
+        let up = parent[body as usize].load(Ordering::Relaxed);
+        if up == body {
+            return body;
+        }
+        let grandparent = parent[up as usize].load(Ordering::Relaxed);
+        if grandparent != up {
+            // Fails when another thread moved the parent already: either is an ancestor.
+            let _ = parent[body as usize].compare_exchange(
+                up,
+                grandparent,
+                Ordering::Relaxed,
+                Ordering::Relaxed,
+            );
+        }
         body = grandparent;
     }
-    body
+}
+
+/// Joins the trees of `a` and `b`, the higher root linked under the lower. A root that
+/// another thread linked first is no longer one: the link is retried from the new roots.
+fn join(parent: &[AtomicU32], a: u32, b: u32) {
+    let (mut a, mut b) = (a, b);
+    loop {
+        let (root_a, root_b) = (root(parent, a), root(parent, b));
+        if root_a == root_b {
+            return;
+        }
+        let (low, high) = (root_a.min(root_b), root_a.max(root_b));
+        let linked =
+            parent[high as usize].compare_exchange(high, low, Ordering::Relaxed, Ordering::Relaxed);
+        if linked.is_ok() {
+            return;
+        }
+        (a, b) = (root_a, root_b);
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The oracle's union-find root, halving paths.
+    fn find(parent: &mut [u32], mut body: u32) -> u32 {
+        while parent[body as usize] != body {
+            let grandparent = parent[parent[body as usize] as usize];
+            parent[body as usize] = grandparent;
+            body = grandparent;
+        }
+        body
+    }
     use crate::math::Vec3;
 
     fn dynamic() -> BodyMass {
@@ -327,7 +396,14 @@ mod tests {
         };
         let (mut slept, mut rested_awake) = (0, 0);
         for round in 0..200 {
-            let count = 1 + next(60) as usize;
+            // Every 50th graph is large, its edges joined on every core: chains of nearby
+            // bodies, mostly rested, so that many islands sleep and many are held.
+            let big = round % 50 == 49;
+            let count = if big {
+                20_000 + next(20_000) as usize
+            } else {
+                1 + next(60) as usize
+            };
             let mut masses: Vec<BodyMass> = (0..count)
                 .map(|_| {
                     if next(8) == 0 {
@@ -339,16 +415,25 @@ mod tests {
                 .collect();
             let timers: Vec<f32> = (0..count)
                 .map(|_| {
-                    if next(4) == 0 {
+                    if next(if big { 64 } else { 4 }) == 0 {
                         0.3
                     } else {
                         TIME_TO_SLEEP + 0.1
                     }
                 })
                 .collect();
-            let edges: Vec<(u32, u32)> = (0..next(2 * count as u32 + 1))
-                .map(|_| (next(count as u32), next(count as u32)))
-                .collect();
+            let edges: Vec<(u32, u32)> = if big {
+                (0..count as u32 * 3 / 4)
+                    .map(|_| {
+                        let a = next(count as u32);
+                        (a, (a + 1 + next(4)).min(count as u32 - 1))
+                    })
+                    .collect()
+            } else {
+                (0..next(2 * count as u32 + 1))
+                    .map(|_| (next(count as u32), next(count as u32)))
+                    .collect()
+            };
             let keep_awake = (next(3) == 0).then(|| next(count as u32));
             // The oracle: every awake edge joined, an island sleeps when its least rested body
             // rested long enough and it holds no held body.
@@ -372,15 +457,15 @@ mod tests {
                 rest[root] = 0.0;
             }
             let mut expected: Vec<(u32, u32)> = Vec::new();
-            let mut roots: Vec<u32> = Vec::new();
+            let (mut island_of_root, mut islands_found) = (vec![AWAKE; count], 0);
             for i in 0..count as u32 {
-                let root = find(&mut parent, i);
-                if awake(i) && rest[root as usize] >= TIME_TO_SLEEP {
-                    let island = roots.iter().position(|&r| r == root).unwrap_or_else(|| {
-                        roots.push(root);
-                        roots.len() - 1
-                    });
-                    expected.push((i, island as u32));
+                let root = find(&mut parent, i) as usize;
+                if awake(i) && rest[root] >= TIME_TO_SLEEP {
+                    if island_of_root[root] == AWAKE {
+                        island_of_root[root] = islands_found;
+                        islands_found += 1;
+                    }
+                    expected.push((i, island_of_root[root]));
                 }
             }
 
@@ -398,25 +483,25 @@ mod tests {
                 .copied()
                 .filter(|&(a, b)| round % 2 == 0 || islands.may_join(a, b, &masses))
                 .collect();
-            islands.fall_asleep(
-                kept.into_iter(),
-                &mut masses,
-                &mut velocities,
-                keep_awake,
-                &mut asleep,
-            );
+            islands.fall_asleep(&kept, &mut masses, &mut velocities, keep_awake, &mut asleep);
             let found: Vec<(u32, u32)> = asleep
                 .iter()
                 .map(|&body| (body, islands.state(body).island))
                 .collect();
+            // (The large graphs' edges are too many to print.)
+            let shown = if big { &edges[..0] } else { &edges[..] };
             assert_eq!(
                 found, expected,
-                "round {round}: {count} bodies, edges {edges:?}"
+                "round {round}: {count} bodies, edges {shown:?}"
             );
-            slept += found.len();
-            rested_awake += (0..count)
+            let kept_awake = (0..count)
                 .filter(|&i| masses[i].inverse_mass > 0.0 && timers[i] >= TIME_TO_SLEEP)
                 .count();
+            if big {
+                assert!(found.len() > 1000 && kept_awake > 1000, "round {round}");
+            }
+            slept += found.len();
+            rested_awake += kept_awake;
         }
         // Both outcomes are common: rested bodies put to sleep, and rested bodies kept awake
         // by their island.
@@ -444,13 +529,7 @@ mod tests {
         let mut asleep = Vec::new();
         for _ in 0..40 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
-            islands.fall_asleep(
-                edges.iter().copied(),
-                &mut masses,
-                &mut velocities,
-                None,
-                &mut asleep,
-            );
+            islands.fall_asleep(&edges, &mut masses, &mut velocities, None, &mut asleep);
         }
         // Body 3 rested 0.5 s after 30 steps and slept alone (the static body joins nothing).
         assert_eq!(asleep, [3]);
@@ -459,13 +538,7 @@ mod tests {
         velocities[2].linear = Vec3::ZERO;
         for _ in 0..31 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
-            islands.fall_asleep(
-                edges.iter().copied(),
-                &mut masses,
-                &mut velocities,
-                None,
-                &mut asleep,
-            );
+            islands.fall_asleep(&edges, &mut masses, &mut velocities, None, &mut asleep);
         }
         assert_eq!(asleep, [3, 0, 1, 2]);
         let island = islands.state(0).island;
@@ -493,13 +566,7 @@ mod tests {
         for step in 1..=4 {
             let any_rested = islands.update_timers(&velocities, &masses, |_| 1.0, 0.125);
             assert_eq!(any_rested, step == 4, "step {step}");
-            islands.fall_asleep(
-                std::iter::empty(),
-                &mut masses,
-                &mut velocities,
-                None,
-                &mut asleep,
-            );
+            islands.fall_asleep(&[], &mut masses, &mut velocities, None, &mut asleep);
             assert_eq!(asleep.is_empty(), !any_rested, "step {step}");
         }
         assert_eq!(asleep, [0]);
@@ -516,7 +583,7 @@ mod tests {
         for _ in 0..60 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
             islands.fall_asleep(
-                [(0, 1)].into_iter(),
+                &[(0, 1)],
                 &mut masses,
                 &mut velocities,
                 Some(1),

@@ -965,17 +965,15 @@ impl World {
                 &mut scratch.sleep_edges,
             )
         });
-        let contact_edges = scratch.sleep_edges.iter().copied();
-        let joint_edges = self
-            .joints
-            .iter()
-            .flatten()
-            .filter(|j| !j.broken)
-            .map(|j| (j.body_a, j.body_b));
+        // The joints' edges after the contacts'.
+        let joints = self.joints.iter().flatten().filter(|j| !j.broken);
+        scratch
+            .sleep_edges
+            .extend(joints.map(|j| (j.body_a, j.body_b)));
         self.changed_bodies.clear();
         self.profiler.begin("islands");
         self.islands.fall_asleep(
-            contact_edges.chain(joint_edges),
+            &scratch.sleep_edges,
             &mut self.masses,
             &mut self.velocities,
             self.drag.map(|drag| drag.body),
