@@ -170,11 +170,11 @@ pub(crate) enum RowSlots<'a> {
 pub(crate) enum RowsTo<'a> {
     /// Back to the host: the contacts' rows, and the listed joints'.
     Host(&'a mut Vec<ContactConstraint>, &'a mut Vec<JointConstraint>),
-    /// On the device, for [`GpuStages::solve_batched`]; `contacts` is their number, which the
-    /// host knows from the pairs' point counts. The rows' buffers are sized by it rather than
-    /// by the manifold slots: a settled pile has about 2.3 pairs for each manifold with points,
-    /// and at 500k bodies one row per pair would not fit one storage binding.
-    Device { contacts: usize },
+    /// On the device, for [`GpuStages::solve_batched`]; there are `at_most` contact rows (the
+    /// manifolds with points, counted on the host). The rows' buffers are sized by it rather
+    /// than by the manifold slots: a settled pile has about 2.3 pairs for each manifold with
+    /// points, and at 500k bodies one row per pair would not fit one storage binding.
+    Device { at_most: usize },
 }
 
 /// What [`GpuStages::collide`] reads back besides the keys.
@@ -976,7 +976,7 @@ impl GpuStages {
         let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
         let count = match to {
             RowsTo::Host(..) => None,
-            RowsTo::Device { contacts } => Some(contacts),
+            RowsTo::Device { at_most } => Some(at_most),
         };
         let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
             encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {

@@ -185,11 +185,49 @@ impl World {
                     drag: drag.as_ref(),
                     softness: joint_softness,
                 };
-                // Rows that stay on the device: the host knows which pairs have one (and sizes
-                // their buffers by it).
+                // Rows that stay on the device: their buffers are sized by the manifolds with
+                // points, which the host counts.
+                let at_most = if !chained {
+                    None
+                } else if self.contacts_on_device {
+                    // Their point counts came back: a count on every core, the rows' summaries
+                    // after the rows are submitted.
+                    let summaries = self.pair_summaries.par_iter().with_min_len(MIN_PER_TASK);
+                    Some(summaries.filter(|s| s.point_count > 0).count())
+                } else {
+                    let slots = constraint_slots(
+                        self.pairs.keys(),
+                        self.pairs.values(),
+                        &self.children,
+                        &self.masses,
+                    );
+                    let colliders = self.may_bounce.then_some(&self.colliders[..]);
+                    scratch
+                        .row_summaries
+                        .extend(slots.map(|(slot, key, contact)| {
+                            let count = contact.manifold.count;
+                            RowSummary::new(slot, key, count, &self.masses, colliders)
+                        }));
+                    Some(scratch.row_summaries.len())
+                };
+                let to = match at_most {
+                    Some(at_most) => RowsTo::Device { at_most },
+                    None => RowsTo::Host(&mut scratch.contacts, &mut scratch.joints),
+                };
+                let built = gpu.build_constraints(
+                    profiler,
+                    slots,
+                    &inputs,
+                    self.bodies_version,
+                    &joint_inputs,
+                    to,
+                );
+                if built.is_err() {
+                    profiler.end();
+                }
+                built?;
                 if chained && self.contacts_on_device {
-                    // The contacts are on the device: their point counts came back. A pass
-                    // over every pair, on every core.
+                    // A pass over every pair, on every core, while the device builds the rows.
                     let (keys, summaries) = (self.pairs.keys(), &self.pair_summaries);
                     let masses = &self.masses;
                     let colliders = self.may_bounce.then_some(&self.colliders[..]);
@@ -204,40 +242,7 @@ impl World {
                         &mut scratch.chunk_counts,
                         &mut scratch.row_summaries,
                     );
-                } else if chained {
-                    let slots = constraint_slots(
-                        self.pairs.keys(),
-                        self.pairs.values(),
-                        &self.children,
-                        &self.masses,
-                    );
-                    let colliders = self.may_bounce.then_some(&self.colliders[..]);
-                    scratch
-                        .row_summaries
-                        .extend(slots.map(|(slot, key, contact)| {
-                            let count = contact.manifold.count;
-                            RowSummary::new(slot, key, count, &self.masses, colliders)
-                        }));
                 }
-                let to = if chained {
-                    RowsTo::Device {
-                        contacts: scratch.row_summaries.len(),
-                    }
-                } else {
-                    RowsTo::Host(&mut scratch.contacts, &mut scratch.joints)
-                };
-                let built = gpu.build_constraints(
-                    profiler,
-                    slots,
-                    &inputs,
-                    self.bodies_version,
-                    &joint_inputs,
-                    to,
-                );
-                if built.is_err() {
-                    profiler.end();
-                }
-                built?;
             }
             _ => {
                 build_joint_constraints(

@@ -106,7 +106,7 @@ impl GpuRows {
     }
 
     /// Encodes the rows of every slot of `inputs` into `constraints`: room for `count` of them
-    /// when the caller knows how many slots have one, else for one per slot.
+    /// when the caller knows that at most that many slots have one, else for one per slot.
     pub fn encode(
         &mut self,
         context: &GpuContext,
