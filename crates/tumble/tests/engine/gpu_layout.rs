@@ -457,14 +457,10 @@ fn contact_constraint_structs_match_rust() {
                 impulse_scale
             }),
             rust_layout!(Row {
-                arm_a,
-                mass,
-                arm_b,
-                impulse,
                 angular_a,
-                _pad0,
+                mass,
                 angular_b,
-                _pad1
+                impulse
             }),
             rust_layout!(ConstraintPoint {
                 normal,
@@ -539,14 +535,10 @@ fn solver_structs_match_rust() {
                 impulse_scale
             }),
             rust_layout!(Row {
-                arm_a,
-                mass,
-                arm_b,
-                impulse,
                 angular_a,
-                _pad0,
+                mass,
                 angular_b,
-                _pad1
+                impulse
             }),
             rust_layout!(ConstraintPoint {
                 normal,

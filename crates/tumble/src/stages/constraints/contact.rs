@@ -11,8 +11,10 @@
 //!   v_a += d Δλ/m_a,  ω_a += I_a⁻¹(r_a × d) Δλ,  v_b −= d Δλ/m_b,  ω_b −= I_b⁻¹(r_b × d) Δλ
 //! ```
 //!
-//! Rows store `r × d` and `I⁻¹(r × d)` for both bodies (as Bullet's solver does), so an
-//! iteration is dot products and multiply-adds with no matrix work. The Jacobians are fixed at
+//! Rows store `I⁻¹(r × d)` for both bodies (Bullet's solver stores `r × d` too), so an
+//! iteration does no matrix work; `r × d` is two cross products from the point's arms, which
+//! cost less than the 32 bytes a row they would take to read (the solver is bound by its
+//! loads: a constraint is 656 bytes, not 1040). The Jacobians are fixed at
 //! the start of the step (Box2D v3 does the same across its sub-steps); only the separation is
 //! tracked through the sub-steps, from the bodies' delta positions and rotations:
 //!
@@ -34,31 +36,25 @@ use crate::stages::pairs::pair_bodies;
 
 // Layout: the structs below are repr(C) + Pod with WGSL twins in `contact_constraint.wgsl`
 // (checked by tests/engine/gpu_layout.rs), so both executors solve the same array. WGSL aligns a
-// vec3 to 16 bytes, so each vec3 shares its 16 bytes with a scalar (`arm_a` + `mass`, ...)
+// vec3 to 16 bytes, so each vec3 shares its 16 bytes with a scalar (`angular_a` + `mass`, ...)
 // instead of padding wherever a scalar can fill the slot.
 
-/// One scalar constraint direction at one contact point. 64 bytes.
+/// One scalar constraint direction `d` at one contact point. 32 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Row {
-    /// r_a × d.
-    pub arm_a: Vec3,
-    /// Effective mass 1/K (kg).
-    pub mass: f32,
-    /// r_b × d.
-    pub arm_b: Vec3,
-    /// Accumulated impulse (N·s).
-    pub impulse: f32,
     /// I_a⁻¹ (r_a × d), world frame.
     pub angular_a: Vec3,
-    pub _pad0: f32,
+    /// Effective mass 1/K (kg).
+    pub mass: f32,
     /// I_b⁻¹ (r_b × d), world frame.
     pub angular_b: Vec3,
-    pub _pad1: f32,
+    /// Accumulated impulse (N·s).
+    pub impulse: f32,
 }
-const _: () = assert!(size_of::<Row>() == 64);
+const _: () = assert!(size_of::<Row>() == 32);
 
-/// Rows and solver inputs of one contact point. 240 bytes.
+/// Rows and solver inputs of one contact point. 144 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ConstraintPoint {
@@ -79,10 +75,21 @@ pub struct ConstraintPoint {
     pub max_normal_impulse: f32,
     pub _pad: [f32; 2],
 }
-const _: () = assert!(size_of::<ConstraintPoint>() == 240);
+const _: () = assert!(size_of::<ConstraintPoint>() == 144);
+
+impl ConstraintPoint {
+    /// `r_a × d` and `r_b × d`, the arms' moments along `direction`.
+    #[inline]
+    pub fn arms(&self, direction: Vec3) -> (Vec3, Vec3) {
+        (
+            self.anchor_a.cross(direction),
+            self.anchor_b.cross(direction),
+        )
+    }
+}
 
 /// The rows of one manifold: up to 4 points sharing a normal, bodies and material.
-/// 1040 bytes.
+/// 656 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ContactConstraint {
@@ -105,7 +112,7 @@ pub struct ContactConstraint {
     pub softness: Softness,
     pub points: [ConstraintPoint; 4],
 }
-const _: () = assert!(size_of::<ContactConstraint>() == 1040);
+const _: () = assert!(size_of::<ContactConstraint>() == 656);
 
 impl ContactConstraint {
     /// The two friction directions, in the order of the points' `tangent` rows.
@@ -250,30 +257,26 @@ fn build_constraint(
             let angular_b = inertia_b * arm_b;
             let k = mass_a + mass_b + arm_a.dot(angular_a) + arm_b.dot(angular_b);
             Row {
-                arm_a,
-                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
-                arm_b,
-                impulse,
                 angular_a,
+                mass: if k > 0.0 { 1.0 / k } else { 0.0 },
                 angular_b,
-                ..Row::default()
+                impulse,
             }
         };
         let warm = contact.impulses[i];
-        let normal_row = row(normal, warm.normal);
-        let approach_velocity = normal.dot(va.linear - vb.linear)
-            + normal_row.arm_a.dot(va.angular)
-            - normal_row.arm_b.dot(vb.angular);
-        constraint.points[i] = ConstraintPoint {
-            normal: normal_row,
+        let mut constraint_point = ConstraintPoint {
+            normal: row(normal, warm.normal),
             tangent: [row(t1, warm.tangent[0]), row(t2, warm.tangent[1])],
             anchor_a: r_a,
             anchor_b: r_b,
             adjusted_separation: point.separation - normal.dot(r_a - r_b),
             separation: point.separation,
-            approach_velocity,
             ..ConstraintPoint::default()
         };
+        let (arm_a, arm_b) = constraint_point.arms(normal);
+        constraint_point.approach_velocity =
+            normal.dot(va.linear - vb.linear) + arm_a.dot(va.angular) - arm_b.dot(vb.angular);
+        constraint.points[i] = constraint_point;
     }
     constraint
 }

@@ -12,16 +12,13 @@ struct Softness {
     impulse_scale: f32,
 }
 
-// One scalar direction d at one point: r × d and I⁻¹(r × d) for both bodies, 1/K, impulse.
+// One scalar direction d at one point: I⁻¹(r × d) for both bodies, 1/K, impulse (the
+// solver computes r × d from the point's anchors).
 struct Row {
-    arm_a: vec3<f32>,
-    mass: f32,
-    arm_b: vec3<f32>,
-    impulse: f32,
     angular_a: vec3<f32>,
-    _pad0: f32,
+    mass: f32,
     angular_b: vec3<f32>,
-    _pad1: f32,
+    impulse: f32,
 }
 
 struct ConstraintPoint {

@@ -78,11 +78,11 @@ fn make_row(
     impulse: f32,
 ) -> Row {
     var row: Row;
-    row.arm_a = cross(r_a, direction);
-    row.arm_b = cross(r_b, direction);
-    row.angular_a = inertia_a * row.arm_a;
-    row.angular_b = inertia_b * row.arm_b;
-    let k = inverse_masses + dot3(row.arm_a, row.angular_a) + dot3(row.arm_b, row.angular_b);
+    let arm_a = cross(r_a, direction);
+    let arm_b = cross(r_b, direction);
+    row.angular_a = inertia_a * arm_a;
+    row.angular_b = inertia_b * arm_b;
+    let k = inverse_masses + dot3(arm_a, row.angular_a) + dot3(arm_b, row.angular_b);
     row.mass = select(0.0, 1.0 / k, k > 0.0);
     row.impulse = impulse;
     return row;
@@ -148,8 +148,8 @@ fn build(
         p.anchor_b = r_b;
         p.adjusted_separation = point.separation - dot3(normal, r_a - r_b);
         p.separation = point.separation;
-        p.approach_velocity = dot3(normal, va.linear - vb.linear) + dot3(p.normal.arm_a, va.angular)
-            - dot3(p.normal.arm_b, vb.angular);
+        p.approach_velocity = dot3(normal, va.linear - vb.linear)
+            + dot3(cross(r_a, normal), va.angular) - dot3(cross(r_b, normal), vb.angular);
         (*out).points[i] = p;
     }
 }

@@ -2,13 +2,14 @@
 
 use super::{BodyAccess, SolverBody, Sweep, bias_terms};
 use crate::math::Vec3;
-use crate::stages::constraints::{ContactConstraint, Row};
+use crate::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
 
-/// Normal velocity of the contact: how fast A moves away from B along the row (m/s).
+/// How fast A moves away from B along `direction` at `point` (m/s).
 #[inline]
-fn row_velocity(row: &Row, direction: Vec3, a: &SolverBody, b: &SolverBody) -> f32 {
-    direction.dot(a.linear_velocity - b.linear_velocity) + row.arm_a.dot(a.angular_velocity)
-        - row.arm_b.dot(b.angular_velocity)
+fn row_velocity(point: &ConstraintPoint, direction: Vec3, a: &SolverBody, b: &SolverBody) -> f32 {
+    let (arm_a, arm_b) = point.arms(direction);
+    direction.dot(a.linear_velocity - b.linear_velocity) + arm_a.dot(a.angular_velocity)
+        - arm_b.dot(b.angular_velocity)
 }
 
 /// Inverse masses of a constraint's two bodies (1/kg).
@@ -89,8 +90,8 @@ pub(super) fn solve_contact_pair(
         let separation = point.separation;
         let (bias, mass_scale, impulse_scale) = bias_terms(separation, c.softness, sweep);
         // Non-penetration: normal velocity ≥ −bias, accumulated impulse ≥ 0.
+        let velocity = row_velocity(point, n, a, b);
         let row = &point.normal;
-        let velocity = row_velocity(row, n, a, b);
         let impulse = -row.mass * mass_scale * (velocity + bias) - impulse_scale * row.impulse;
         let total = (row.impulse + impulse).max(0.0);
         let delta = total - row.impulse;
@@ -103,9 +104,10 @@ pub(super) fn solve_contact_pair(
     let friction = c.friction;
     let [t1, t2] = c.tangents();
     for point in &mut c.points[..count] {
+        let (velocity1, velocity2) = (row_velocity(point, t1, a, b), row_velocity(point, t2, a, b));
         let [row1, row2] = &mut point.tangent;
-        let want1 = row1.impulse - row_velocity(row1, t1, a, b) * row1.mass;
-        let want2 = row2.impulse - row_velocity(row2, t2, a, b) * row2.mass;
+        let want1 = row1.impulse - velocity1 * row1.mass;
+        let want2 = row2.impulse - velocity2 * row2.mass;
         let limit = friction * point.normal.impulse;
         let length_squared = want1 * want1 + want2 * want2;
         let scale = if length_squared > limit * limit {
@@ -151,8 +153,8 @@ pub(super) fn restitution_pair(
         if point.approach_velocity > -threshold || point.max_normal_impulse == 0.0 {
             continue;
         }
+        let velocity = row_velocity(point, n, a, b);
         let row = &point.normal;
-        let velocity = row_velocity(row, n, a, b);
         let total =
             (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
         let delta = total - row.impulse;

@@ -62,10 +62,14 @@ fn store_body(index: u32, body: SolverBody) {
 // tests/engine/gpu_solver.rs in 401 s instead of 1.9 s.
 alias BodyPair = array<SolverBody, 2>;
 
-// How fast A moves away from B along a row (m/s).
-fn row_velocity(row: Row, direction: vec3<f32>, pair: BodyPair) -> f32 {
+// How fast A moves away from B along `direction` at a point with arms `anchor_a` and
+// `anchor_b` (m/s). The rows keep no r × d: two cross products here cost less than reading
+// them (the constraint is 656 bytes instead of 1040).
+fn row_velocity(direction: vec3<f32>, anchor_a: vec3<f32>, anchor_b: vec3<f32>, pair: BodyPair)
+    -> f32 {
     return dot(direction, pair[0].linear_velocity - pair[1].linear_velocity)
-        + dot(row.arm_a, pair[0].angular_velocity) - dot(row.arm_b, pair[1].angular_velocity);
+        + dot(cross(anchor_a, direction), pair[0].angular_velocity)
+        - dot(cross(anchor_b, direction), pair[1].angular_velocity);
 }
 
 // `impulse` along a row: +impulse to A, −impulse to B.
@@ -103,8 +107,7 @@ struct PointRows {
 }
 
 fn no_point() -> PointRows {
-    let row = Row(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0),
-        0.0);
+    let row = Row(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
     return PointRows(row, row, row, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, 0.0);
 }
 
@@ -223,7 +226,7 @@ fn solve_normal(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Body
     }
     let terms = bias_terms(separation, h.softness);
     let row = (*point).normal;
-    let velocity = row_velocity(row, h.normal, pair);
+    let velocity = row_velocity(h.normal, (*point).anchor_a, (*point).anchor_b, pair);
     let impulse = -row.mass * terms.y * (velocity + terms.x) - terms.z * row.impulse;
     let total = max(row.impulse + impulse, 0.0);
     let delta = total - row.impulse;
@@ -238,8 +241,10 @@ fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Bo
     -> BodyPair {
     let row1 = (*point).tangent1;
     let row2 = (*point).tangent2;
-    let want1 = row1.impulse - row_velocity(row1, h.tangent1, pair) * row1.mass;
-    let want2 = row2.impulse - row_velocity(row2, h.tangent2, pair) * row2.mass;
+    let anchor_a = (*point).anchor_a;
+    let anchor_b = (*point).anchor_b;
+    let want1 = row1.impulse - row_velocity(h.tangent1, anchor_a, anchor_b, pair) * row1.mass;
+    let want2 = row2.impulse - row_velocity(h.tangent2, anchor_a, anchor_b, pair) * row2.mass;
     let limit = h.friction * (*point).normal.impulse;
     let length_squared = want1 * want1 + want2 * want2;
     var scale = 1.0;
@@ -323,7 +328,7 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
             continue;
         }
         let row = (*point).normal;
-        let velocity = row_velocity(row, n, pair);
+        let velocity = row_velocity(n, (*point).anchor_a, (*point).anchor_b, pair);
         let total = max(row.impulse - (velocity + restitution * approach) * row.mass, 0.0);
         let delta = total - row.impulse;
         (*point).normal.impulse = total;
