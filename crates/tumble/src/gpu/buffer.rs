@@ -192,6 +192,21 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         Ok(())
     }
 
+    /// Overwrites the elements from `first` on with `data`, within `len` (the write lands at the
+    /// next submission, like [`upload`](Self::upload)'s).
+    pub fn write_at(&self, context: &GpuContext, first: usize, data: &[T]) {
+        assert!(
+            first + data.len() <= self.len,
+            "{}: a write past the vector's end",
+            self.label
+        );
+        if !data.is_empty() {
+            let offset = Self::bytes(first);
+            let bytes = bytemuck::cast_slice(data);
+            context.queue.write_buffer(&self.buffer, offset, bytes);
+        }
+    }
+
     /// Copies the `len` elements back to the host. Submits pending queue writes and waits.
     pub fn download(&mut self, context: &GpuContext) -> Result<Vec<T>, GpuError> {
         let mut out = Vec::new();

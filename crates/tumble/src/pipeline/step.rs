@@ -218,7 +218,7 @@ impl World {
                     profiler,
                     slots,
                     &inputs,
-                    self.bodies_version,
+                    (self.bodies_version, &self.body_changes),
                     &joint_inputs,
                     to,
                 );
@@ -424,6 +424,7 @@ impl World {
             masses: &self.masses,
             colliders: &self.colliders,
             version: self.bodies_version,
+            changed: &self.body_changes,
         };
         let mut state = Some(state);
         // The solver takes the bodies when it integrates them too.
@@ -539,6 +540,7 @@ impl World {
                 masses: &self.masses,
                 colliders: &self.colliders,
                 version: self.bodies_version,
+                changed: &self.body_changes,
             });
         }
         let scratch = &mut self.scratch;
@@ -680,6 +682,7 @@ impl World {
             masses: &self.masses,
             colliders: &self.colliders,
             version: self.bodies_version,
+            changed: &self.body_changes,
         };
         debug_assert!(
             !self.contacts_on_device || gpu.holds_pair_cache(self.pairs.version()),
@@ -789,6 +792,7 @@ impl World {
                     masses: &self.masses,
                     colliders: &self.colliders,
                     version: self.bodies_version,
+                    changed: &self.body_changes,
                 };
                 // A GPU broadphase reads them where they are.
                 let download = (!broadphase_on_gpu).then_some(&mut scratch.aabbs);
@@ -874,6 +878,7 @@ impl World {
                     masses: &self.masses,
                     colliders: &self.colliders,
                     version: self.bodies_version,
+                    changed: &self.body_changes,
                 };
                 gpu.update_contacts(profiler, keys, contacts, &inputs, &bodies)
             }
@@ -989,7 +994,7 @@ impl World {
             return;
         }
         // Their masses and velocities are zero now.
-        self.bodies_changed();
+        self.masses_changed();
         for &body in &self.changed_bodies {
             self.broadphase.set_moving(body, false);
         }

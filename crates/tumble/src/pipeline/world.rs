@@ -34,7 +34,7 @@ use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::devices::StageDevices;
 pub use crate::pipeline::gpu_stages::DevicePoses;
-use crate::pipeline::gpu_stages::GpuStages;
+use crate::pipeline::gpu_stages::{BodyChanges, GpuStages};
 use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
@@ -174,6 +174,8 @@ pub struct World {
     /// the GPU stages keep their copies of the bodies while it holds, so a step that
     /// integrated on the device uploads no body at the next.
     pub(crate) bodies_version: u64,
+    /// The bodies changed since a version, for the GPU stages' uploads.
+    pub(crate) body_changes: BodyChanges,
 }
 
 impl World {
@@ -217,6 +219,7 @@ impl World {
             host_shapes: 0,
             may_bounce: false,
             bodies_version: 0,
+            body_changes: BodyChanges::default(),
         })
     }
 
@@ -463,7 +466,7 @@ impl World {
                 .wake(body, &mut self.masses, &mut self.changed_bodies);
         }
         if !self.changed_bodies.is_empty() {
-            self.bodies_changed();
+            self.masses_changed();
         }
         self.after_waking();
     }
@@ -473,6 +476,17 @@ impl World {
     /// The host changed `poses`, `velocities` or `masses`: the device's copies are stale.
     pub(crate) fn bodies_changed(&mut self) {
         self.bodies_version += 1;
+        self.body_changes.all(self.bodies_version);
+    }
+
+    /// The bodies in `changed_bodies` fell asleep or woke: only their masses and velocities
+    /// changed, and a device that holds the bodies from before takes only theirs.
+    pub(crate) fn masses_changed(&mut self) {
+        self.bodies_version += 1;
+        let bodies = &mut self.body_changes.bodies;
+        bodies.extend_from_slice(&self.changed_bodies);
+        bodies.sort_unstable();
+        bodies.dedup();
     }
 
     fn after_waking(&mut self) {
