@@ -74,14 +74,13 @@ pub struct Islands {
     // Scratch of [`Islands::fall_asleep`], by body: union-find parents (atomic: the edges are
     // joined on every core), whether the island each root stands for stays awake, the
     // sleeping island each root's bodies go to (only the rested bodies' entries are set and
-    // read); the rested bodies, and the parallel filter's counts.
+    // read); the rested bodies.
     parent: Vec<AtomicU32>,
     held: Vec<AtomicBool>,
     island_of_root: Vec<u32>,
     rested: Vec<u32>,
     /// Each rested body's root, in the order of `rested`.
     roots: Vec<u32>,
-    chunk_counts: Vec<usize>,
 }
 
 impl Islands {
@@ -191,7 +190,6 @@ impl Islands {
             island_of_root,
             rested: rested_bodies,
             roots,
-            chunk_counts,
         } = self;
         let awake_masses: &[BodyMass] = masses;
         let awake = |i: usize| awake_masses[i].inverse_mass > 0.0;
@@ -199,7 +197,7 @@ impl Islands {
         // Only rested bodies are joined, held or put to sleep: the passes below walk them (in
         // index order), not every body, and set only their entries of the scratch.
         let is_rested = |i: usize| rested(i).then_some(i as u32);
-        filter_map_ordered(count, is_rested, chunk_counts, rested_bodies);
+        filter_map_ordered(count, is_rested, rested_bodies);
         if parent.len() < count {
             parent.resize_with(count, || AtomicU32::new(0));
             held.resize_with(count, || AtomicBool::new(false));

@@ -2226,7 +2226,11 @@ mod tests {
         let woke = asleep.windows(2).any(|w| w[1] < w[0]);
         assert!(woke && asleep.last() == Some(&7), "{asleep:?}");
         // (A wake within a step reaches the rows' upload alone in both runs.)
-        assert!(partial >= uploaded.3 + 2, "{partial} against {}", uploaded.3);
+        assert!(
+            partial >= uploaded.3 + 2,
+            "{partial} against {}",
+            uploaded.3
+        );
         assert_eq!(asleep, uploaded.2);
         assert!(velocities == uploaded.1, "the velocities differ");
         assert!(poses == uploaded.0, "the poses differ");

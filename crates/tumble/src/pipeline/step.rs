@@ -55,8 +55,6 @@ pub(crate) struct StepScratch {
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     row_summaries: Vec<RowSummary>,
-    /// [`filter_map_ordered`]'s scratch.
-    pub(crate) chunk_counts: Vec<usize>,
     /// The contact edges that can matter to the islands' sleep ([`Islands::may_join`](crate::dynamics::island::Islands::may_join)).
     sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
@@ -236,12 +234,7 @@ impl World {
                         has_constraint(key, count, masses)
                             .then(|| RowSummary::new(slot as u32, key, count, masses, colliders))
                     };
-                    filter_map_ordered(
-                        keys.len(),
-                        row,
-                        &mut scratch.chunk_counts,
-                        &mut scratch.row_summaries,
-                    );
+                    filter_map_ordered(keys.len(), row, &mut scratch.row_summaries);
                 }
             }
             _ => {
@@ -925,8 +918,7 @@ impl World {
                 let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
                 touches(a, b).filter(|_| touching(pair))
             };
-            let chunk_counts = &mut self.scratch.chunk_counts;
-            filter_map_ordered(keys.len(), touched_by, chunk_counts, &mut touched);
+            filter_map_ordered(keys.len(), touched_by, &mut touched);
             let joints = self.joints.iter().flatten().filter(|j| !j.broken);
             touched.extend(joints.filter_map(|joint| touches(joint.body_a, joint.body_b)));
             if touched.is_empty() {
@@ -968,12 +960,7 @@ impl World {
         };
         let scratch = &mut self.scratch;
         self.profiler.scope("contact edges", || {
-            filter_map_ordered(
-                keys.len(),
-                edge,
-                &mut scratch.chunk_counts,
-                &mut scratch.sleep_edges,
-            )
+            filter_map_ordered(keys.len(), edge, &mut scratch.sleep_edges)
         });
         // The joints' edges after the contacts'.
         let joints = self.joints.iter().flatten().filter(|j| !j.broken);

@@ -510,8 +510,7 @@ impl World {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
             (live(a) && live(b) && resting(a) && resting(b)).then_some(key)
         };
-        let chunk_counts = &mut self.scratch.chunk_counts;
-        filter_map_ordered(keys.len(), rests, chunk_counts, &mut self.resting_pairs);
+        filter_map_ordered(keys.len(), rests, &mut self.resting_pairs);
     }
 
     /// Adds a joint between two bodies at their current poses.
