@@ -1,0 +1,54 @@
+#!/usr/bin/env bash
+# A settled pile on the GPU machine, in one call of the `device` tool (BENCHMARKS.md,
+# "Reproducing"). falling-boxes' first 300 steps are the landing; the pile that stands after
+# it costs several times more (about six pairs a box, islands sleeping and waking). This
+# settles the pile with .devbin/tumble, dumps it, then runs each binary from the same dump:
+# the profile, then the median step without the profiler (`--json`).
+#
+#   bash scripts/pile-on-device.sh [SCALE [SETTLE_STEPS [STEPS]]]    # defaults 33.3 900 120
+#
+# Environment: BINS, the binaries in .devbin/ to run from the dump (default "tumble"; an older
+# build copied to .devbin/tumble-base gives an A/B on the identical pile).
+set -euo pipefail
+
+scale=${1:-33.3}
+settle=${2:-900}
+steps=${3:-120}
+out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
+if [ ! -x .devbin/tumble ]; then
+  echo ".devbin/tumble is missing: run scripts/build-devbin.sh on the development machine and carry .devbin" >&2
+  exit 1
+fi
+
+# Vulkan loader and NVIDIA driver paths (../shared/device/prelude.sh), for the GPU engine.
+if compgen -G ".gl/*.deb" > /dev/null; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
+export WGPU_BACKEND=vulkan
+
+{
+  echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
+  echo "commit: $(cat .devbin/COMMIT 2> /dev/null || echo unknown)"
+  echo "gpu: $(nvidia-smi --query-gpu=name,driver_version --format=csv,noheader 2> /dev/null || echo none)"
+  echo "cores: $(nproc)"
+  echo "pile: falling-boxes --scale $scale, settled $settle steps, then $steps steps a run"
+} > "$out/machine.txt"
+cat "$out/machine.txt"
+
+# The dump is large (230 MB at 100k bodies): on the machine's disk, not in $OUT.
+dump=$(mktemp -d)/pile.json
+report="$out/pile.txt"
+echo "=== settle: tumble, $settle steps" | tee -a "$report"
+.devbin/tumble run falling-boxes --scale "$scale" --device gpu --steps "$settle" --json \
+  --dump "$dump" | tail -1 | tee -a "$report"
+for bin in ${BINS:-tumble}; do
+  echo "=== $bin: profile" >> "$report"
+  ".devbin/$bin" run "$dump" --device gpu --steps "$steps" --profile >> "$report" 2>&1 || true
+  echo "=== $bin: median" | tee -a "$report"
+  ".devbin/$bin" run "$dump" --device gpu --steps "$steps" --json 2>&1 | tail -1 | tee -a "$report" |
+    grep -oE '"ms_per_step":[0-9.]+' || true
+done
+rm -f "$dump"
