@@ -15,9 +15,8 @@
 
 use std::marker::PhantomData;
 
-use rayon::prelude::*;
-
 use crate::gpu::context::{GpuContext, GpuError};
+use crate::pipeline::parallel::copy_in_parallel;
 
 /// Elements allocated for an empty vector: a binding must not be empty.
 const MIN_CAPACITY_BYTES: u64 = 16;
@@ -295,25 +294,6 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             |bytes| read(bytemuck::cast_slice(bytes)),
         )
     }
-}
-
-/// Bytes a task of [`copy_in_parallel`] copies: a read-back of megabytes (the bodies of a
-/// large world) spreads over the cores, one of a few kilobytes stays on this thread.
-const COPY_CHUNK_BYTES: usize = 1 << 18;
-
-/// `destination.copy_from_slice(source)`, on every core for large arrays: one thread copies
-/// from mapped memory at a fraction of the bandwidth several reach.
-fn copy_in_parallel<T: bytemuck::Pod>(destination: &mut [T], source: &[T]) {
-    let destination: &mut [u8] = bytemuck::cast_slice_mut(destination);
-    let source: &[u8] = bytemuck::cast_slice(source);
-    if source.len() <= COPY_CHUNK_BYTES {
-        destination.copy_from_slice(source);
-        return;
-    }
-    destination
-        .par_chunks_mut(COPY_CHUNK_BYTES)
-        .zip(source.par_chunks(COPY_CHUNK_BYTES))
-        .for_each(|(to, from)| to.copy_from_slice(from));
 }
 
 /// How long a read-back waits for its map callback after the device went idle.
