@@ -916,7 +916,8 @@ impl World {
             };
             let touched_by = |pair: usize| {
                 let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
-                touches(a, b).filter(|_| touching(pair))
+                // The summary first: read in order, and most pairs of a pile have no points.
+                touching(pair).then(|| touches(a, b)).flatten()
             };
             filter_map_ordered(keys.len(), touched_by, &mut touched);
             let joints = self.joints.iter().flatten().filter(|j| !j.broken);
@@ -956,7 +957,8 @@ impl World {
         };
         let edge = |pair: usize| {
             let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
-            (islands.may_join(a, b, masses) && touching(pair)).then_some((a, b))
+            // The summary first: read in order, and most pairs of a pile have no points.
+            (touching(pair) && islands.may_join(a, b, masses)).then_some((a, b))
         };
         let scratch = &mut self.scratch;
         self.profiler.scope("contact edges", || {
