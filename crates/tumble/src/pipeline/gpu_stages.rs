@@ -1774,6 +1774,7 @@ fn pair_copies<'c>(
 /// the changed bodies ([`BodyChanges`]); more, and one whole copy costs less than the writes.
 const PARTIAL_UPLOAD_SHARE: usize = 16;
 const PARTIAL_UPLOAD_MIN: usize = 64;
+const PARTIAL_UPLOAD_GAP: u32 = 32;
 
 /// Uploads poses, velocities and masses when the device's are not at the host's version (only
 /// the changed bodies' masses and velocities when [`BodyChanges`] allows), and the colliders
@@ -1796,10 +1797,11 @@ fn upload_bodies(
         .is_some_and(|synced| synced >= inputs.changed.since)
         && changed.len() <= (inputs.masses.len() / PARTIAL_UPLOAD_SHARE).max(PARTIAL_UPLOAD_MIN)
     {
-        // Only some bodies' masses and velocities changed since: theirs, a run of
-        // consecutive bodies a write.
+        // Only some bodies' masses and velocities changed since: theirs, a write for each run
+        // of bodies less than PARTIAL_UPLOAD_GAP apart (the unchanged ones between are the
+        // device's already, and an island's bodies are often near in index: fewer writes).
         let (masses, velocities) = (&bodies.masses, &bodies.velocities);
-        for run in changed.chunk_by(|a, b| a + 1 == *b) {
+        for run in changed.chunk_by(|a, b| b - a < PARTIAL_UPLOAD_GAP) {
             let range = run[0] as usize..run[run.len() - 1] as usize + 1;
             masses.write_at(context, range.start, &inputs.masses[range.clone()]);
             velocities.write_at(context, range.start, &inputs.velocities[range]);
