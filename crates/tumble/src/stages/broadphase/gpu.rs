@@ -51,6 +51,7 @@ use crate::gpu::kernel::{
 use crate::gpu::prims::fill::fill_dispatch;
 use crate::gpu::prims::radix_sort::RadixSort;
 use crate::math::Aabb;
+use crate::pipeline::parallel::filter_map_ordered;
 
 const CODES_WGSL: &str = include_str!("lbvh_codes.wgsl");
 const BUILD_WGSL: &str = include_str!("lbvh_build.wgsl");
@@ -444,14 +445,18 @@ impl GpuBroadphase {
             u32::try_from(is_static.len()).is_ok_and(|count| count < u32::MAX),
             "body indices fit below u32::MAX"
         );
+        // On every core: in a settling pile islands sleep or wake, and so change this, at most
+        // steps.
         let of_kind = |kind: bool| -> Vec<u32> {
-            (0..is_static.len() as u32)
-                .filter(|&body| is_static[body as usize] == kind)
-                .collect()
+            let mut bodies = Vec::new();
+            let is = |body: usize| (is_static[body] == kind).then_some(body as u32);
+            filter_map_ordered(is_static.len(), is, &mut bodies);
+            bodies
         };
         self.dynamic.set_bodies(context, &of_kind(false))?;
         self.fixed.set_bodies(context, &of_kind(true))?;
-        self.is_static = is_static.to_vec();
+        self.is_static.clear();
+        self.is_static.extend_from_slice(is_static);
         self.fixed_stale = true;
         self.cached = None;
         Ok(())
