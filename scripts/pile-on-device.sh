@@ -20,14 +20,7 @@ if [ ! -x .devbin/tumble ]; then
   exit 1
 fi
 
-# Vulkan loader and NVIDIA driver paths (../shared/device/prelude.sh), for the GPU engine.
-if compgen -G ".gl/*.deb" > /dev/null; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done
-  ldconfig
-fi
-export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-export WGPU_BACKEND=vulkan
+source "$(dirname "$0")/device-env.sh"
 
 {
   echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"

@@ -2,11 +2,7 @@
 # Runs the test modules of scripts/build-device-tests.sh on the GPU machine (one call of the
 # `device` tool, carrying .gl and .devbin) and says which failed.
 set -uo pipefail
-if compgen -G ".gl/*.deb" > /dev/null; then
-  for f in .gl/*.deb; do dpkg -x "$f" / > /dev/null; done
-  ldconfig
-fi
-export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json WGPU_BACKEND=vulkan
+source "$(dirname "$0")/device-env.sh"
 failed=0
 while read -r module; do
   output=$(.devbin/tests/engine --test-threads 1 "$module::" 2>&1)
