@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use rayon::prelude::*;
 
 use crate::dynamics::body::{BodyMass, BodyVelocity};
-use crate::pipeline::parallel::filter_map_ordered;
+use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 
 /// Bodies per rayon task of [`Islands::update_timers`]; a world of at most this many bodies
 /// updates them on the calling thread.
@@ -81,6 +81,7 @@ pub struct Islands {
     rested: Vec<u32>,
     /// Each rested body's root, in the order of `rested`.
     roots: Vec<u32>,
+    rested_parts: FilterParts<u32>,
 }
 
 impl Islands {
@@ -190,6 +191,7 @@ impl Islands {
             island_of_root,
             rested: rested_bodies,
             roots,
+            rested_parts,
         } = self;
         let awake_masses: &[BodyMass] = masses;
         let awake = |i: usize| awake_masses[i].inverse_mass > 0.0;
@@ -197,7 +199,7 @@ impl Islands {
         // Only rested bodies are joined, held or put to sleep: the passes below walk them (in
         // index order), not every body, and set only their entries of the scratch.
         let is_rested = |i: usize| rested(i).then_some(i as u32);
-        filter_map_ordered(count, is_rested, rested_bodies);
+        filter_map_ordered(count, is_rested, rested_parts, rested_bodies);
         if parent.len() < count {
             parent.resize_with(count, || AtomicU32::new(0));
             held.resize_with(count, || AtomicBool::new(false));

@@ -12,7 +12,7 @@ use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
     BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo,
 };
-use crate::pipeline::parallel::filter_map_ordered;
+use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
@@ -55,6 +55,12 @@ pub(crate) struct StepScratch {
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     row_summaries: Vec<RowSummary>,
+    /// [`filter_map_ordered`]'s chunks, for the rows' summaries, the sleep's contact edges,
+    /// the bodies the wake touches and the resting pairs.
+    row_parts: FilterParts<RowSummary>,
+    edge_parts: FilterParts<(u32, u32)>,
+    body_parts: FilterParts<u32>,
+    pub(crate) key_parts: FilterParts<u64>,
     /// The contact edges that can matter to the islands' sleep ([`Islands::may_join`](crate::dynamics::island::Islands::may_join)).
     sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
@@ -234,8 +240,17 @@ impl World {
                         has_constraint(key, count, masses)
                             .then(|| RowSummary::new(slot as u32, key, count, masses, colliders))
                     };
-                    filter_map_ordered(keys.len(), row, &mut scratch.row_summaries);
+                    filter_map_ordered(
+                        keys.len(),
+                        row,
+                        &mut scratch.row_parts,
+                        &mut scratch.row_summaries,
+                    );
                 }
+                debug_assert!(
+                    at_most.is_none_or(|rows| scratch.row_summaries.len() <= rows),
+                    "more rows than the device's buffer was sized for"
+                );
             }
             _ => {
                 build_joint_constraints(
@@ -919,7 +934,12 @@ impl World {
                 // The summary first: read in order, and most pairs of a pile have no points.
                 touching(pair).then(|| touches(a, b)).flatten()
             };
-            filter_map_ordered(keys.len(), touched_by, &mut touched);
+            filter_map_ordered(
+                keys.len(),
+                touched_by,
+                &mut self.scratch.body_parts,
+                &mut touched,
+            );
             let joints = self.joints.iter().flatten().filter(|j| !j.broken);
             touched.extend(joints.filter_map(|joint| touches(joint.body_a, joint.body_b)));
             if touched.is_empty() {
@@ -962,7 +982,12 @@ impl World {
         };
         let scratch = &mut self.scratch;
         self.profiler.scope("contact edges", || {
-            filter_map_ordered(keys.len(), edge, &mut scratch.sleep_edges)
+            filter_map_ordered(
+                keys.len(),
+                edge,
+                &mut scratch.edge_parts,
+                &mut scratch.sleep_edges,
+            )
         });
         // The joints' edges after the contacts'.
         let joints = self.joints.iter().flatten().filter(|j| !j.broken);

@@ -510,7 +510,8 @@ impl World {
             let (a, b) = crate::stages::pairs::pair_bodies(key);
             (live(a) && live(b) && resting(a) && resting(b)).then_some(key)
         };
-        filter_map_ordered(keys.len(), rests, &mut self.resting_pairs);
+        let parts = &mut self.scratch.key_parts;
+        filter_map_ordered(keys.len(), rests, parts, &mut self.resting_pairs);
     }
 
     /// Adds a joint between two bodies at their current poses.

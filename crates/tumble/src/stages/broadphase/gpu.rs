@@ -51,7 +51,7 @@ use crate::gpu::kernel::{
 use crate::gpu::prims::fill::fill_dispatch;
 use crate::gpu::prims::radix_sort::RadixSort;
 use crate::math::Aabb;
-use crate::pipeline::parallel::filter_map_ordered;
+use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 
 const CODES_WGSL: &str = include_str!("lbvh_codes.wgsl");
 const BUILD_WGSL: &str = include_str!("lbvh_build.wgsl");
@@ -448,9 +448,9 @@ impl GpuBroadphase {
         // On every core: in a settling pile islands sleep or wake, and so change this, at most
         // steps.
         let of_kind = |kind: bool| -> Vec<u32> {
-            let mut bodies = Vec::new();
+            let (mut parts, mut bodies) = (FilterParts::default(), Vec::new());
             let is = |body: usize| (is_static[body] == kind).then_some(body as u32);
-            filter_map_ordered(is_static.len(), is, &mut bodies);
+            filter_map_ordered(is_static.len(), is, &mut parts, &mut bodies);
             bodies
         };
         self.dynamic.set_bodies(context, &of_kind(false))?;
