@@ -9,9 +9,11 @@
 //! the ground with no special case. An island wakes as a whole when an awake body touches one
 //! of its bodies or is joined to one, or when the user moves, drags or removes one of them.
 //!
-//! Islands are found afresh at the end of every step by union-find over that step's
-//! contacts (Box2D v2 builds them each step too; v3 keeps them persistent, which saves the
-//! rebuild at the price of splitting logic). Deterministic: the union-find (on every core)
+//! Islands are found afresh every step by union-find over that step's contacts (Box2D v2
+//! builds them each step too; v3 keeps them persistent, which saves the rebuild at the price
+//! of splitting logic). They depend on the contacts and masses, not on the velocities: a step
+//! whose solver runs on the device links them while the device solves, and only the rest
+//! times wait for the solved velocities. Deterministic: the union-find (on every core)
 //! links the higher root under the lower, so each island's root is its lowest body in any
 //! order of the edges, and the ids go to the islands in the order of their lowest bodies: the
 //! islands and their ids do not depend on threads.
@@ -82,6 +84,8 @@ pub struct Islands {
     /// Each rested body's root, in the order of `rested`.
     roots: Vec<u32>,
     rested_parts: FilterParts<u32>,
+    /// Whether `parent` holds this step's links ([`Islands::unlink_all`]).
+    linked: bool,
 }
 
 impl Islands {
@@ -113,8 +117,8 @@ impl Islands {
     /// every point within `bounding_radius(body)` of its centre, and resets the others.
     /// Returns whether any awake body has now rested [`TIME_TO_SLEEP`]: an island sleeps only
     /// when all its bodies have, so until one has, [`Self::fall_asleep`] would find nothing to
-    /// put to sleep, and the caller can skip it (and the union-find over every body and
-    /// contact: a falling scene does).
+    /// put to sleep, and the caller can skip it (and the links, when they are still to be
+    /// made: a falling scene does).
     pub fn update_timers(
         &mut self,
         velocities: &[BodyVelocity],
@@ -154,33 +158,57 @@ impl Islands {
             .reduce(|| false, |a, b| a || b)
     }
 
-    /// Whether the edge between bodies `a` and `b` can matter to [`Self::fall_asleep`]: both
-    /// awake and dynamic, and at least one rested (two rested bodies join, a rested body and
-    /// an unrested one hold the island awake). The other edges [`Self::fall_asleep`] skips, so
-    /// a caller may filter them out first, on every core.
-    pub fn may_join(&self, a: u32, b: u32, masses: &[BodyMass]) -> bool {
-        let awake = |i: u32| masses[i as usize].inverse_mass > 0.0;
-        let rested = |i: u32| self.states[i as usize].timer >= TIME_TO_SLEEP;
-        awake(a) && awake(b) && (rested(a) || rested(b))
+    /// Starts this step's islands: every body on its own, until [`Self::link`] joins them.
+    pub fn unlink_all(&mut self) {
+        let count = self.states.len();
+        if self.parent.len() < count {
+            self.parent.resize_with(count, || AtomicU32::new(0));
+            self.held.resize_with(count, || AtomicBool::new(false));
+        }
+        let parents = self.parent[..count].par_iter_mut().enumerate();
+        parents
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .for_each(|(i, parent)| *parent.get_mut() = i as u32);
+        self.linked = true;
     }
 
-    /// Finds the islands of the awake dynamic bodies joined by `edges` (body pairs of contacts
-    /// with points and of joints; pairs with a static body are ignored) and puts to sleep each
-    /// island whose bodies have all rested [`TIME_TO_SLEEP`], unless it holds `keep_awake`:
-    /// their masses and velocities become zero. Appends the bodies put to sleep to `asleep`.
+    /// Joins the islands of the awake dynamic bodies that `edges` connect (body pairs of
+    /// contacts with points and of joints; an edge to a static or sleeping body joins
+    /// nothing: a pile on the ground is one island, two piles are two), on every core. Any
+    /// number of calls after [`Self::unlink_all`], before [`Self::fall_asleep`]; the masses
+    /// must be those `fall_asleep` gets. The islands do not depend on the velocities: a step
+    /// links its contacts while the device solves.
+    pub fn link(&mut self, edges: &[(u32, u32)], masses: &[BodyMass]) {
+        debug_assert!(self.linked, "link after unlink_all");
+        let parent = &self.parent[..];
+        let awake = |i: u32| masses[i as usize].inverse_mass > 0.0;
+        edges
+            .par_iter()
+            .with_min_len(MIN_EDGES_PER_TASK)
+            .filter(|&&(a, b)| awake(a) && awake(b))
+            .for_each(|&(a, b)| join(parent, a, b));
+    }
+
+    /// Puts to sleep each island of the last [`Self::unlink_all`] and [`Self::link`]s whose
+    /// bodies have all rested [`TIME_TO_SLEEP`], unless it holds `keep_awake`: their masses
+    /// and velocities become zero. Appends the bodies put to sleep to `asleep`. The next
+    /// step's islands start from [`Self::unlink_all`] again.
     ///
-    /// Only the rested bodies are joined: an island sleeps when all its bodies rested, so it
-    /// is a component of the rested bodies with no edge to an awake body that has not rested,
-    /// and such an edge keeps the rested component awake. In a scene still settling, most
-    /// edges then cost a test rather than a union.
+    /// Only the rested bodies can sleep, and an island holding an awake body that has not
+    /// rested stays awake: the passes walk the rested bodies (in index order) and mark the
+    /// roots of the others, and set only the entries of the scratch they read.
     pub fn fall_asleep(
         &mut self,
-        edges: &[(u32, u32)],
         masses: &mut [BodyMass],
         velocities: &mut [BodyVelocity],
         keep_awake: Option<u32>,
         asleep: &mut Vec<u32>,
     ) {
+        assert!(
+            self.linked,
+            "fall_asleep needs this step's links (unlink_all, link)"
+        );
+        self.linked = false;
         let count = self.states.len();
         let Self {
             states,
@@ -192,59 +220,33 @@ impl Islands {
             rested: rested_bodies,
             roots,
             rested_parts,
+            ..
         } = self;
         let awake_masses: &[BodyMass] = masses;
         let awake = |i: usize| awake_masses[i].inverse_mass > 0.0;
         let rested = |i: usize| awake(i) && states[i].timer >= TIME_TO_SLEEP;
-        // Only rested bodies are joined, held or put to sleep: the passes below walk them (in
-        // index order), not every body, and set only their entries of the scratch.
         let is_rested = |i: usize| rested(i).then_some(i as u32);
         filter_map_ordered(count, is_rested, rested_parts, rested_bodies);
-        if parent.len() < count {
-            parent.resize_with(count, || AtomicU32::new(0));
-            held.resize_with(count, || AtomicBool::new(false));
-        }
         island_of_root.resize(count, AWAKE);
-        for &i in rested_bodies.iter() {
-            *parent[i as usize].get_mut() = i;
-            *held[i as usize].get_mut() = false;
-            island_of_root[i as usize] = AWAKE;
-        }
-        // By edge, on every core: two rested bodies are joined, a rested body touching an
-        // awake one that has not rested is held. The joins link the higher root under the
-        // lower, so whatever their order each island's root is its lowest body.
+        // Each rested body's root, its island's flag cleared and its id unset.
         let (parent, held) = (&parent[..], &held[..]);
-        let visit = |&(a, b): &(u32, u32)| {
-            let (i, j) = (a as usize, b as usize);
-            if !(awake(i) && awake(j)) {
-                return;
-            }
-            match (rested(i), rested(j)) {
-                (true, true) => join(parent, a, b),
-                (true, false) => held[i].store(true, Ordering::Relaxed),
-                (false, true) => held[j].store(true, Ordering::Relaxed),
-                (false, false) => {}
-            }
-        };
-        edges
-            .par_iter()
-            .with_min_len(MIN_EDGES_PER_TASK)
-            .for_each(visit);
-        if let Some(body) = keep_awake.filter(|&body| rested(body as usize)) {
-            held[body as usize].store(true, Ordering::Relaxed);
-        }
-        // Each rested body's root; an island is held when any of its bodies is.
         rested_bodies
             .par_iter()
             .with_min_len(MIN_BODIES_PER_TASK)
             .map(|&i| root(parent, i))
             .collect_into_vec(roots);
-        rested_bodies
-            .par_iter()
-            .zip(&roots[..])
+        for &root in roots.iter() {
+            held[root as usize].store(false, Ordering::Relaxed);
+            island_of_root[root as usize] = AWAKE;
+        }
+        // An awake body that has not rested holds its island, and so does `keep_awake`. Only
+        // the flags of rested islands' roots are read, and those were cleared above.
+        (0..count)
+            .into_par_iter()
             .with_min_len(MIN_BODIES_PER_TASK)
-            .filter(|&(&i, _)| held[i as usize].load(Ordering::Relaxed))
-            .for_each(|(_, &root)| held[root as usize].store(true, Ordering::Relaxed));
+            .filter(|&i| awake(i) && !rested(i))
+            .chain(keep_awake.map(|body| body as usize))
+            .for_each(|i| held[root(parent, i as u32) as usize].store(true, Ordering::Relaxed));
         // Island ids in the order of their lowest body, members in index order.
         let first_new = asleep.len();
         for (&i, &root) in rested_bodies.iter().zip(&roots[..]) {
@@ -375,6 +377,20 @@ mod tests {
     }
     use crate::math::Vec3;
 
+    /// One step's islands from `edges`, then their sleep.
+    fn sleep(
+        islands: &mut Islands,
+        edges: &[(u32, u32)],
+        masses: &mut [BodyMass],
+        velocities: &mut [BodyVelocity],
+        keep_awake: Option<u32>,
+        asleep: &mut Vec<u32>,
+    ) {
+        islands.unlink_all();
+        islands.link(edges, masses);
+        islands.fall_asleep(masses, velocities, keep_awake, asleep);
+    }
+
     fn dynamic() -> BodyMass {
         BodyMass {
             inverse_inertia: Vec3::ONE,
@@ -382,11 +398,11 @@ mod tests {
         }
     }
 
-    /// Joining only the rested bodies puts to sleep exactly the islands that a union over
-    /// every awake edge finds with all their bodies rested, with the same ids, on random
-    /// graphs (static bodies, the held body, bodies just short of the time to sleep).
+    /// The islands linked on every core put to sleep exactly the islands that a sequential
+    /// union over every awake edge finds with all their bodies rested, with the same ids, on
+    /// random graphs (static bodies, the held body, bodies just short of the time to sleep).
     #[test]
-    fn islands_of_rested_bodies_are_the_islands_that_rested() {
+    fn linked_islands_sleep_when_all_their_bodies_rested() {
         let mut seed = 0x9E37_79B9_7F4A_7C15u64;
         let mut next = move |n: u32| {
             seed ^= seed << 13;
@@ -476,14 +492,13 @@ mod tests {
             }
             let mut velocities = vec![BodyVelocity::default(); count];
             let mut asleep = Vec::new();
-            // Odd rounds pass only the edges `may_join` keeps, as the step does: the same
-            // islands.
-            let kept: Vec<(u32, u32)> = edges
-                .iter()
-                .copied()
-                .filter(|&(a, b)| round % 2 == 0 || islands.may_join(a, b, &masses))
-                .collect();
-            islands.fall_asleep(&kept, &mut masses, &mut velocities, keep_awake, &mut asleep);
+            // Odd rounds link the edges in two calls, as the step links its contacts and then
+            // its joints: the same islands.
+            islands.unlink_all();
+            let split = if round % 2 == 0 { 0 } else { edges.len() / 3 };
+            islands.link(&edges[..split], &masses);
+            islands.link(&edges[split..], &masses);
+            islands.fall_asleep(&mut masses, &mut velocities, keep_awake, &mut asleep);
             let found: Vec<(u32, u32)> = asleep
                 .iter()
                 .map(|&body| (body, islands.state(body).island))
@@ -529,7 +544,14 @@ mod tests {
         let mut asleep = Vec::new();
         for _ in 0..40 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
-            islands.fall_asleep(&edges, &mut masses, &mut velocities, None, &mut asleep);
+            sleep(
+                &mut islands,
+                &edges,
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
         }
         // Body 3 rested 0.5 s after 30 steps and slept alone (the static body joins nothing).
         assert_eq!(asleep, [3]);
@@ -538,7 +560,14 @@ mod tests {
         velocities[2].linear = Vec3::ZERO;
         for _ in 0..31 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
-            islands.fall_asleep(&edges, &mut masses, &mut velocities, None, &mut asleep);
+            sleep(
+                &mut islands,
+                &edges,
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
         }
         assert_eq!(asleep, [3, 0, 1, 2]);
         let island = islands.state(0).island;
@@ -566,7 +595,14 @@ mod tests {
         for step in 1..=4 {
             let any_rested = islands.update_timers(&velocities, &masses, |_| 1.0, 0.125);
             assert_eq!(any_rested, step == 4, "step {step}");
-            islands.fall_asleep(&[], &mut masses, &mut velocities, None, &mut asleep);
+            sleep(
+                &mut islands,
+                &[],
+                &mut masses,
+                &mut velocities,
+                None,
+                &mut asleep,
+            );
             assert_eq!(asleep.is_empty(), !any_rested, "step {step}");
         }
         assert_eq!(asleep, [0]);
@@ -582,7 +618,8 @@ mod tests {
         let mut asleep = Vec::new();
         for _ in 0..60 {
             islands.update_timers(&velocities, &masses, |_| 1.0, 1.0 / 60.0);
-            islands.fall_asleep(
+            sleep(
+                &mut islands,
                 &[(0, 1)],
                 &mut masses,
                 &mut velocities,

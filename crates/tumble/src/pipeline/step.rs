@@ -1,9 +1,12 @@
 //! The step, stage by stage, in the order of DESIGN.md. Read top to bottom.
 
 use std::sync::OnceLock;
+use std::time::Instant;
 
 use rayon::prelude::*;
 
+use crate::dynamics::body::BodyMass;
+use crate::dynamics::island::Islands;
 use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
@@ -15,6 +18,7 @@ use crate::pipeline::gpu_stages::{
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{NO_BATCH, StepStats, World};
+use crate::profile::SpanKind;
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::{
     ContactConstraint, DRAG_JOINT, Drag, JointConstraint, RowInputs, build_constraints,
@@ -61,7 +65,7 @@ pub(crate) struct StepScratch {
     edge_parts: FilterParts<(u32, u32)>,
     body_parts: FilterParts<u32>,
     pub(crate) key_parts: FilterParts<u64>,
-    /// The contact edges that can matter to the islands' sleep ([`Islands::may_join`](crate::dynamics::island::Islands::may_join)).
+    /// The edges of the islands: the contacts' ([`link_contacts`]), then the joints'.
     sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
@@ -443,7 +447,25 @@ impl World {
                 None
             }
         };
-        let solved = match (self.devices.get(Stage::Solver), &mut self.gpu) {
+        // While the device solves, the host links this step's islands: they need the
+        // contacts and masses, not the velocities (see `fall_asleep`).
+        let link_now = config.sleeping
+            && self.gpu.is_some()
+            && self.devices.get(Stage::Solver) == Executor::Gpu;
+        let pair_edges = PairEdges {
+            keys: self.pairs.keys(),
+            values: self.pairs.values(),
+            summaries: self.contacts_on_device.then_some(&self.pair_summaries[..]),
+        };
+        let (islands, masses) = (&mut self.islands, &self.masses);
+        let (edge_parts, edges) = (&mut scratch.edge_parts, &mut scratch.sleep_edges);
+        let link = || {
+            let start = Instant::now();
+            link_contacts(islands, &pair_edges, masses, edge_parts, edges);
+            start.elapsed().as_secs_f64() * 1e3
+        };
+        let devices = &self.devices;
+        let mut solve = || match (devices.get(Stage::Solver), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) if chained => {
                 let restitution = scratch.row_summaries.iter().any(|r| r.restitution);
                 let rows = &scratch.row_summaries;
@@ -505,6 +527,19 @@ impl World {
                 Ok(())
             }
         };
+        let (solved, linked_ms) = if link_now {
+            let (solved, ms) = rayon::join(solve, link);
+            (solved, Some(ms))
+        } else {
+            (solve(), None)
+        };
+        if let Some(ms) = linked_ms {
+            profiler.record(
+                &["solver", "island links (host, during the wait)"],
+                SpanKind::Cpu,
+                ms,
+            );
+        }
         if solved.is_err() {
             profiler.end();
         }
@@ -627,7 +662,7 @@ impl World {
         }
         if config.sleeping {
             self.profiler.begin("sleep");
-            self.fall_asleep();
+            self.fall_asleep(linked_ms.is_some());
             self.profiler.end();
         }
         self.stats.sleeping = self.islands.sleeping_count();
@@ -951,8 +986,9 @@ impl World {
     }
 
     /// Rest times from this step's velocities; islands that rested long enough go to sleep
-    /// and into the broadphase's fixed tree.
-    fn fall_asleep(&mut self) {
+    /// and into the broadphase's fixed tree. `linked`: this step's contacts were linked into
+    /// islands already (while the device solved).
+    fn fall_asleep(&mut self, linked: bool) {
         let colliders = &self.colliders;
         self.profiler.begin("rest timers");
         let any_rested = self.islands.update_timers(
@@ -966,38 +1002,29 @@ impl World {
         if !any_rested {
             return;
         }
-        // A pass over every pair, on every core: in a scene still settling most edges join
-        // nothing, and the union-find then walks only the few that do.
-        let (islands, masses) = (&self.islands, &self.masses);
-        let (keys, values) = (self.pairs.keys(), self.pairs.values());
-        let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
-        let touching = |pair: usize| match summaries {
-            Some(summaries) => summaries[pair].point_count > 0,
-            None => values[pair].manifold.count > 0,
-        };
-        let edge = |pair: usize| {
-            let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
-            // The summary first: read in order, and most pairs of a pile have no points.
-            (touching(pair) && islands.may_join(a, b, masses)).then_some((a, b))
-        };
         let scratch = &mut self.scratch;
-        self.profiler.scope("contact edges", || {
-            filter_map_ordered(
-                keys.len(),
-                edge,
-                &mut scratch.edge_parts,
-                &mut scratch.sleep_edges,
-            )
-        });
-        // The joints' edges after the contacts'.
+        if !linked {
+            let contacts = PairEdges {
+                keys: self.pairs.keys(),
+                values: self.pairs.values(),
+                summaries: self.contacts_on_device.then_some(&self.pair_summaries[..]),
+            };
+            let (islands, masses) = (&mut self.islands, &self.masses);
+            let (parts, edges) = (&mut scratch.edge_parts, &mut scratch.sleep_edges);
+            self.profiler.scope("links", || {
+                link_contacts(islands, &contacts, masses, parts, edges)
+            });
+        }
+        // The joints' edges after the solve, which may have broken some.
+        scratch.sleep_edges.clear();
         let joints = self.joints.iter().flatten().filter(|j| !j.broken);
         scratch
             .sleep_edges
             .extend(joints.map(|j| (j.body_a, j.body_b)));
+        self.islands.link(&scratch.sleep_edges, &self.masses);
         self.changed_bodies.clear();
         self.profiler.begin("islands");
         self.islands.fall_asleep(
-            &scratch.sleep_edges,
             &mut self.masses,
             &mut self.velocities,
             self.drag.map(|drag| drag.body),
@@ -1015,6 +1042,41 @@ impl World {
         self.update_resting_pairs();
         self.refresh_resting = true;
     }
+}
+
+/// The pairs as edges of the islands: their keys, and whether each has points (from the
+/// summaries when the contacts are on the device, else from the contacts).
+struct PairEdges<'a> {
+    keys: &'a [u64],
+    values: &'a [narrowphase::PairContact],
+    summaries: Option<&'a [PairSummary]>,
+}
+
+/// This step's islands from the pairs with points: [`Islands::unlink_all`], then the edges
+/// between awake dynamic bodies (a pass over every pair, on every core) linked.
+fn link_contacts(
+    islands: &mut Islands,
+    pairs: &PairEdges,
+    masses: &[BodyMass],
+    parts: &mut FilterParts<(u32, u32)>,
+    edges: &mut Vec<(u32, u32)>,
+) {
+    let touching = |pair: usize| match pairs.summaries {
+        Some(summaries) => summaries[pair].point_count > 0,
+        None => pairs.values[pair].manifold.count > 0,
+    };
+    let awake = |body: u32| masses[body as usize].inverse_mass > 0.0;
+    let edge = |pair: usize| {
+        // The summary first: read in order, and most pairs of a pile have no points.
+        if !touching(pair) {
+            return None;
+        }
+        let (a, b) = crate::stages::pairs::pair_bodies(pairs.keys[pair]);
+        (awake(a) && awake(b)).then_some((a, b))
+    };
+    filter_map_ordered(pairs.keys.len(), edge, parts, edges);
+    islands.unlink_all();
+    islands.link(edges, masses);
 }
 
 /// Solved impulses back into the pair and child caches (by slot, see
