@@ -229,6 +229,33 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         self.read_download(context, out)
     }
 
+    /// Copies the `len` elements back to the host now, through a staging buffer of its own:
+    /// for readers that hold the vector shared (the world's on-demand reads between steps).
+    pub fn read(&self, context: &GpuContext) -> Result<Vec<T>, GpuError> {
+        let mut out = Vec::with_capacity(self.len);
+        if self.len == 0 {
+            return Ok(out);
+        }
+        let bytes = Self::bytes(self.len);
+        let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(self.label),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some(self.label),
+            });
+        encoder.copy_buffer_to_buffer(&self.buffer, 0, &staging, 0, bytes);
+        context.queue.submit([encoder.finish()]);
+        read_mapped(context, &staging, bytes, self.label, |bytes| {
+            out.extend_from_slice(bytemuck::cast_slice(bytes));
+        })?;
+        Ok(out)
+    }
+
     /// Records the copy of the `len` elements into the vector's staging buffer at the end of
     /// `encoder`, so that a stage's kernels and its read-backs are one submission and one
     /// wait; once it is submitted, [`read_download`](Self::read_download) hands them over.

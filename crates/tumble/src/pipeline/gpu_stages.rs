@@ -2,7 +2,7 @@ use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::dynamics::joint::Joint;
-use crate::gpu::buffer::{GpuVec, read_mapped};
+use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Dispatch, encode_all};
 use crate::gpu::prims::fill::copy_dispatch;
@@ -500,35 +500,18 @@ impl GpuStages {
         self.cached_pairs = Some(version);
     }
 
+    /// The colors of last step's contact rows, in row order, when its batch layout stayed on
+    /// the device. Reads through a staging buffer of its own, for callers holding `&self`.
+    pub fn read_row_colors(&self) -> Result<Vec<u32>, GpuError> {
+        self.batching.colors.read(&self.context)
+    }
+
     /// The contacts of last step's pairs as they are on the device, impulses included, in
     /// pair order: after a [`Self::collide`] that left them there
     /// ([`CollideOutput::Summaries`]). Reads through a staging buffer of its own, so that a
     /// caller holding only `&self` (the world's contact queries) can read them.
     pub fn read_pair_contacts(&self) -> Result<Vec<PairContact>, GpuError> {
-        let context = &self.context;
-        let count = self.contacts.len();
-        let mut out = Vec::with_capacity(count);
-        if count == 0 {
-            return Ok(out);
-        }
-        let bytes = (count * size_of::<PairContact>()) as u64;
-        let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("pair contacts read-back"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = context
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("pair contacts read-back"),
-            });
-        encoder.copy_buffer_to_buffer(self.contacts.buffer(), 0, &staging, 0, bytes);
-        context.queue.submit([encoder.finish()]);
-        read_mapped(context, &staging, bytes, "pair contacts", |bytes| {
-            out.extend_from_slice(bytemuck::cast_slice(bytes));
-        })?;
-        Ok(out)
+        self.contacts.read(&self.context)
     }
 
     /// This step's end poses on the device, when it integrated here ([`DevicePoses`]).
@@ -1574,9 +1557,10 @@ impl GpuStages {
                 }
                 batched.joint_impulses.encode_download(context, encoder);
                 if device_layout {
-                    // The colors for the host's statistics and the viewer, the offsets for
-                    // the next step's plan.
-                    batching.encode_read_back(context, encoder);
+                    // The offsets for the host's histogram and the next step's plan, the tally
+                    // for its rounds. The colors stay here until the viewer asks for them
+                    // ([`Self::read_row_colors`]).
+                    batching.encode_read_tally(context, encoder);
                     layout_offsets.encode_download(context, encoder);
                 }
                 Ok(())
@@ -1604,13 +1588,18 @@ impl GpuStages {
             .joint_impulses
             .read_download(context, joint_impulses)?;
         if let BatchLayout::Device { coloring } = &mut layout {
-            self.batching.finish_read_back(context, coloring)?;
-            self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
             let offsets = &mut self.host_layout_offsets;
             self.layout.offsets.read_download(context, offsets)?;
             for (batch, expected) in self.expected_batch_sizes.iter_mut().enumerate() {
                 *expected = offsets[batch + 1] - offsets[batch];
             }
+            // Batch k of the layout is color k, its last batch the overflow batch.
+            coloring.colors.clear();
+            coloring.set_batch_sizes(&self.expected_batch_sizes);
+            coloring.rounds = self
+                .batching
+                .finish_read_tally(context, offsets[LAYOUT_BATCHES])?;
+            self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
         }
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.impulses_scattered = scatter;

@@ -17,7 +17,7 @@ use crate::pipeline::gpu_stages::{
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
-use crate::pipeline::world::{NO_BATCH, StepStats, World};
+use crate::pipeline::world::{StepStats, World};
 use crate::profile::SpanKind;
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::{
@@ -45,7 +45,7 @@ pub(crate) struct StepScratch {
     slot_keys: Vec<u64>,
     slot_contacts: Vec<narrowphase::PairContact>,
     inverse_inertia: Vec<Mat3>,
-    contacts: Vec<ContactConstraint>,
+    pub(crate) contacts: Vec<ContactConstraint>,
     joints: Vec<JointConstraint>,
     /// With the rows on the GPU, the joint rows the device builds: each one's joint slot (the
     /// drag's is the slot past the joints') and bodies, in row order ([`joint_slots`]).
@@ -58,7 +58,7 @@ pub(crate) struct StepScratch {
     batched_joint_impulses: Vec<BatchedJointImpulses>,
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
-    row_summaries: Vec<RowSummary>,
+    pub(crate) row_summaries: Vec<RowSummary>,
     /// [`filter_map_ordered`]'s chunks, for the rows' summaries, the sleep's contact edges,
     /// the bodies the wake touches and the resting pairs.
     row_parts: FilterParts<RowSummary>,
@@ -69,7 +69,7 @@ pub(crate) struct StepScratch {
     sleep_edges: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
-    coloring: Coloring,
+    pub(crate) coloring: Coloring,
     /// `contacts` and `joints` permuted into batch order, the layout the solver sweeps.
     batched_contacts: Vec<ContactConstraint>,
     contact_offsets: Vec<u32>,
@@ -343,11 +343,11 @@ impl World {
             profiler.end();
         }
         colored?;
-        // Which batch each pair's manifold went to, for the viewer's colored batches (after
-        // the solve, which brings the colors back, when the layout stays on the device).
-        self.pair_batches.clear();
-        self.pair_batches
-            .resize(self.pairs.len() + self.children.len(), NO_BATCH);
+        // Which batch each pair's manifold went to is found when the viewer asks
+        // (`World::contact_batches`), from the rows and colors this step leaves in `scratch`,
+        // or from the device's colors when the layout stays there.
+        self.pair_batches = OnceLock::new();
+        self.row_colors_on_device = device_layout;
         let (joint_colors, contact_colors) = scratch.coloring.colors.split_at(joint_count);
         let coloring = &scratch.coloring;
         if chained {
@@ -386,9 +386,6 @@ impl World {
                 &mut scratch.batch_order,
                 &mut scratch.contact_offsets,
             );
-            for (row, &color) in scratch.row_summaries.iter().zip(contact_colors) {
-                self.pair_batches[row.slot as usize] = coloring.batch_of(color) as u32;
-            }
         } else {
             group_by_batch(
                 &scratch.contacts,
@@ -397,9 +394,6 @@ impl World {
                 &mut scratch.batched_contacts,
                 &mut scratch.contact_offsets,
             );
-            for (constraint, &color) in scratch.contacts.iter().zip(contact_colors) {
-                self.pair_batches[constraint.pair as usize] = coloring.batch_of(color) as u32;
-            }
         }
         profiler.end();
 
@@ -544,12 +538,6 @@ impl World {
             profiler.end();
         }
         solved?;
-        if device_layout {
-            let coloring = &scratch.coloring;
-            for (row, &color) in scratch.row_summaries.iter().zip(&coloring.colors) {
-                self.pair_batches[row.slot as usize] = coloring.batch_of(color) as u32;
-            }
-        }
         profiler.end();
 
         // 8. Integrate: the step's motion into the poses. Before the impulses are stored, so
@@ -1109,7 +1097,7 @@ fn store_contact_impulses(
 /// bodies the batching sees, its point count, whether it bounces.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct RowSummary {
-    slot: u32,
+    pub(crate) slot: u32,
     bodies: (u32, u32),
     point_count: u32,
     restitution: bool,

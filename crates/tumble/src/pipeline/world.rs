@@ -130,8 +130,12 @@ pub struct World {
     pub(crate) children: ChildCache,
     pub(crate) scratch: StepScratch,
     pub(crate) stats: StepStats,
-    /// The batch of each pair's manifold in the last step ([`NO_BATCH`] without contacts).
-    pub(crate) pair_batches: Vec<u32>,
+    /// The batch of each pair's manifold in the last step ([`NO_BATCH`] without contacts),
+    /// found at the first [`World::contact_batches`] after it.
+    pub(crate) pair_batches: OnceLock<Vec<u32>>,
+    /// The last step's contact colors stayed on the device (its batch layout did): the
+    /// contact batches read them from there.
+    pub(crate) row_colors_on_device: bool,
     pub(crate) profiler: Profiler,
     pub(crate) steps: u64,
     /// The executor of each stage, and the GPU side when a stage runs there.
@@ -201,7 +205,8 @@ impl World {
             children: ChildCache::default(),
             scratch: StepScratch::default(),
             stats: StepStats::default(),
-            pair_batches: Vec::new(),
+            pair_batches: OnceLock::new(),
+            row_colors_on_device: false,
             profiler: Profiler::new("step"),
             steps: 0,
             devices: StageDevices::default(),
@@ -946,12 +951,47 @@ impl World {
             .keys()
             .iter()
             .zip(self.pair_values())
-            .zip(self.pair_batches.iter().chain(std::iter::repeat(&NO_BATCH)))
+            .zip(
+                self.pair_batches()
+                    .iter()
+                    .chain(std::iter::repeat(&NO_BATCH)),
+            )
             .filter(|((_, contact), _)| contact.manifold.count > 0)
             .map(|((&key, _), &batch)| {
                 let (a, b) = crate::stages::pairs::pair_bodies(key);
                 (self.handle_of(a), self.handle_of(b), batch)
             })
+    }
+
+    /// The batch of each manifold slot (pairs, then children) in the last step, from its
+    /// rows (the host's summaries of the device's rows, or the host's rows) and their colors,
+    /// which follow the joints' (an empty list if the device's colors cannot be read: the next
+    /// step reports the device's error).
+    fn pair_batches(&self) -> &[u32] {
+        self.pair_batches.get_or_init(|| {
+            let scratch = &self.scratch;
+            let coloring = &scratch.coloring;
+            let device_colors: Vec<u8>;
+            let rows = scratch.row_summaries.len() + scratch.contacts.len();
+            let colors = if self.row_colors_on_device {
+                let read = self.gpu.as_ref().map(|gpu| gpu.read_row_colors());
+                let colors = read.and_then(Result::ok).unwrap_or_default();
+                device_colors = colors.into_iter().map(|color| color as u8).collect();
+                &device_colors[..]
+            } else {
+                &coloring.colors[coloring.colors.len().saturating_sub(rows)..]
+            };
+            // One of the two is empty: the step kept summaries of the device's rows or rows.
+            let row_slots = scratch.row_summaries.iter().map(|row| row.slot);
+            let slots = row_slots.chain(scratch.contacts.iter().map(|c| c.pair));
+            let mut batches = vec![NO_BATCH; self.pairs.len() + self.children.len()];
+            for (slot, &color) in slots.zip(colors) {
+                if let Some(batch) = batches.get_mut(slot as usize) {
+                    *batch = coloring.batch_of(color) as u32;
+                }
+            }
+            batches
+        })
     }
 
     /// The pairs' contacts in pair order, wherever they are newest (see `contacts_on_device`).

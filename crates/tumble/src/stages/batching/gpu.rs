@@ -316,6 +316,25 @@ impl GpuBatching {
         self.tally.encode_download(context, encoder);
     }
 
+    /// Records the tally's copy for [`Self::finish_read_tally`] at the end of `encoder`.
+    pub fn encode_read_tally(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        self.tally.encode_download(context, encoder);
+    }
+
+    /// The rounds of the last encoded batching, over `constraints`, from the tally that
+    /// [`Self::encode_read_tally`] recorded in its submission (the colors stay on the device).
+    pub fn finish_read_tally(
+        &mut self,
+        context: &GpuContext,
+        constraints: u32,
+    ) -> Result<usize, GpuError> {
+        if constraints == 0 {
+            return Ok(0);
+        }
+        self.tally.read_download(context, &mut self.host_tally)?;
+        Ok(self.host_tally[0][2] as usize)
+    }
+
     /// [`Self::read_back`] after [`Self::encode_read_back`]'s submission.
     pub fn finish_read_back(
         &mut self,

@@ -155,6 +155,17 @@ impl Coloring {
         for &color in &self.colors {
             counts[color as usize] += 1;
         }
+        self.set_batch_sizes(&counts);
+    }
+
+    /// Sets the batch count, overflow flag and histogram from the constraints of each color
+    /// (`counts[MAX_COLORS]`: the overflow batch's), as a device's batch layout has them.
+    pub fn set_batch_sizes(&mut self, counts: &[u32]) {
+        assert_eq!(
+            counts.len(),
+            MAX_COLORS + 1,
+            "a count per color and the overflow"
+        );
         let used_colors = counts[..MAX_COLORS]
             .iter()
             .rposition(|&n| n > 0)
