@@ -157,6 +157,13 @@ impl World {
         scratch.joint_row_bodies.clear();
         scratch.contacts.clear();
         scratch.row_summaries.clear();
+        // The batch layout stays on the device too when nothing on the host needs it: no joint
+        // rows (their layout is the host's), the contacts' impulses going to the pairs on the
+        // device, and the PGS solver (the Jacobi solver's adjacency is built on the host).
+        let mut device_layout = false;
+        // With the layout on the device, the batching and the solver need only how many rows
+        // there are and whether one bounces: the rows' summaries are made while it solves.
+        let mut row_tally = None;
         match (self.devices.get(Stage::Constraints), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) => {
                 for (slot, bodies) in joint_slots(&self.joints, &self.masses) {
@@ -234,25 +241,28 @@ impl World {
                     profiler.end();
                 }
                 built?;
+                device_layout = chained
+                    && scratch.joint_row_bodies.is_empty()
+                    && self.contacts_on_device
+                    && config.solver == SolverKind::Pgs
+                    && gpu.lays_out_batches();
                 if chained && self.contacts_on_device {
                     // A pass over every pair, on every core, while the device builds the rows.
-                    let (keys, summaries) = (self.pairs.keys(), &self.pair_summaries);
-                    let masses = &self.masses;
-                    let colliders = self.may_bounce.then_some(&self.colliders[..]);
-                    let row = |slot: usize| {
-                        let (key, count) = (keys[slot], summaries[slot].point_count);
-                        has_constraint(key, count, masses)
-                            .then(|| RowSummary::new(slot as u32, key, count, masses, colliders))
+                    let rows = DeviceRows {
+                        keys: self.pairs.keys(),
+                        summaries: &self.pair_summaries,
+                        masses: &self.masses,
+                        colliders: self.may_bounce.then_some(&self.colliders[..]),
                     };
-                    filter_map_ordered(
-                        keys.len(),
-                        row,
-                        &mut scratch.row_parts,
-                        &mut scratch.row_summaries,
-                    );
+                    if device_layout {
+                        row_tally = Some(rows.tally());
+                    } else {
+                        rows.summarize(&mut scratch.row_parts, &mut scratch.row_summaries);
+                    }
                 }
+                let rows = row_tally.map_or(scratch.row_summaries.len(), |t: RowTally| t.rows);
                 debug_assert!(
-                    at_most.is_none_or(|rows| scratch.row_summaries.len() <= rows),
+                    at_most.is_none_or(|at_most| rows <= at_most),
                     "more rows than the device's buffer was sized for"
                 );
             }
@@ -297,14 +307,6 @@ impl World {
             (scratch.joints.len(), &mut joint_bodies)
         };
         let bodies = joint_bodies.chain(contact_bodies);
-        // The batch layout stays on the device too when nothing on the host needs it: no joint
-        // rows (their layout is the host's), the contacts' impulses going to the pairs on the
-        // device, and the PGS solver (the Jacobi solver's adjacency is built on the host).
-        let device_layout = chained
-            && joint_count == 0
-            && self.contacts_on_device
-            && config.solver == SolverKind::Pgs
-            && self.gpu.as_ref().is_some_and(|gpu| gpu.lays_out_batches());
         let colored = match (self.devices.get(Stage::Batching), &mut self.gpu) {
             // The Jacobi solver sweeps every constraint at once: no coloring, one batch in
             // row order (the layout below then copies the rows as they are).
@@ -317,7 +319,7 @@ impl World {
             }
             (Executor::Gpu, Some(gpu)) if device_layout => {
                 // The rows' bodies are on the device: nothing to send.
-                let count = scratch.row_summaries.len();
+                let count = row_tally.map_or(scratch.row_summaries.len(), |t| t.rows);
                 gpu.color_constraints_on_device(profiler, count, self.poses.len(), config.batcher)
             }
             (Executor::Gpu, Some(gpu)) => gpu.color_constraints(
@@ -441,8 +443,9 @@ impl World {
                 None
             }
         };
-        // While the device solves, the host links this step's islands: they need the
-        // contacts and masses, not the velocities (see `fall_asleep`).
+        // While the device solves, the host does what needs none of its results: this step's
+        // islands (they need the contacts and masses, not the velocities: see `fall_asleep`)
+        // and, with the layout on the device, the rows' summaries.
         let link_now = config.sleeping
             && self.gpu.is_some()
             && self.devices.get(Stage::Solver) == Executor::Gpu;
@@ -451,17 +454,39 @@ impl World {
             values: self.pairs.values(),
             summaries: self.contacts_on_device.then_some(&self.pair_summaries[..]),
         };
+        let device_rows = row_tally.map(|_| DeviceRows {
+            keys: self.pairs.keys(),
+            summaries: &self.pair_summaries,
+            masses: &self.masses,
+            colliders: self.may_bounce.then_some(&self.colliders[..]),
+        });
+        // Out of the scratch while they are made: the solve borrows the rest of it.
+        let mut deferred_rows = Vec::new();
+        if device_rows.is_some() {
+            std::mem::swap(&mut deferred_rows, &mut scratch.row_summaries);
+        }
         let (islands, masses) = (&mut self.islands, &self.masses);
         let (edge_parts, edges) = (&mut scratch.edge_parts, &mut scratch.sleep_edges);
-        let link = || {
+        let row_parts = &mut scratch.row_parts;
+        let host_work = || {
             let start = Instant::now();
-            link_contacts(islands, &pair_edges, masses, edge_parts, edges);
-            start.elapsed().as_secs_f64() * 1e3
+            if link_now {
+                link_contacts(islands, &pair_edges, masses, edge_parts, edges);
+            }
+            let linked = Instant::now();
+            if let Some(rows) = &device_rows {
+                rows.summarize(row_parts, &mut deferred_rows);
+            }
+            let ms = |from: Instant, to: Instant| (to - from).as_secs_f64() * 1e3;
+            (ms(start, linked), ms(linked, Instant::now()))
         };
         let devices = &self.devices;
         let mut solve = || match (devices.get(Stage::Solver), &mut self.gpu) {
             (Executor::Gpu, Some(gpu)) if chained => {
-                let restitution = scratch.row_summaries.iter().any(|r| r.restitution);
+                let restitution = match row_tally {
+                    Some(tally) => tally.bounces,
+                    None => scratch.row_summaries.iter().any(|r| r.restitution),
+                };
                 let rows = &scratch.row_summaries;
                 let contact_bodies = scratch
                     .batch_order
@@ -521,18 +546,33 @@ impl World {
                 Ok(())
             }
         };
-        let (solved, linked_ms) = if link_now {
-            let (solved, ms) = rayon::join(solve, link);
+        let (solved, host_ms) = if link_now || device_rows.is_some() {
+            let (solved, ms) = rayon::join(solve, host_work);
             (solved, Some(ms))
         } else {
             (solve(), None)
         };
-        if let Some(ms) = linked_ms {
-            profiler.record(
-                &["solver", "island links (host, during the wait)"],
-                SpanKind::Cpu,
-                ms,
+        if device_rows.is_some() {
+            std::mem::swap(&mut scratch.row_summaries, &mut deferred_rows);
+            debug_assert_eq!(
+                row_tally.map(|t| t.rows),
+                Some(scratch.row_summaries.len()),
+                "the rows' tally and their summaries disagree"
             );
+        }
+        let linked = link_now && host_ms.is_some();
+        if let Some((links_ms, rows_ms)) = host_ms {
+            let during = [
+                (link_now, "island links (host, during the wait)", links_ms),
+                (
+                    device_rows.is_some(),
+                    "row summaries (host, during the wait)",
+                    rows_ms,
+                ),
+            ];
+            for (_, name, ms) in during.into_iter().filter(|&(done, _, _)| done) {
+                profiler.record(&["solver", name], SpanKind::Cpu, ms);
+            }
         }
         if solved.is_err() {
             profiler.end();
@@ -650,7 +690,7 @@ impl World {
         }
         if config.sleeping {
             self.profiler.begin("sleep");
-            self.fall_asleep(linked_ms.is_some());
+            self.fall_asleep(linked);
             self.profiler.end();
         }
         self.stats.sleeping = self.islands.sleeping_count();
@@ -1101,6 +1141,51 @@ pub(crate) struct RowSummary {
     bodies: (u32, u32),
     point_count: u32,
     restitution: bool,
+}
+
+/// The pairs whose contacts stayed on the device, as the device's rows are built from them:
+/// one row per pair that [`has_constraint`], in pair order.
+struct DeviceRows<'a> {
+    keys: &'a [u64],
+    summaries: &'a [PairSummary],
+    masses: &'a [BodyMass],
+    /// `None` when no collider in the world bounces.
+    colliders: Option<&'a [crate::dynamics::body::Collider]>,
+}
+
+/// How many rows [`DeviceRows`] makes, and whether any bounces.
+#[derive(Clone, Copy, Debug)]
+struct RowTally {
+    rows: usize,
+    bounces: bool,
+}
+
+impl DeviceRows<'_> {
+    fn row(&self, slot: usize) -> Option<RowSummary> {
+        let (key, count) = (self.keys[slot], self.summaries[slot].point_count);
+        has_constraint(key, count, self.masses)
+            .then(|| RowSummary::new(slot as u32, key, count, self.masses, self.colliders))
+    }
+
+    /// The rows' summaries, in row order: a pass over every pair, on every core.
+    fn summarize(&self, parts: &mut FilterParts<RowSummary>, out: &mut Vec<RowSummary>) {
+        filter_map_ordered(self.keys.len(), |slot| self.row(slot), parts, out);
+    }
+
+    /// What the batching and the solver need of the rows before their summaries: a count on
+    /// every core, with no output.
+    fn tally(&self) -> RowTally {
+        let tally = |slot| match self.row(slot) {
+            Some(row) => (1, row.restitution),
+            None => (0, false),
+        };
+        let (rows, bounces) = (0..self.keys.len())
+            .into_par_iter()
+            .with_min_len(MIN_PER_TASK)
+            .map(tally)
+            .reduce(|| (0, false), |a, b| (a.0 + b.0, a.1 || b.1));
+        RowTally { rows, bounces }
+    }
 }
 
 impl RowSummary {
