@@ -75,8 +75,8 @@ pub struct Islands {
     free_ids: Vec<u32>,
     // Scratch of [`Islands::fall_asleep`], by body: union-find parents (atomic: the edges are
     // joined on every core), whether the island each root stands for stays awake, the
-    // sleeping island each root's bodies go to (only the rested bodies' entries are set and
-    // read); the rested bodies.
+    // sleeping island each root's bodies go to (set when the walk reaches the root, before
+    // its other bodies); the rested bodies.
     parent: Vec<AtomicU32>,
     held: Vec<AtomicBool>,
     island_of_root: Vec<u32>,
@@ -187,6 +187,15 @@ impl Islands {
             .with_min_len(MIN_EDGES_PER_TASK)
             .filter(|&&(a, b)| awake(a) && awake(b))
             .for_each(|&(a, b)| join(parent, a, b));
+        if edges.is_empty() {
+            return;
+        }
+        // Every body straight under its root: `fall_asleep` then finds roots in one or two
+        // loads, and the contacts' links, made while the device solves, leave it nothing else.
+        (0..self.states.len() as u32)
+            .into_par_iter()
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .for_each(|body| parent[body as usize].store(root(parent, body), Ordering::Relaxed));
     }
 
     /// Puts to sleep each island of the last [`Self::unlink_all`] and [`Self::link`]s whose
@@ -228,17 +237,17 @@ impl Islands {
         let is_rested = |i: usize| rested(i).then_some(i as u32);
         filter_map_ordered(count, is_rested, rested_parts, rested_bodies);
         island_of_root.resize(count, AWAKE);
-        // Each rested body's root, its island's flag cleared and its id unset.
+        // Each rested body's root, and its island's flag cleared.
         let (parent, held) = (&parent[..], &held[..]);
         rested_bodies
             .par_iter()
             .with_min_len(MIN_BODIES_PER_TASK)
             .map(|&i| root(parent, i))
             .collect_into_vec(roots);
-        for &root in roots.iter() {
-            held[root as usize].store(false, Ordering::Relaxed);
-            island_of_root[root as usize] = AWAKE;
-        }
+        roots
+            .par_iter()
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .for_each(|&root| held[root as usize].store(false, Ordering::Relaxed));
         // An awake body that has not rested holds its island, and so does `keep_awake`. Only
         // the flags of rested islands' roots are read, and those were cleared above.
         (0..count)
@@ -247,14 +256,25 @@ impl Islands {
             .filter(|&i| awake(i) && !rested(i))
             .chain(keep_awake.map(|body| body as usize))
             .for_each(|i| held[root(parent, i as u32) as usize].store(true, Ordering::Relaxed));
-        // Island ids in the order of their lowest body, members in index order.
+        // A settled pile is mostly rested bodies whose island something still moving holds:
+        // the walk below is the one sequential pass, and only a sleeping island needs it.
+        let is_held = |root: u32| held[root as usize].load(Ordering::Relaxed);
+        if roots
+            .par_iter()
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .all(|&root| is_held(root))
+        {
+            return;
+        }
+        // Island ids in the order of their lowest body, members in index order. An island
+        // that sleeps has every body rested, its root (its lowest body) first of them.
         let first_new = asleep.len();
         for (&i, &root) in rested_bodies.iter().zip(&roots[..]) {
             let root = root as usize;
             if held[root].load(Ordering::Relaxed) {
                 continue;
             }
-            if island_of_root[root] == AWAKE {
+            if i as usize == root {
                 island_of_root[root] = new_island(sleeping, free_ids);
             }
             let island = island_of_root[root];
