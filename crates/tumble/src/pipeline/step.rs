@@ -59,14 +59,15 @@ pub(crate) struct StepScratch {
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     pub(crate) row_summaries: Vec<RowSummary>,
-    /// [`filter_map_ordered`]'s chunks, for the rows' summaries, the sleep's contact edges,
-    /// the bodies the wake touches and the resting pairs.
+    /// [`filter_map_ordered`]'s chunks, for the rows' summaries, the islands' contact edges
+    /// and the wake's pairs, and the resting pairs.
     row_parts: FilterParts<RowSummary>,
     edge_parts: FilterParts<(u32, u32)>,
-    body_parts: FilterParts<u32>,
     pub(crate) key_parts: FilterParts<u64>,
     /// The edges of the islands: the contacts' ([`link_contacts`]), then the joints'.
     sleep_edges: Vec<(u32, u32)>,
+    /// The touching pairs with a sleeping body, which the wake walks ([`World::wake_touched`]).
+    wake_candidates: Vec<(u32, u32)>,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
     pub(crate) coloring: Coloring,
@@ -972,11 +973,36 @@ impl World {
     /// Wakes every sleeping island that an awake dynamic body touches (a manifold with points)
     /// or is joined to, until none is left: a woken island may touch another.
     fn wake_touched(&mut self) {
+        // A pass over every pair, on every core, in pair order: the touching pairs with a
+        // sleeping body, the only ones that can wake one, then or after a wake.
+        let (keys, values) = (self.pairs.keys(), self.pairs.values());
+        let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
+        let touching = |pair: usize| match summaries {
+            Some(summaries) => summaries[pair].point_count > 0,
+            None => values[pair].manifold.count > 0,
+        };
+        let islands = &self.islands;
+        let asleep = |i: u32| islands.state(i).is_asleep();
+        let may_wake = |pair: usize| {
+            // The summary first: read in order, and most pairs of a pile have no points.
+            if !touching(pair) {
+                return None;
+            }
+            let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
+            (asleep(a) || asleep(b)).then_some((a, b))
+        };
+        let mut candidates = std::mem::take(&mut self.scratch.wake_candidates);
+        filter_map_ordered(
+            keys.len(),
+            may_wake,
+            &mut self.scratch.edge_parts,
+            &mut candidates,
+        );
         let mut touched = Vec::new();
         loop {
             let awake = |i: u32| self.masses[i as usize].inverse_mass > 0.0;
             let asleep = |i: u32| self.islands.state(i).is_asleep();
-            let touches = |a: u32, b: u32| {
+            let touches = |(a, b): (u32, u32)| {
                 if awake(a) && asleep(b) {
                     Some(b)
                 } else if awake(b) && asleep(a) {
@@ -985,32 +1011,16 @@ impl World {
                     None
                 }
             };
-            // A pass over every pair, on every core, in pair order.
-            let (keys, values) = (self.pairs.keys(), self.pairs.values());
-            let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
-            let touching = |pair: usize| match summaries {
-                Some(summaries) => summaries[pair].point_count > 0,
-                None => values[pair].manifold.count > 0,
-            };
-            let touched_by = |pair: usize| {
-                let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
-                // The summary first: read in order, and most pairs of a pile have no points.
-                touching(pair).then(|| touches(a, b)).flatten()
-            };
-            filter_map_ordered(
-                keys.len(),
-                touched_by,
-                &mut self.scratch.body_parts,
-                &mut touched,
-            );
+            touched.extend(candidates.iter().copied().filter_map(touches));
             let joints = self.joints.iter().flatten().filter(|j| !j.broken);
-            touched.extend(joints.filter_map(|joint| touches(joint.body_a, joint.body_b)));
+            touched.extend(joints.filter_map(|joint| touches((joint.body_a, joint.body_b))));
             if touched.is_empty() {
-                return;
+                break;
             }
             self.wake(&touched);
             touched.clear();
         }
+        self.scratch.wake_candidates = candidates;
     }
 
     /// Rest times from this step's velocities; islands that rested long enough go to sleep
