@@ -77,8 +77,10 @@ pub const SMALL_BATCH: u32 = 128;
 /// constraints: in workgroups of 64 a batch spreads over four times as many multiprocessors
 /// as in workgroups of 256. Measured on an H200 (falling-boxes, the same results bitwise):
 /// the solver's kernels took 1.25–1.86 ms a step at 3k bodies and 5.9–6.2 ms at 100k with 64,
-/// 1.41–2.12 and 6.4–7.1 with 128, 1.88–2.50 and 9.4–10.0 with 256.
-pub const SOLVER_WORKGROUP: u32 = 64;
+/// 1.41–2.12 and 6.4–7.1 with 128, 1.88–2.50 and 9.4–10.0 with 256. On a settled pile of 100k
+/// (two calls, `scripts/pile-on-device.sh`) they took 5.64 ms with 32 against 5.92 and 6.05 with
+/// 64, and 1.009 against 1.014 ms at falling-boxes' 3k: one warp a workgroup.
+pub const SOLVER_WORKGROUP: u32 = 32;
 
 /// Mirrors `SolverParams` in `solver.wgsl`.
 #[repr(C)]
