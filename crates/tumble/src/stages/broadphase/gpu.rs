@@ -51,7 +51,6 @@ use crate::gpu::kernel::{
 use crate::gpu::prims::fill::fill_dispatch;
 use crate::gpu::prims::radix_sort::RadixSort;
 use crate::math::Aabb;
-use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 
 const CODES_WGSL: &str = include_str!("lbvh_codes.wgsl");
 const BUILD_WGSL: &str = include_str!("lbvh_build.wgsl");
@@ -358,8 +357,10 @@ pub struct GpuBroadphase {
     fixed: Lbvh,
     /// Whether the static tree must be rebuilt at the next encode.
     fixed_stale: bool,
-    /// The mask of the last [`Self::set_bodies`].
+    /// The mask of the last [`Self::set_bodies`], and the dynamic and static bodies it makes.
     is_static: Vec<bool>,
+    dynamic_bodies: Vec<u32>,
+    static_bodies: Vec<u32>,
     /// [`Self::find_pairs`]: the static AABBs the static tree was built from, and the AABBs.
     static_aabbs: Vec<Aabb>,
     aabbs: Option<GpuVec<Aabb>>,
@@ -390,6 +391,8 @@ impl GpuBroadphase {
             fixed: Lbvh::new(context)?,
             fixed_stale: true,
             is_static: Vec::new(),
+            dynamic_bodies: Vec::new(),
+            static_bodies: Vec::new(),
             static_aabbs: Vec::new(),
             aabbs: None,
             appended: GpuVec::with_capacity(context, "pair keys", 0)?,
@@ -445,16 +448,23 @@ impl GpuBroadphase {
             u32::try_from(is_static.len()).is_ok_and(|count| count < u32::MAX),
             "body indices fit below u32::MAX"
         );
-        // On every core: in a settling pile islands sleep or wake, and so change this, at most
-        // steps.
-        let of_kind = |kind: bool| -> Vec<u32> {
-            let (mut parts, mut bodies) = (FilterParts::default(), Vec::new());
-            let is = |body: usize| (is_static[body] == kind).then_some(body as u32);
-            filter_map_ordered(is_static.len(), is, &mut parts, &mut bodies);
-            bodies
-        };
-        self.dynamic.set_bodies(context, &of_kind(false))?;
-        self.fixed.set_bodies(context, &of_kind(true))?;
+        // In a settling pile islands sleep or wake, and so change this, at most steps: one
+        // pass on this thread into lists kept from call to call. Two order-keeping filters on
+        // every core into new vectors took 0.43 ms for 100k bodies on 2 cores (this pass
+        // 0.28), and 1.7 ms a step on the 16 cores of an H200 machine.
+        let (dynamic, fixed) = (&mut self.dynamic_bodies, &mut self.static_bodies);
+        dynamic.clear();
+        fixed.clear();
+        for (body, &is_static) in is_static.iter().enumerate() {
+            if is_static {
+                &mut *fixed
+            } else {
+                &mut *dynamic
+            }
+            .push(body as u32);
+        }
+        self.dynamic.set_bodies(context, dynamic)?;
+        self.fixed.set_bodies(context, fixed)?;
         self.is_static.clear();
         self.is_static.extend_from_slice(is_static);
         self.fixed_stale = true;
