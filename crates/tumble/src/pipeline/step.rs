@@ -94,6 +94,7 @@ impl World {
         if !device_contacts {
             self.sync_contacts()?;
         }
+        self.refresh_resting_pairs();
         if self.collides_in_one_submission() {
             self.collide_in_one_submission(device_contacts)?;
         } else {
@@ -1081,7 +1082,7 @@ impl World {
         for &body in &self.changed_bodies {
             self.broadphase.set_moving(body, false);
         }
-        self.update_resting_pairs();
+        self.resting_pairs_changed();
         self.refresh_resting = true;
     }
 }

@@ -150,6 +150,9 @@ pub struct World {
     /// broadphase no longer looks for them (both are in its fixed tree), so they are merged
     /// into its result to keep their manifolds for when the island wakes.
     pub(crate) resting_pairs: Vec<u64>,
+    /// Bodies fell asleep, woke or went since `resting_pairs` was made: the next step makes it
+    /// again before its broadphase ([`World::refresh_resting_pairs`]).
+    resting_pairs_stale: bool,
     /// The next narrowphase recomputes the resting pairs too (an island just fell asleep, or a
     /// dumped state was loaded): their manifolds then hold the poses they rest at.
     pub(crate) refresh_resting: bool,
@@ -214,6 +217,7 @@ impl World {
             gpu_context: None,
             islands: Islands::default(),
             resting_pairs: Vec::new(),
+            resting_pairs_stale: false,
             refresh_resting: false,
             changed_bodies: Vec::new(),
             query_escapes: OnceLock::new(),
@@ -417,7 +421,7 @@ impl World {
         self.velocities[i] = BodyVelocity::default();
         self.bodies_changed();
         self.free_slots.push(handle.index);
-        self.update_resting_pairs();
+        self.resting_pairs_changed();
         Ok(())
     }
 
@@ -445,7 +449,7 @@ impl World {
                 self.broadphase.set_moving(body, false);
             }
         }
-        self.update_resting_pairs();
+        self.resting_pairs_changed();
         self.refresh_resting = true;
     }
 
@@ -501,12 +505,24 @@ impl World {
         for &body in &self.changed_bodies {
             self.broadphase.set_moving(body, true);
         }
-        self.update_resting_pairs();
+        self.resting_pairs_changed();
     }
 
-    /// The pairs of the cache with no awake dynamic body and no removed one. A pass over every
-    /// pair, on every core: a settling pile has islands waking or falling asleep at most steps.
-    pub(crate) fn update_resting_pairs(&mut self) {
+    /// Bodies fell asleep, woke or went: the resting pairs are made again before the next
+    /// broadphase. Once a step, however many islands changed: the pairs only change in the
+    /// broadphase, and the pass is over all of them.
+    pub(crate) fn resting_pairs_changed(&mut self) {
+        self.resting_pairs_stale = true;
+    }
+
+    /// The pairs of the cache with no awake dynamic body and no removed one, when a body
+    /// changed since they were made. A pass over every pair, on every core: a settling pile
+    /// has islands waking or falling asleep at most steps.
+    pub(crate) fn refresh_resting_pairs(&mut self) {
+        if !std::mem::take(&mut self.resting_pairs_stale) {
+            return;
+        }
+        self.profiler.begin("resting pairs");
         let live = |i: u32| self.slots[i as usize].state != SlotState::Free;
         let resting = |i: u32| self.masses[i as usize].inverse_mass == 0.0;
         let keys = self.pairs.keys();
@@ -517,6 +533,7 @@ impl World {
         };
         let parts = &mut self.scratch.key_parts;
         filter_map_ordered(keys.len(), rests, parts, &mut self.resting_pairs);
+        self.profiler.end();
     }
 
     /// Adds a joint between two bodies at their current poses.
