@@ -191,21 +191,6 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         Ok(())
     }
 
-    /// Overwrites the elements from `first` on with `data`, within `len` (the write lands at the
-    /// next submission, like [`upload`](Self::upload)'s).
-    pub fn write_at(&self, context: &GpuContext, first: usize, data: &[T]) {
-        assert!(
-            first + data.len() <= self.len,
-            "{}: a write past the vector's end",
-            self.label
-        );
-        if !data.is_empty() {
-            let offset = Self::bytes(first);
-            let bytes = bytemuck::cast_slice(data);
-            context.queue.write_buffer(&self.buffer, offset, bytes);
-        }
-    }
-
     /// Copies the `len` elements back to the host. Submits pending queue writes and waits.
     pub fn download(&mut self, context: &GpuContext) -> Result<Vec<T>, GpuError> {
         let mut out = Vec::new();
@@ -260,11 +245,28 @@ impl<T: bytemuck::Pod> GpuVec<T> {
     /// `encoder`, so that a stage's kernels and its read-backs are one submission and one
     /// wait; once it is submitted, [`read_download`](Self::read_download) hands them over.
     pub fn encode_download(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
-        self.staged = self.len;
-        if self.len == 0 {
+        self.encode_download_prefix(context, encoder, self.len);
+    }
+
+    /// [`encode_download`](Self::encode_download) of the first `len` elements only (at most
+    /// the vector's length): a stage that knows about how many of its elements are live copies
+    /// those, not the slack past them.
+    pub fn encode_download_prefix(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        len: usize,
+    ) {
+        assert!(
+            len <= self.len,
+            "a prefix of {len} of {} elements",
+            self.len
+        );
+        self.staged = len;
+        if len == 0 {
             return;
         }
-        let bytes = Self::bytes(self.len);
+        let bytes = Self::bytes(len);
         if self
             .staging
             .as_ref()

@@ -6,6 +6,7 @@ use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Dispatch, encode_all};
 use crate::gpu::prims::fill::copy_dispatch;
+use crate::gpu::prims::scatter::GpuScatter;
 use crate::gpu::profiler::{GpuProfiler, SpanPath, record_copy};
 use crate::math::Aabb;
 use crate::pipeline::config::Softness;
@@ -19,7 +20,7 @@ use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::integrate::gpu::{GpuFinalizeBodies, GpuPrepareBodies};
-use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs};
+use crate::stages::narrowphase::gpu::{GpuNarrowphase, GpuNarrowphaseInputs, shape_kinds};
 use crate::stages::narrowphase::summary::{GpuPairSummaries, PairSummary};
 use crate::stages::narrowphase::{
     NarrowphaseInputs, PairContact, gpu_pair, pack_hulls, update_contacts_where,
@@ -119,12 +120,54 @@ const SOLVER_INTEGRATE_KERNEL: SpanPath = &["solver", "integrate kernel"];
 const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
 /// Stages 1–4 in one submission ([`GpuStages::collide`]).
 const COLLISION: StageSpans = StageSpans {
-    upload: &["collision", "copy to gpu"],
+    upload: &["collision", "copy bodies to gpu"],
     encode: &["collision", "encode"],
     kernel: &["collision", "kernels"],
     wait: &["collision", "submit and wait"],
     download: &["collision", "copy to cpu"],
 };
+/// Pairs whose keys and summaries [`GpuStages::collide`] copies back with its kernels, from
+/// the `last` step's count: an eighth more, and at least 1024 more. At rest the pairs change by
+/// a few hundred a step (a settled pile of 100k boxes: 588k pairs, ±30), so this copies about
+/// 10% more than the pairs rather than the key buffers' whole capacity, up to twice the pairs;
+/// a step with more pairs copies them all again in a second submission.
+fn expected_pair_count(last: usize) -> usize {
+    last + (last / 8).max(1024)
+}
+
+/// Copies the first `count` pair keys from the broadphase into `keys` and encodes the
+/// download of those and of the first `count` summaries.
+fn encode_summary_downloads(
+    context: &GpuContext,
+    encoder: &mut wgpu::CommandEncoder,
+    broadphase: &GpuBroadphase,
+    keys: &mut GpuVec<u64>,
+    summaries: &mut GpuPairSummaries,
+    count: usize,
+) {
+    if count > 0 {
+        let bytes = (count * size_of::<u64>()) as u64;
+        encoder.copy_buffer_to_buffer(broadphase.keys().buffer(), 0, keys.buffer(), 0, bytes);
+    }
+    keys.encode_download_prefix(context, encoder, count);
+    summaries
+        .summaries
+        .encode_download_prefix(context, encoder, count);
+}
+
+/// [`GpuStages::collide`]'s kernels, timed as four passes: the AABBs and the trees' builds,
+/// the trees' traversal and the sort of its pairs (the broadphase), each pair's lookup in last
+/// step's, and the narrowphase with the pairs' summaries (the contacts).
+const COLLISION_KERNELS: [SpanPath; 4] = [
+    &["collision", "kernels: aabbs, trees"],
+    &["collision", "kernels: pairs"],
+    &["collision", "kernels: pair lookup"],
+    &["collision", "kernels: contacts"],
+];
+/// [`GpuStages::collide`]'s other uploads: the trees' body lists (when bodies fell asleep or
+/// woke), and the resting and skipped pairs.
+const COLLISION_TREE_BODIES: SpanPath = &["collision", "copy tree bodies to gpu"];
+const COLLISION_EXTRA_PAIRS: SpanPath = &["collision", "copy resting pairs to gpu"];
 /// [`GpuStages::collide`]'s upload of the host's pair cache: its own line, shown only on the
 /// steps that need it.
 const PAIR_UPLOAD: SpanPath = &["collision", "copy pairs to gpu"];
@@ -266,6 +309,33 @@ impl BodyState<'_> {
     }
 }
 
+/// A partial upload's device side ([`upload_bodies`]): the changed bodies' indices, masses and
+/// velocities, written in one go, and the kernels that scatter them into the body arrays.
+struct BodyScatter {
+    indices: GpuVec<u32>,
+    masses: GpuVec<BodyMass>,
+    velocities: GpuVec<BodyVelocity>,
+    /// The changed bodies' masses and velocities gathered on the host, reused.
+    host_masses: Vec<BodyMass>,
+    host_velocities: Vec<BodyVelocity>,
+    mass_kernel: GpuScatter,
+    velocity_kernel: GpuScatter,
+}
+
+impl BodyScatter {
+    fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            indices: GpuVec::with_capacity(context, "changed bodies", 0)?,
+            masses: GpuVec::with_capacity(context, "changed masses", 0)?,
+            velocities: GpuVec::with_capacity(context, "changed velocities", 0)?,
+            host_masses: Vec::new(),
+            host_velocities: Vec::new(),
+            mass_kernel: GpuScatter::new(context),
+            velocity_kernel: GpuScatter::new(context),
+        })
+    }
+}
+
 /// Device copies of the body arrays, shared by the GPU stages.
 struct DeviceBodies {
     poses: GpuVec<BodyPose>,
@@ -274,8 +344,12 @@ struct DeviceBodies {
     colliders: GpuVec<ColliderData>,
     /// The colliders' hulls for the narrowphase ([`pack_hulls`]), uploaded with them.
     hulls: GpuVec<u32>,
+    /// The partial uploads' changed bodies, scattered on the device.
+    scatter: BodyScatter,
     /// The host's colliders changed since the last upload.
     colliders_stale: bool,
+    /// The kinds of shape of the uploaded colliders ([`shape_kinds`]): the narrowphase's kernel.
+    shape_kinds: u32,
     /// The world's body version ([`BodyInputs::version`]) that `poses`, `velocities` and
     /// `masses` hold: set by an upload, or by an integration here whose results the host took.
     synced: Option<u64>,
@@ -390,7 +464,9 @@ impl GpuStages {
                 masses: GpuVec::with_capacity(&context, "masses", 0)?,
                 colliders: GpuVec::with_capacity(&context, "colliders", 0)?,
                 hulls: GpuVec::with_capacity(&context, "hulls", 0)?,
+                scatter: BodyScatter::new(&context)?,
                 colliders_stale: true,
+                shape_kinds: 0,
                 synced: None,
                 uploaded_this_step: false,
                 partial_uploads: 0,
@@ -400,7 +476,7 @@ impl GpuStages {
             aabb: GpuAabbs::new(),
             aabbs: GpuVec::with_capacity(&context, "aabbs", 0)?,
             broadphase: GpuBroadphase::new(&context)?,
-            narrowphase: GpuNarrowphase::new(&context),
+            narrowphase: GpuNarrowphase::new(),
             rows: GpuRows::new(&context)?,
             joint_rows: GpuJointRows::new(&context)?,
             row_keys: GpuVec::with_capacity(&context, "row keys", 0)?,
@@ -679,10 +755,14 @@ impl GpuStages {
         let summarize = matches!(output, CollideOutput::Summaries(_));
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
+        record_copy(profiler, COLLISION.upload, elapsed_ms(start));
+        let start = Instant::now();
         self.broadphase.set_bodies(context, is_static)?;
+        record_copy(profiler, COLLISION_TREE_BODIES, elapsed_ms(start));
+        let start = Instant::now();
         self.broadphase.set_extra_pairs(context, resting)?;
         self.skipped.upload(context, skipped)?;
-        record_copy(profiler, COLLISION.upload, elapsed_ms(start));
+        record_copy(profiler, COLLISION_EXTRA_PAIRS, elapsed_ms(start));
         // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
         // keeps its size from step to step and is not built again.
         let padded = old_keys.len().max(self.broadphase.capacity());
@@ -711,11 +791,15 @@ impl GpuStages {
             self.old_contacts.upload(context, old_contacts)?;
             record_copy(profiler, PAIR_UPLOAD, elapsed_ms(start));
         }
+        // The keys and summaries come back with the kernels (one wait for the stage), before
+        // the count is known: as many as last step had and some more (see
+        // `expected_pair_count`), a second copy bringing the rest when there are more.
+        let mut staged = 0;
         loop {
             if summarize {
-                // The keys and summaries come back with the kernels, at the broadphase's
-                // capacity (the count is not known before): one wait for the stage.
                 self.keys.resize(context, self.broadphase.capacity())?;
+                staged = expected_pair_count(self.broadphase.last_pair_count())
+                    .min(self.broadphase.capacity());
             }
             let device = &self.bodies;
             let (aabb, aabbs) = (&mut self.aabb, &mut self.aabbs);
@@ -733,7 +817,8 @@ impl GpuStages {
                 profiler,
                 &COLLISION,
                 |encoder, timer| {
-                    encode_pass(encoder, timer, COLLISION.kernel, |pass| {
+                    let [trees, pairs, lookup, contacts_kernels] = COLLISION_KERNELS;
+                    encode_pass(encoder, timer, trees, |pass| {
                         if let Some(copies) = copies {
                             encode_all(pass, copies);
                         }
@@ -747,10 +832,17 @@ impl GpuStages {
                             dt,
                             aabbs,
                         )?;
-                        broadphase.encode(context, pass, aabbs)?;
-                        // The broadphase's keys are padded with u64::MAX past the count, which both
-                        // the diff and the narrowphase pass over: the count stays on the device.
-                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
+                        broadphase.encode_trees(context, pass, aabbs)
+                    })?;
+                    encode_pass(encoder, timer, pairs, |pass| {
+                        broadphase.encode_pairs(context, pass)
+                    })?;
+                    // The broadphase's keys are padded with u64::MAX past the count, which both
+                    // the diff and the narrowphase pass over: the count stays on the device.
+                    encode_pass(encoder, timer, lookup, |pass| {
+                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())
+                    })?;
+                    encode_pass(encoder, timer, contacts_kernels, |pass| {
                         let inputs = GpuNarrowphaseInputs {
                             keys: broadphase.keys(),
                             old_index: diff.old_index(),
@@ -762,6 +854,7 @@ impl GpuStages {
                             skipped,
                             margin,
                             dt,
+                            shape_kinds: device.shape_kinds,
                         };
                         narrowphase.encode(context, pass, &inputs, contacts)?;
                         if summarize {
@@ -778,11 +871,9 @@ impl GpuStages {
                     })?;
                     broadphase.encode_count_download(context, encoder);
                     if summarize {
-                        let bytes = (row_keys.len() * size_of::<u64>()) as u64;
-                        let from = broadphase.keys().buffer();
-                        encoder.copy_buffer_to_buffer(from, 0, row_keys.buffer(), 0, bytes);
-                        row_keys.encode_download(context, encoder);
-                        summaries.summaries.encode_download(context, encoder);
+                        encode_summary_downloads(
+                            context, encoder, broadphase, row_keys, summaries, staged,
+                        );
                     }
                     Ok(())
                 },
@@ -796,6 +887,24 @@ impl GpuStages {
         let count = self.broadphase.last_pair_count();
         match output {
             CollideOutput::Summaries(out) => {
+                if count > staged {
+                    let mut encoder =
+                        context
+                            .device
+                            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                                label: Some("collision read-back"),
+                            });
+                    let (broadphase, summaries) = (&self.broadphase, &mut self.summaries);
+                    encode_summary_downloads(
+                        context,
+                        &mut encoder,
+                        broadphase,
+                        &mut self.keys,
+                        summaries,
+                        count,
+                    );
+                    context.queue.submit([encoder.finish()]);
+                }
                 self.keys.read_download(context, keys)?;
                 self.summaries.summaries.read_download(context, out)?;
                 keys.truncate(count);
@@ -875,6 +984,7 @@ impl GpuStages {
             skipped: &self.skipped,
             margin: inputs.margin,
             dt: inputs.dt,
+            shape_kinds: self.bodies.shape_kinds,
         };
         let (narrowphase, output) = (&mut self.narrowphase, &mut self.contacts);
         run_pass(
@@ -1760,10 +1870,10 @@ fn pair_copies<'c>(
 }
 
 /// A device behind the host by at most one body in this many (or this few bodies) takes only
-/// the changed bodies ([`BodyChanges`]); more, and one whole copy costs less than the writes.
-const PARTIAL_UPLOAD_SHARE: usize = 16;
+/// the changed bodies ([`BodyChanges`]): 52 bytes each (index, mass, velocity) and a scatter
+/// kernel, where a whole upload writes 80 bytes a body (pose, mass, velocity).
+const PARTIAL_UPLOAD_SHARE: usize = 4;
 const PARTIAL_UPLOAD_MIN: usize = 64;
-const PARTIAL_UPLOAD_GAP: u32 = 32;
 
 /// Uploads poses, velocities and masses when the device's are not at the host's version (only
 /// the changed bodies' masses and velocities when [`BodyChanges`] allows), and the colliders
@@ -1786,15 +1896,30 @@ fn upload_bodies(
         .is_some_and(|synced| synced >= inputs.changed.since)
         && changed.len() <= (inputs.masses.len() / PARTIAL_UPLOAD_SHARE).max(PARTIAL_UPLOAD_MIN)
     {
-        // Only some bodies' masses and velocities changed since: theirs, a write for each run
-        // of bodies less than PARTIAL_UPLOAD_GAP apart (the unchanged ones between are the
-        // device's already, and an island's bodies are often near in index: fewer writes).
+        // Only some bodies' masses and velocities changed since: theirs, with their indices,
+        // scattered on the device by a submission of their own (the stage's comes after it).
+        let scatter = &mut bodies.scatter;
+        scatter.host_masses.clear();
+        scatter
+            .host_masses
+            .extend(changed.iter().map(|&i| inputs.masses[i as usize]));
+        scatter.host_velocities.clear();
+        scatter
+            .host_velocities
+            .extend(changed.iter().map(|&i| inputs.velocities[i as usize]));
+        bodies.synced = None;
+        scatter.indices.upload(context, changed)?;
+        scatter.masses.upload(context, &scatter.host_masses)?;
+        scatter
+            .velocities
+            .upload(context, &scatter.host_velocities)?;
         let (masses, velocities) = (&bodies.masses, &bodies.velocities);
-        for run in changed.chunk_by(|a, b| b - a < PARTIAL_UPLOAD_GAP) {
-            let range = run[0] as usize..run[run.len() - 1] as usize + 1;
-            masses.write_at(context, range.start, &inputs.masses[range.clone()]);
-            velocities.write_at(context, range.start, &inputs.velocities[range]);
-        }
+        context.submit_pass("body scatter", |pass| {
+            let (indices, kernel) = (&scatter.indices, &mut scatter.mass_kernel);
+            kernel.encode(context, pass, indices, &scatter.masses, masses);
+            let kernel = &mut scatter.velocity_kernel;
+            kernel.encode(context, pass, indices, &scatter.velocities, velocities);
+        });
         bodies.synced = Some(inputs.version);
         bodies.partial_uploads += 1;
         #[cfg(debug_assertions)]
@@ -1818,6 +1943,7 @@ fn upload_bodies(
         collider_data.clear();
         collider_data.extend(inputs.colliders.iter().map(Collider::data));
         bodies.colliders.upload(context, collider_data)?;
+        bodies.shape_kinds = shape_kinds(inputs.colliders);
         let mut hull_words = Vec::new();
         pack_hulls(inputs.colliders, &mut hull_words);
         bodies.hulls.upload(context, &hull_words)?;

@@ -1,4 +1,4 @@
-//! Stream compaction and fill parity against their CPU twins.
+//! Stream compaction, fill and scatter parity against their CPU twins.
 
 use crate::gpu_common;
 
@@ -7,6 +7,7 @@ use tumble::gpu::GpuVec;
 use tumble::gpu::kernel::encode_all;
 use tumble::gpu::prims::compact::{Compact, compact_cpu};
 use tumble::gpu::prims::fill::{fill_cpu, fill_vec_dispatch};
+use tumble::gpu::prims::scatter::{GpuScatter, scatter_cpu};
 
 fn check_compaction(count: usize, seed: u64) {
     let context = context();
@@ -75,4 +76,49 @@ fn fill_splits_dispatches_past_65535_workgroups() {
     let filled = vector.download(&context).expect("download");
     assert_eq!(filled.len(), count);
     assert!(filled.iter().all(|&word| word == 7));
+}
+
+/// Records of 1, 4 and 12 words to distinct random places of a larger array, the rest kept.
+#[test]
+fn scatter_matches_cpu() {
+    fn check<T: bytemuck::Pod + PartialEq + std::fmt::Debug>(
+        make: impl Fn(&mut Random) -> T,
+        count: usize,
+        seed: u64,
+    ) {
+        let context = context();
+        let mut random = Random::new(seed);
+        let length = 2 * count + 3;
+        let mut expected: Vec<T> = (0..length).map(|_| make(&mut random)).collect();
+        // Distinct indices: a random subset of 0..length, in random order.
+        let mut places: Vec<u32> = (0..length as u32).collect();
+        for i in (1..places.len()).rev() {
+            places.swap(i, random.below(i as u32 + 1) as usize);
+        }
+        places.truncate(count);
+        let values: Vec<T> = (0..count).map(|_| make(&mut random)).collect();
+        let mut destination = GpuVec::from_slice(&context, "destination", &expected).unwrap();
+        let indices = GpuVec::from_slice(&context, "indices", &places).unwrap();
+        let values_gpu = GpuVec::from_slice(&context, "values", &values).unwrap();
+        let mut scatter = GpuScatter::new(&context);
+        context.submit_pass("scatter", |pass| {
+            scatter.encode(&context, pass, &indices, &values_gpu, &destination)
+        });
+        scatter_cpu(&places, &values, &mut expected);
+        assert_eq!(
+            destination.download(&context).unwrap(),
+            expected,
+            "{count} records"
+        );
+    }
+    for (seed, count) in SIZES.into_iter().enumerate() {
+        let seed = 900 + seed as u64;
+        check(|random| random.next_u32(), count, seed);
+        check(
+            |random| [random.next_u32(); 4].map(|w| w ^ random.next_u32()),
+            count,
+            seed,
+        );
+        check(|random| [0u32; 12].map(|_| random.next_u32()), count, seed);
+    }
 }

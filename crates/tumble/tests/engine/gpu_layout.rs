@@ -297,7 +297,7 @@ fn narrowphase_structs_match_rust() {
     use tumble::stages::narrowphase::gpu::wgsl;
     use tumble::stages::narrowphase::{NarrowphaseParams, PairContact, PointImpulse};
     check_with_gpu_only(
-        wgsl(),
+        wgsl(u32::MAX),
         vec![
             rust_layout!(NarrowphaseParams {
                 pair_count,

@@ -24,7 +24,7 @@ use tumble::gpu::{GpuContext, GpuVec};
 use tumble::math::{Quat, Vec3, vec3};
 use tumble::stages::narrowphase::{
     GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseInputs, PairContact, pack_hulls,
-    update_contacts,
+    shape_kinds, update_contacts,
 };
 use tumble::stages::pairs::{pair_bodies, pair_key};
 
@@ -308,6 +308,7 @@ fn gpu_step(
             skipped: &skipped,
             margin: MARGIN,
             dt: DT,
+            shape_kinds: shape_kinds(&world.colliders),
         };
         narrowphase
             .encode(context, &mut pass, &inputs, &mut contacts)
@@ -322,7 +323,7 @@ fn gpu_step(
 #[test]
 fn random_pairs_match_the_cpu() {
     let context = context();
-    let mut narrowphase = GpuNarrowphase::new(&context);
+    let mut narrowphase = GpuNarrowphase::new();
     for (seed, pairs) in [0usize, 1, 2, 100, 10_000].into_iter().enumerate() {
         let mut random = Random::new(seed as u64 + 1);
         let world = random_world(&mut random, pairs);
@@ -431,7 +432,7 @@ fn random_hull(random: &mut Random) -> Shape {
 #[test]
 fn random_hull_pairs_match_the_cpu() {
     let context = context();
-    let mut narrowphase = GpuNarrowphase::new(&context);
+    let mut narrowphase = GpuNarrowphase::new();
     // One barrel shared by every pair that draws it, as the scene's bodies share it.
     let barrel = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
     for (seed, pairs) in [0usize, 1, 257, 3000].into_iter().enumerate() {
@@ -492,7 +493,7 @@ fn prism(sides: usize, scale: Vec3) -> Shape {
 #[test]
 fn random_round_hull_pairs_match_the_cpu() {
     let context = context();
-    let mut narrowphase = GpuNarrowphase::new(&context);
+    let mut narrowphase = GpuNarrowphase::new();
     let barrel = Shape::convex_hull(&tumble::scene::barrel_points()).unwrap();
     for (seed, pairs) in [0usize, 1, 257, 3000].into_iter().enumerate() {
         let mut random = Random::new(seed as u64 + 70);
@@ -644,7 +645,7 @@ fn large_faces_stay_on_the_host() {
 /// after each step as a solver would; compares every step. Returns the CPU's contacts of each
 /// step, before the impulses were written.
 fn run_steps(context: &GpuContext, frames: &[World]) -> Vec<Vec<PairContact>> {
-    let mut narrowphase = GpuNarrowphase::new(context);
+    let mut narrowphase = GpuNarrowphase::new();
     let pairs = frames[0].keys.len();
     let mut cpu = vec![PairContact::default(); pairs];
     let mut gpu = vec![PairContact::default(); pairs];
@@ -903,7 +904,7 @@ fn parallel_capsules_match() {
 #[test]
 fn device_resident_steps_match_the_cpu() {
     let context = context();
-    let mut narrowphase = GpuNarrowphase::new(&context);
+    let mut narrowphase = GpuNarrowphase::new();
     let mut random = Random::new(99);
     let mut world = random_world(&mut random, 1000);
     let mut cpu = vec![PairContact::default(); world.keys.len()];
@@ -950,6 +951,7 @@ fn device_resident_steps_match_the_cpu() {
                 skipped: &skipped,
                 margin: MARGIN,
                 dt: DT,
+                shape_kinds: shape_kinds(&world.colliders),
             };
             narrowphase
                 .encode(&context, &mut pass, &inputs, new)

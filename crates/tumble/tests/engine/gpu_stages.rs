@@ -510,3 +510,59 @@ fn a_failed_gpu_step_leaves_the_bodies_as_they_were() {
     assert!(world.try_step().is_err());
     assert_eq!(state(&world), before);
 }
+
+/// The GPU narrowphase's kernel holds the pair functions of the shapes the world has
+/// (`narrowphase::gpu::shape_kinds`): a world of boxes that gains a ball, then a capsule, builds
+/// the kernel again, and each new body comes to rest on the plane as on the CPU, where a
+/// kernel left without their pair functions lets them fall through it.
+#[test]
+fn a_world_that_gains_a_kind_of_shape_collides_it_on_the_gpu() {
+    let _turn = gpu_common::context();
+    let run = |stages: &[Stage]| {
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        let block =
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(0.0, 0.5, 0.0));
+        world.add_body(block).unwrap();
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        let mut added = Vec::new();
+        let lying = Quat::from_rotation_z(std::f32::consts::FRAC_PI_2);
+        let arrivals = [
+            (10, Shape::sphere(0.3), Quat::IDENTITY),
+            (20, Shape::capsule(0.25, 0.5), lying),
+        ];
+        for (step, shape, rotation) in arrivals {
+            while world.steps() < step {
+                world.try_step().unwrap();
+            }
+            let position = Vec3::new(0.3 * step as f32, 1.0, 0.0);
+            let body = BodyDesc::dynamic(shape)
+                .position(position)
+                .rotation(rotation);
+            added.push(world.add_body(body).unwrap());
+        }
+        for _ in 0..90 {
+            world.try_step().unwrap();
+        }
+        added
+            .iter()
+            .map(|&body| world.pose(body).unwrap().position.y)
+            .collect::<Vec<f32>>()
+    };
+    let cpu = run(&[]);
+    let gpu = run(&Stage::ALL);
+    // Resting on the plane: the ball's centre at its radius, the capsule lying on its side.
+    assert!(
+        (cpu[0] - 0.3).abs() < 0.02 && (cpu[1] - 0.25).abs() < 0.02,
+        "{cpu:?}"
+    );
+    for (cpu, gpu) in cpu.iter().zip(&gpu) {
+        assert!((cpu - gpu).abs() < 1e-3, "CPU {cpu} m, GPU {gpu} m");
+    }
+}

@@ -1,6 +1,6 @@
 //! Parallel primitives, each a WGSL file beside its Rust driver and a CPU twin that the parity
 //! tests compare against: prefix scan, stream compaction, radix sort (u32 and u64 keys),
-//! bitonic sort, reduce and fill.
+//! bitonic sort, reduce, fill and scatter.
 //!
 //! A driver builds its dispatches once for given buffers and sizes (pipelines, bind groups,
 //! parameter blocks and scratch) and re-encodes them into the caller's compute pass; nothing
@@ -14,6 +14,7 @@ pub mod fill;
 pub mod radix_sort;
 pub mod reduce;
 pub mod scan;
+pub mod scatter;
 
 /// The most tiles one dispatch of a look-back kernel (scan, radix sort) may hold; more are
 /// split into windows, dispatched in order. On Mesa's CPU drivers a shader invocation may run

@@ -170,9 +170,19 @@ const fn box_record_words() -> usize {
     (HULL_HEADER_WORDS + 8 * 3 + 6 * HULL_FACE_WORDS + 12 * HULL_EDGE_WORDS + 24) as usize
 }
 
-/// The kernel's source: body and contact structs, the pair functions, the stage.
-pub fn wgsl() -> Source {
+/// The kinds of shape in `colliders`, bit k for [`ShapeKind`](crate::shape::ShapeKind) k: the
+/// narrowphase kernel for them ([`wgsl`]) holds only their pair functions.
+pub fn shape_kinds(colliders: &[Collider]) -> u32 {
+    colliders.iter().fold(0, |kinds, collider| {
+        kinds | 1 << collider.shape.kind() as u32
+    })
+}
+
+/// The kernel's source for a world of the shape kinds `shape_kinds` ([`shape_kinds`]): body
+/// and contact structs, the pair functions, the stage.
+pub fn wgsl(shape_kinds: u32) -> Source {
     wgsl_constants(Source::new())
+        .constant_u32("SHAPE_KINDS", shape_kinds)
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
         .constant_f32("REDUCE_TIE_RELATIVE", REDUCE_TIE_RELATIVE)
         .constant_u32("HULL_HEADER_WORDS", HULL_HEADER_WORDS)
@@ -209,10 +219,13 @@ pub struct GpuNarrowphaseInputs<'a> {
     pub margin: f32,
     /// Step length (s).
     pub dt: f32,
+    /// The kinds of shape of `colliders` ([`shape_kinds`]).
+    pub shape_kinds: u32,
 }
 
-/// What a recorded dispatch was built for: the buffers it binds and its parameters.
-type DispatchKey = ([wgpu::Buffer; 9], NarrowphaseParams);
+/// What a recorded dispatch was built for: the buffers it binds, its parameters and the shape
+/// kinds of its kernel.
+type DispatchKey = ([wgpu::Buffer; 9], NarrowphaseParams, u32);
 
 /// Host copies of [`GpuNarrowphase::update_contacts`]'s inputs, kept between calls.
 struct HostBuffers {
@@ -236,22 +249,24 @@ struct HostBuffers {
 /// The GPU narrowphase: its kernel, the dispatch recorded for the current buffers, and the
 /// buffers of [`update_contacts`](Self::update_contacts).
 pub struct GpuNarrowphase {
-    kernel: Kernel,
+    /// The kernel for the shape kinds it was built for, built again when they change.
+    kernel: Option<(u32, Kernel)>,
     /// The uniform slots live as long as the dispatch whose bind group points into them.
     cached: Option<(DispatchKey, Dispatch, UniformSlots)>,
     host: Option<HostBuffers>,
 }
 
+impl Default for GpuNarrowphase {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl GpuNarrowphase {
-    pub fn new(context: &GpuContext) -> Self {
+    /// The stage with no kernel yet: the first encode builds the one for its shape kinds.
+    pub fn new() -> Self {
         Self {
-            kernel: Kernel::new(
-                context,
-                "narrowphase",
-                &wgsl(),
-                "update_contacts",
-                &BINDINGS,
-            ),
+            kernel: None,
             cached: None,
             host: None,
         }
@@ -266,14 +281,8 @@ impl GpuNarrowphase {
         inputs: &GpuNarrowphaseInputs,
         contacts: &mut GpuVec<PairContact>,
     ) -> Result<(), GpuError> {
-        encode_with(
-            &mut self.cached,
-            &self.kernel,
-            context,
-            pass,
-            inputs,
-            contacts,
-        )
+        let kernel = kernel_for(&mut self.kernel, context, inputs.shape_kinds);
+        encode_with(&mut self.cached, kernel, context, pass, inputs, contacts)
     }
 
     /// [`update_contacts`](super::update_contacts) on the GPU: uploads the inputs (`contacts`
@@ -344,10 +353,12 @@ impl GpuNarrowphase {
                 skipped: &host.skipped,
                 margin: inputs.margin,
                 dt: inputs.dt,
+                shape_kinds: shape_kinds(inputs.colliders),
             };
+            let kernel = kernel_for(&mut self.kernel, context, device_inputs.shape_kinds);
             encode_with(
                 &mut self.cached,
-                &self.kernel,
+                kernel,
                 context,
                 &mut pass,
                 &device_inputs,
@@ -359,6 +370,30 @@ impl GpuNarrowphase {
         contacts.copy_from_slice(&host.downloaded);
         Ok(())
     }
+}
+
+/// The kernel in `slot` when it was built for `shape_kinds`, else a new one there: a world
+/// that gains a kind of shape compiles another.
+fn kernel_for<'a>(
+    slot: &'a mut Option<(u32, Kernel)>,
+    context: &GpuContext,
+    shape_kinds: u32,
+) -> &'a Kernel {
+    if slot.as_ref().is_none_or(|(kinds, _)| *kinds != shape_kinds) {
+        let source = wgsl(shape_kinds);
+        let kernel = Kernel::new(
+            context,
+            "narrowphase",
+            &source,
+            "update_contacts",
+            &BINDINGS,
+        );
+        *slot = Some((shape_kinds, kernel));
+    }
+    let Some((_, kernel)) = slot else {
+        unreachable!("built above")
+    };
+    kernel
 }
 
 /// [`GpuNarrowphase::encode`] on its parts, so that `update_contacts` can lend its own buffers.
@@ -391,6 +426,7 @@ fn encode_with(
             contacts.buffer().clone(),
         ],
         params,
+        inputs.shape_kinds,
     );
     let dispatch = match cached_dispatch {
         Some((cached_key, dispatch, _)) if *cached_key == key => dispatch,

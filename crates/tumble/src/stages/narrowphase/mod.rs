@@ -18,7 +18,9 @@
 pub mod gpu;
 pub mod summary;
 
-pub use gpu::{GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams, pack_hulls};
+pub use gpu::{
+    GpuNarrowphase, GpuNarrowphaseInputs, NEW_PAIR, NarrowphaseParams, pack_hulls, shape_kinds,
+};
 
 mod children;
 

@@ -27,6 +27,16 @@ struct NarrowphaseParams {
 @group(0) @binding(8) var<storage, read> hulls: array<u32>;
 @group(0) @binding(9) var<storage, read_write> contacts: array<PairContact>;
 
+// Whether the world holds shapes of each kind (SHAPE_KINDS, from the host, has bit k for kind
+// k). The pair functions of absent kinds are behind constant-false branches, which the driver's
+// compiler drops: a kernel's registers are those of its largest live pair function, and a pile
+// of boxes then runs without the hulls' clipping.
+const HAS_SPHERE = (SHAPE_KINDS & (1u << SHAPE_SPHERE)) != 0u;
+const HAS_CAPSULE = (SHAPE_KINDS & (1u << SHAPE_CAPSULE)) != 0u;
+const HAS_CUBOID = (SHAPE_KINDS & (1u << SHAPE_CUBOID)) != 0u;
+const HAS_PLANE = (SHAPE_KINDS & (1u << SHAPE_PLANE)) != 0u;
+const HAS_HULL = (SHAPE_KINDS & (1u << SHAPE_CONVEX_HULL)) != 0u;
+
 const NEW_PAIR: u32 = 0xffffffffu;
 // No old point chosen yet.
 const NO_POINT: u32 = 0xffffffffu;
@@ -108,17 +118,26 @@ fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
     let b = colliders[body_b];
     let pose_a = poses[body_a];
     let pose_b = poses[body_b];
-    if b.kind == SHAPE_CONVEX_HULL {
+    if HAS_HULL && b.kind == SHAPE_CONVEX_HULL {
         switch a.kind {
-            case SHAPE_CUBOID: { box_hull(a.params, pose_a, body_b, pose_b, margin); }
+            case SHAPE_CUBOID: {
+                if HAS_CUBOID { box_hull(a.params, pose_a, body_b, pose_b, margin); }
+            }
             case SHAPE_PLANE: {
-                // The hull–plane function has the plane as B: swap, then flip the normal back.
-                hull_plane(body_b, pose_b, a.params, pose_a, margin);
-                out.normal = -out.normal;
+                if HAS_PLANE {
+                    // The hull–plane function has the plane as B: swap, then flip the normal
+                    // back.
+                    hull_plane(body_b, pose_b, a.params, pose_a, margin);
+                    out.normal = -out.normal;
+                }
             }
             case SHAPE_CONVEX_HULL: { hull_hull(body_a, pose_a, body_b, pose_b, margin); }
-            case SHAPE_SPHERE: { sphere_hull(a.params, pose_a, body_b, pose_b, margin); }
-            case SHAPE_CAPSULE: { capsule_hull(a.params, pose_a, body_b, pose_b, margin); }
+            case SHAPE_SPHERE: {
+                if HAS_SPHERE { sphere_hull(a.params, pose_a, body_b, pose_b, margin); }
+            }
+            case SHAPE_CAPSULE: {
+                if HAS_CAPSULE { capsule_hull(a.params, pose_a, body_b, pose_b, margin); }
+            }
             default: {}
         }
         return;
@@ -131,15 +150,39 @@ fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
     }
     let pair = a.kind * 4u + b.kind;
     switch pair {
-        case 0u: { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
-        case 1u: { sphere_capsule(a.params, pose_a, b.params, pose_b, margin); }
-        case 2u: { sphere_box(a.params, pose_a, b.params, pose_b, margin); }
-        case 3u: { sphere_plane(a.params, pose_a, b.params, pose_b, margin); }
-        case 5u: { capsule_capsule(a.params, pose_a, b.params, pose_b, margin); }
-        case 6u: { capsule_box(a.params, pose_a, b.params, pose_b, margin); }
-        case 7u: { capsule_plane(a.params, pose_a, b.params, pose_b, margin); }
-        case 10u: { box_box(a.params, pose_a, b.params, pose_b, margin); }
-        case 11u: { box_plane(a.params, pose_a, b.params, pose_b, margin); }
+        case 0u: {
+            if HAS_SPHERE { sphere_sphere(a.params, pose_a, b.params, pose_b, margin); }
+        }
+        case 1u: {
+            if HAS_SPHERE && HAS_CAPSULE {
+                sphere_capsule(a.params, pose_a, b.params, pose_b, margin);
+            }
+        }
+        case 2u: {
+            if HAS_SPHERE && HAS_CUBOID { sphere_box(a.params, pose_a, b.params, pose_b, margin); }
+        }
+        case 3u: {
+            if HAS_SPHERE && HAS_PLANE { sphere_plane(a.params, pose_a, b.params, pose_b, margin); }
+        }
+        case 5u: {
+            if HAS_CAPSULE { capsule_capsule(a.params, pose_a, b.params, pose_b, margin); }
+        }
+        case 6u: {
+            if HAS_CAPSULE && HAS_CUBOID {
+                capsule_box(a.params, pose_a, b.params, pose_b, margin);
+            }
+        }
+        case 7u: {
+            if HAS_CAPSULE && HAS_PLANE {
+                capsule_plane(a.params, pose_a, b.params, pose_b, margin);
+            }
+        }
+        case 10u: {
+            if HAS_CUBOID { box_box(a.params, pose_a, b.params, pose_b, margin); }
+        }
+        case 11u: {
+            if HAS_CUBOID && HAS_PLANE { box_plane(a.params, pose_a, b.params, pose_b, margin); }
+        }
         // Plane–plane: two static half-spaces need no contact.
         default: {}
     }
