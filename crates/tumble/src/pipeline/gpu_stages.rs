@@ -1914,12 +1914,15 @@ fn upload_bodies(
             .velocities
             .upload(context, &scatter.host_velocities)?;
         let (masses, velocities) = (&bodies.masses, &bodies.velocities);
-        context.submit_pass("body scatter", |pass| {
-            let (indices, kernel) = (&scatter.indices, &mut scatter.mass_kernel);
-            kernel.encode(context, pass, indices, &scatter.masses, masses);
-            let kernel = &mut scatter.velocity_kernel;
-            kernel.encode(context, pass, indices, &scatter.velocities, velocities);
-        });
+        // A new version with no body changed (an empty wake) submits nothing.
+        if !changed.is_empty() {
+            context.submit_pass("body scatter", |pass| {
+                let (indices, kernel) = (&scatter.indices, &mut scatter.mass_kernel);
+                kernel.encode(context, pass, indices, &scatter.masses, masses);
+                let kernel = &mut scatter.velocity_kernel;
+                kernel.encode(context, pass, indices, &scatter.velocities, velocities);
+            });
+        }
         bodies.synced = Some(inputs.version);
         bodies.partial_uploads += 1;
         #[cfg(debug_assertions)]
