@@ -117,6 +117,10 @@ const INTEGRATE: StageSpans = StageSpans {
 };
 /// Stage 8 in the GPU solver's submission: its kernel and the bodies' read-back.
 const SOLVER_INTEGRATE_KERNEL: SpanPath = &["solver", "integrate kernel"];
+/// The chained solver's passes around its sweeps ([`SOLVER`]'s `kernel`): the rows gathered
+/// into batch order (with the warm start's body adjacency), and their impulses read out.
+const SOLVER_LAYOUT_KERNEL: SpanPath = &["solver", "kernels: rows in batch order"];
+const SOLVER_IMPULSES_KERNEL: SpanPath = &["solver", "kernels: impulses out"];
 const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
 /// Stages 1–4 in one submission ([`GpuStages::collide`]).
 const COLLISION: StageSpans = StageSpans {
@@ -457,7 +461,9 @@ impl GpuStages {
     /// The GPU side on `context`'s device.
     pub fn new(context: GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
-            profiler: GpuProfiler::new(&context, 8),
+            // Passes timed between two waits: at most the rows' two, the batching's and the
+            // solver's four (the collision has four).
+            profiler: GpuProfiler::new(&context, 16),
             bodies: DeviceBodies {
                 poses: GpuVec::with_capacity(&context, "poses", 0)?,
                 velocities: GpuVec::with_capacity(&context, "velocities", 0)?,
@@ -1577,7 +1583,10 @@ impl GpuStages {
             profiler,
             spans,
             |encoder, timer| {
-                encode_pass(encoder, timer, spans.kernel, |pass| {
+                // Three passes, timed apart: the rows into batch order (and the adjacency),
+                // the sweeps, the impulses out.
+                let mut gathered_by_body = false;
+                encode_pass(encoder, timer, SOLVER_LAYOUT_KERNEL, |pass| {
                     prepare.encode(
                         context,
                         pass,
@@ -1588,7 +1597,6 @@ impl GpuStages {
                     if !joint_order.is_empty() {
                         joint_rows.encode_gather(context, pass);
                     }
-                    let joint_rows = &*joint_rows;
                     batched.encode_gather(
                         context,
                         pass,
@@ -1596,36 +1604,36 @@ impl GpuStages {
                         &joint_rows.batched,
                         &joint_rows.impulses,
                     );
-                    // A device layout's warm start gathers by body: its adjacency first.
-                    let adjacency = match host_offsets {
-                        Some(_) => None,
-                        // No constraint this step: nothing to gather. The batching encoded
-                        // nothing, so its masks are last step's (or shorter than the bodies),
-                        // and an adjacency built from them would hand out last step's warm
-                        // starts. (Found in review: through the API a contact ends with zero
-                        // impulses, so no test shows it.)
-                        None if !by_body || batched.order().is_empty() => None,
-                        None => {
-                            let inputs = AdjacencyInputs {
-                                masks: batching.masks(),
-                                colors: &batching.colors,
-                                order: batched.order(),
-                                row_bodies: &rows.bodies,
-                                offsets: layout_offsets,
-                            };
-                            let capacity = batched.order().capacity();
-                            let bodies = solver_bodies.len();
-                            adjacency.encode(context, pass, &inputs, bodies, capacity)?;
-                            Some((&adjacency.starts, &adjacency.entries))
-                        }
-                    };
+                    // A device layout's warm start gathers by body: its adjacency first. None
+                    // without a constraint this step: the batching encoded nothing, so its
+                    // masks are last step's (or shorter than the bodies), and an adjacency
+                    // built from them would hand out last step's warm starts. (Found in
+                    // review: through the API a contact ends with zero impulses, so no test
+                    // shows it.)
+                    if host_offsets.is_none() && by_body && !batched.order().is_empty() {
+                        let inputs = AdjacencyInputs {
+                            masks: batching.masks(),
+                            colors: &batching.colors,
+                            order: batched.order(),
+                            row_bodies: &rows.bodies,
+                            offsets: layout_offsets,
+                        };
+                        let capacity = batched.order().capacity();
+                        let bodies = solver_bodies.len();
+                        adjacency.encode(context, pass, &inputs, bodies, capacity)?;
+                        gathered_by_body = true;
+                    }
+                    Ok(())
+                })?;
+                encode_pass(encoder, timer, spans.kernel, |pass| {
                     let device_batched = DeviceBatched {
                         contacts: &batched.constraints,
                         contact_offsets: host_offsets.unwrap_or(layout_offsets),
                         joints: &joint_rows.batched,
                         joint_offsets: device_joint_offsets,
                         sizes,
-                        adjacency,
+                        adjacency: gathered_by_body
+                            .then_some((&adjacency.starts, &adjacency.entries)),
                     };
                     match jacobi {
                         Some(jacobi) => jacobi.encode(
@@ -1643,6 +1651,9 @@ impl GpuStages {
                             restitution,
                         ),
                     };
+                    Ok(())
+                })?;
+                encode_pass(encoder, timer, SOLVER_IMPULSES_KERNEL, |pass| {
                     batched.encode_read_impulses(pass);
                     if scatter {
                         batched.encode_scatter_pair_impulses(context, pass, pair_contacts);
