@@ -566,3 +566,66 @@ fn a_world_that_gains_a_kind_of_shape_collides_it_on_the_gpu() {
         assert!((cpu - gpu).abs() < 1e-3, "CPU {cpu} m, GPU {gpu} m");
     }
 }
+
+/// The collision's keys and summaries come back with its kernels, as many as last step's
+/// pairs and some more (`expected_pair_count`), up to the broadphase's capacity: a step with
+/// more pairs than that copies them all again. A block of 512 boxes face to face (about 5000
+/// pairs) grows the capacity and goes; after three steps of a lone box on the plane (one pair)
+/// it comes back, and that step's pairs and contacts are the CPU's. Without the second copy
+/// the host sees only the first 1025 pairs.
+#[test]
+fn a_step_with_many_more_pairs_than_the_last_reads_them_all_back() {
+    let _turn = gpu_common::context();
+    let add_block = |world: &mut World| -> Vec<BodyHandle> {
+        let mut block = Vec::new();
+        for i in 0..8 {
+            for j in 0..8 {
+                for k in 0..8 {
+                    let position = Vec3::new(i as f32, 0.5 + j as f32, k as f32);
+                    let desc = BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)));
+                    block.push(world.add_body(desc.position(position)).unwrap());
+                }
+            }
+        }
+        block
+    };
+    let run = |stages: &[Stage]| {
+        let mut world = World::new(StepConfig::default()).unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        let lone =
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(-20.0, 0.5, 0.0));
+        world.add_body(lone).unwrap();
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        let block = add_block(&mut world);
+        world.try_step().unwrap();
+        for body in block {
+            world.remove_body(body).unwrap();
+        }
+        for _ in 0..3 {
+            world.try_step().unwrap();
+        }
+        assert_eq!(world.stats().pairs, 1, "the lone box on the plane");
+        add_block(&mut world);
+        world.try_step().unwrap();
+        let mut pairs: Vec<(u32, u32)> = world
+            .contacts()
+            .map(|(a, b, _)| (a.index(), b.index()))
+            .collect();
+        pairs.sort();
+        (world.stats().pairs, pairs)
+    };
+    let (cpu_pairs, cpu_contacts) = run(&[]);
+    let (gpu_pairs, gpu_contacts) = run(&Stage::ALL);
+    assert!(
+        cpu_pairs > 4000,
+        "{cpu_pairs} pairs: the block's neighbours"
+    );
+    assert_eq!(gpu_pairs, cpu_pairs, "pairs");
+    assert_eq!(gpu_contacts, cpu_contacts, "pairs with points");
+}
