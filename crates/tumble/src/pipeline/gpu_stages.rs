@@ -2029,11 +2029,21 @@ mod tests {
     use crate::stages::constraints::world_inverse_inertia;
     use crate::{BodyDesc, BodyHandle, Shape, World};
 
+    /// One GPU test of this module at a time, as in tests/engine/gpu_common.rs: wgpu's GL
+    /// backend locks its context around every call and panics after a second, which a long
+    /// dispatch on llvmpipe in a parallel test thread exceeds (seen on a machine with no
+    /// Vulkan driver: seven of these tests failed so).
+    fn turn() -> std::sync::MutexGuard<'static, ()> {
+        static TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
+        TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
     /// The batching stage encodes the rounds the last batching needed and a few more: a chain
     /// that needs more than encoded takes the second pass and gives the CPU's colors all the
     /// same, and the next step encodes what it needed.
     #[test]
     fn batching_rounds_follow_what_the_last_batching_needed() {
+        let _turn = turn();
         let mut gpu = GpuStages::new(
             GpuContext::shared()
                 .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
@@ -2106,6 +2116,7 @@ mod tests {
     /// of it, bit for bit: the shortcut skips a copy, it changes nothing.
     #[test]
     fn rows_from_the_narrowphase_output_equal_rows_from_the_host() {
+        let _turn = turn();
         let mut gpu = GpuStages::new(
             GpuContext::shared()
                 .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
@@ -2206,6 +2217,7 @@ mod tests {
     /// `values_mut` after each step, sends it up again).
     #[test]
     fn the_pair_cache_kept_on_the_device_steps_as_the_uploaded_one() {
+        let _turn = turn();
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let steps = 40;
@@ -2265,6 +2277,7 @@ mod tests {
     /// are the ones the device holds.)
     #[test]
     fn bodies_kept_on_the_device_step_as_bodies_uploaded() {
+        let _turn = turn();
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let steps = 40;
@@ -2317,6 +2330,7 @@ mod tests {
     /// dropped on one of them wakes its island, which falls asleep again.
     #[test]
     fn bodies_that_sleep_or_wake_reach_the_device_alone() {
+        let _turn = turn();
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let run = |upload_every_step: bool| {
@@ -2473,6 +2487,7 @@ mod tests {
     /// batch by batch), poses, each step's batch histogram, the contacts' batches, sleep.
     #[test]
     fn batches_laid_out_on_the_device_step_as_on_the_host() {
+        let _turn = turn();
         let block = |world: &mut World| {
             for index in 0..48 {
                 let shape = if index % 4 == 0 {
@@ -2517,6 +2532,7 @@ mod tests {
     /// by body, hold overflow constraints sharing the slab.
     #[test]
     fn overflow_batches_laid_out_on_the_device_step_as_on_the_host() {
+        let _turn = turn();
         let device = pile_on_the_gpu((false, false), 40, balls_on_a_slab);
         let host = pile_on_the_gpu((true, false), 40, balls_on_a_slab);
         assert!(device.4 > 30, "{} steps laid out on the device", device.4);
@@ -2537,6 +2553,7 @@ mod tests {
     /// that ranked the slab's overflow constraints wrongly by 1.4 mm in 4 steps.)
     #[test]
     fn the_warm_start_by_body_follows_the_batch_sweeps() {
+        let _turn = turn();
         let block = |world: &mut World| {
             for index in 0..48 {
                 world
@@ -2568,6 +2585,7 @@ mod tests {
     /// asked) and the statistics.
     #[test]
     fn contacts_left_on_the_device_step_as_contacts_brought_back() {
+        let _turn = turn();
         let kept = steps_on_the_gpu(true, false, 30);
         let brought = steps_on_the_gpu(false, false, 30);
         assert_eq!((kept.3, brought.3), (30, 0));
@@ -2582,6 +2600,7 @@ mod tests {
     /// the one that brings them back every step.
     #[test]
     fn contacts_stay_on_the_device_while_bodies_sleep() {
+        let _turn = turn();
         let kept = steps_on_the_gpu(true, true, 150);
         let brought = steps_on_the_gpu(false, true, 150);
         assert_eq!(kept.3, 150, "steps that left them there");
@@ -2596,6 +2615,7 @@ mod tests {
     /// and the steps after it run, with the contacts a world that never failed has.
     #[test]
     fn a_collision_that_fails_with_the_contacts_on_the_device_starts_the_pairs_afresh() {
+        let _turn = turn();
         let small = GpuContext::with_limits(|limits| {
             limits.max_storage_buffer_binding_size = 64 << 10;
         })
@@ -2685,6 +2705,7 @@ mod tests {
     /// A row per pair would not fit (it did not for a settled pile of 500k boxes on an H200).
     #[test]
     fn rows_on_the_device_are_sized_by_the_manifolds_not_the_pairs() {
+        let _turn = turn();
         let small = GpuContext::with_limits(|limits| {
             limits.max_storage_buffer_binding_size = 256 << 10;
         })
@@ -2747,6 +2768,7 @@ mod tests {
     /// host's cache), and lose no pair when the broadphase's buffers start too small.
     #[test]
     fn one_submission_collision_equals_the_stages_one_by_one() {
+        let _turn = turn();
         one_submission_against_the_stages(false);
     }
 
@@ -2755,6 +2777,7 @@ mod tests {
     /// from the host's resting pairs, where the stages one by one merge them on the host.
     #[test]
     fn one_submission_collision_keeps_resting_pairs() {
+        let _turn = turn();
         one_submission_against_the_stages(true);
     }
 
