@@ -33,6 +33,10 @@ use crate::stages::constraints::{
 use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
 
 const WGSL: &str = include_str!("batched.wgsl");
+const GATHER_ROWS_WGSL: &str = include_str!("gather_rows.wgsl");
+/// 16-byte words of a [`ContactConstraint`], a thread each in `gather_rows.wgsl`.
+const CONSTRAINT_WORDS: usize = size_of::<ContactConstraint>() / 16;
+const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
 const PAIR_IMPULSES_WGSL: &str = include_str!("pair_impulses.wgsl");
 /// Counts, batched constraints, the pairs' contacts.
 const PAIR_IMPULSES_BINDINGS: [Binding; 3] = [
@@ -81,6 +85,13 @@ pub fn wgsl() -> Source {
         .snippet("batched.wgsl", WGSL)
 }
 
+/// The gather of the rows into batch order, a word a thread.
+fn gather_rows_wgsl() -> Source {
+    Source::new()
+        .constant_u32("CONSTRAINT_WORDS", CONSTRAINT_WORDS as u32)
+        .snippet("gather_rows.wgsl", GATHER_ROWS_WGSL)
+}
+
 /// The scatter of the contacts' impulses to their pairs, for the layout test.
 pub fn pair_impulses_wgsl() -> Source {
     Source::new()
@@ -101,6 +112,7 @@ pub struct GpuBatched {
     pub impulses: GpuVec<BatchedImpulses>,
     /// The impulses of the joints in batch order, as the solver left them.
     pub joint_impulses: GpuVec<BatchedJointImpulses>,
+    /// `gather_rows.wgsl`, on [`BINDINGS`]' first four.
     gather: Kernel,
     read_impulses: Kernel,
     read_joint_impulses: Kernel,
@@ -120,7 +132,13 @@ impl GpuBatched {
             constraints: GpuVec::with_capacity(context, "batched constraints", 0)?,
             impulses: GpuVec::with_capacity(context, "batched impulses", 0)?,
             joint_impulses: GpuVec::with_capacity(context, "batched joint impulses", 0)?,
-            gather: kernel("gather"),
+            gather: Kernel::new(
+                context,
+                "gather_words",
+                &gather_rows_wgsl(),
+                "gather_words",
+                &BINDINGS[..4],
+            ),
             read_impulses: kernel("read_impulses"),
             read_joint_impulses: kernel("read_joint_impulses"),
             cached: None,
@@ -200,7 +218,7 @@ impl GpuBatched {
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let group = self.gather.bind(
+            let group = self.read_impulses.bind(
                 context,
                 &[
                     self.count.whole(),
@@ -213,10 +231,20 @@ impl GpuBatched {
                     slot_impulses.whole(),
                 ],
             );
+            let gather_group = self.gather.bind(
+                context,
+                &[
+                    self.count.whole(),
+                    self.order.whole(),
+                    rows.whole(),
+                    self.constraints.whole(),
+                ],
+            );
             let groups = workgroups_for(key.1, WORKGROUP_SIZE);
+            let words = workgroups_for(key.1 * CONSTRAINT_WORDS, WORKGROUP_SIZE);
             let joint_groups = workgroups_for(key.2, WORKGROUP_SIZE);
             let dispatches = [
-                self.gather.dispatch(group.clone(), groups),
+                self.gather.dispatch(gather_group, words),
                 self.read_impulses.dispatch(group.clone(), groups),
                 self.read_joint_impulses.dispatch(group, joint_groups),
             ];

@@ -1,6 +1,7 @@
 // The batches on the device, for a step whose rows, batching and solver all run on the GPU
-// (stages/solver/batched.rs): `gather` lays the rows' constraints out in batch order (the host
-// sends the order: a counting sort of the colors, group_by_batch's twin), and after the solve
+// (stages/solver/batched.rs): `gather_rows.wgsl` lays the rows' constraints out in batch order
+// (the host sends the order: a counting sort of the colors, group_by_batch's twin), and after
+// the solve
 // `read_impulses` copies each batched constraint's accumulated impulses into a small record,
 // and `read_joint_impulses` each joint's, so the host reads 48 bytes a contact constraint and
 // 32 a joint for its warm start and break test instead of the whole constraints; the joints'
@@ -17,9 +18,7 @@ struct BatchedImpulses {
 // Word 0: the number of contact constraints, word 1: the number of joints (in a buffer, so
 // the dispatches serve every step).
 @group(0) @binding(0) var<storage, read> count: array<u32>;
-// order[i]: the constraint (in the rows' order) that goes to batched place i.
-@group(0) @binding(1) var<storage, read> order: array<u32>;
-@group(0) @binding(2) var<storage, read> constraints: array<ContactConstraint>;
+// Bindings 1 and 2, the batch order and the rows, are gather_rows.wgsl's.
 @group(0) @binding(3) var<storage, read_write> batched: array<ContactConstraint>;
 @group(0) @binding(4) var<storage, read_write> impulses: array<BatchedImpulses>;
 // The joints in batch order, as the solver left them.
@@ -27,18 +26,6 @@ struct BatchedImpulses {
 @group(0) @binding(6) var<storage, read_write> joint_impulses: array<BatchedJointImpulses>;
 // The GPU joint rows' warm start, by joint slot (stages/constraints/joint_gpu.rs).
 @group(0) @binding(7) var<storage, read_write> slot_impulses: array<BatchedJointImpulses>;
-
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn gather(
-    @builtin(local_invocation_index) local: u32,
-    @builtin(workgroup_id) workgroup: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
-    if index < count[0] {
-        batched[index] = constraints[order[index]];
-    }
-}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn read_impulses(

@@ -1,0 +1,27 @@
+// The rows' contact constraints into batch order (stages/solver/batched.rs), a 16-byte word a
+// thread: `batched[place] = rows[order[place]]`, CONSTRAINT_WORDS words each. A thread per
+// constraint copying its 656 bytes made each warp's loads and stores touch 32 constraints
+// 656 bytes apart; a word a thread, a warp's stores are 512 contiguous bytes and its loads
+// a constraint or two.
+
+// Word 0: the number of contact constraints.
+@group(0) @binding(0) var<storage, read> count: array<u32>;
+// order[i]: the constraint (in the rows' order) that goes to batched place i.
+@group(0) @binding(1) var<storage, read> order: array<u32>;
+@group(0) @binding(2) var<storage, read> rows: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> batched: array<vec4<u32>>;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn gather_words(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let word = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    let place = word / CONSTRAINT_WORDS;
+    if place >= count[0] {
+        return;
+    }
+    let slot = word - place * CONSTRAINT_WORDS;
+    batched[word] = rows[order[place] * CONSTRAINT_WORDS + slot];
+}
