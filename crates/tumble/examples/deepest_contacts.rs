@@ -35,7 +35,9 @@ fn run() -> Result<(), String> {
         return Err("usage: deepest_contacts SCENE.json [STEPS [cpu|gpu]]".into());
     };
     let steps: u64 = match rest.first() {
-        Some(steps) => steps.parse().map_err(|_| format!("bad step count {steps:?}"))?,
+        Some(steps) => steps
+            .parse()
+            .map_err(|_| format!("bad step count {steps:?}"))?,
         None => 1,
     };
     let on_gpu = match rest.get(1).map(String::as_str) {
