@@ -1,11 +1,11 @@
 // The batches on the device, for a step whose rows, batching and solver all run on the GPU
 // (stages/solver/batched.rs): `gather_rows.wgsl` lays the rows' constraints out in batch order
 // (the host sends the order: a counting sort of the colors, group_by_batch's twin), and after
-// the solve
-// `read_impulses` copies each batched constraint's accumulated impulses into a small record,
-// and `read_joint_impulses` each joint's, so the host reads 48 bytes a contact constraint and
-// 32 a joint for its warm start and break test instead of the whole constraints; the joints'
-// also go to their slots, where the next step's GPU joint rows read their warm start.
+// the solve `read_impulses` copies each batched constraint's accumulated impulses into a small
+// record, and `read_joint_impulses` each joint's, so the host reads 48 bytes a contact
+// constraint and 32 a joint for its warm start and break test instead of the whole
+// constraints; the joints' also go to their slots, where the next step's GPU joint rows read
+// their warm start.
 
 // Per batched constraint: the accumulated impulse of each point (x, y, z, w = points 0..3)
 // along the normal and the two tangents. Unused points are 0.
