@@ -69,6 +69,11 @@ impl SleepState {
 #[derive(Debug, Default)]
 pub struct Islands {
     states: Vec<SleepState>,
+    /// Bit `b % 32` of word `b / 32` is set while body b sleeps: `states` as the device's
+    /// wake test reads it ([`Self::asleep_bits`]).
+    asleep_bits: Vec<u32>,
+    /// Changes of `asleep_bits` so far: the device uploads them again only after one.
+    asleep_version: u64,
     /// Members of each sleeping island with the masses they had awake; an empty list is a
     /// free island id.
     sleeping: Vec<Vec<(u32, BodyMass)>>,
@@ -91,7 +96,22 @@ pub struct Islands {
 impl Islands {
     /// Makes room for `count` body slots; new slots are awake with no rest time.
     pub fn resize(&mut self, count: usize) {
+        for body in count..self.states.len() {
+            self.set_asleep_bit(body as u32, false);
+        }
         self.states.resize(count, SleepState::default());
+        self.asleep_bits.resize(count.div_ceil(32), 0);
+    }
+
+    /// Which bodies sleep, a bit each (bit `b % 32` of word `b / 32`), and a version that
+    /// changes whenever a bit does.
+    pub fn asleep_bits(&self) -> (&[u32], u64) {
+        (&self.asleep_bits, self.asleep_version)
+    }
+
+    fn set_asleep_bit(&mut self, body: u32, asleep: bool) {
+        set_bit(&mut self.asleep_bits, body, asleep);
+        self.asleep_version += 1;
     }
 
     pub fn state(&self, body: u32) -> SleepState {
@@ -229,6 +249,8 @@ impl Islands {
             rested: rested_bodies,
             roots,
             rested_parts,
+            asleep_bits,
+            asleep_version,
             ..
         } = self;
         let awake_masses: &[BodyMass] = masses;
@@ -280,7 +302,11 @@ impl Islands {
             let island = island_of_root[root];
             sleeping[island as usize].push((i, masses[i as usize]));
             states[i as usize].island = island;
+            set_bit(asleep_bits, i, true);
             asleep.push(i);
+        }
+        if asleep.len() > first_new {
+            *asleep_version += 1;
         }
         for &body in &asleep[first_new..] {
             masses[body as usize] = BodyMass::default();
@@ -301,6 +327,7 @@ impl Islands {
             let i = body as usize;
             self.sleeping[island as usize].push((body, masses[i]));
             self.states[i].island = island;
+            self.set_asleep_bit(body, true);
             masses[i] = BodyMass::default();
             velocities[i] = BodyVelocity::default();
         }
@@ -316,8 +343,10 @@ impl Islands {
         for (member, mass) in self.sleeping[island as usize].drain(..) {
             masses[member as usize] = mass;
             self.states[member as usize].island = AWAKE;
+            set_bit(&mut self.asleep_bits, member, false);
             woken.push(member);
         }
+        self.asleep_version += 1;
         self.free_ids.push(island);
     }
 
@@ -328,6 +357,16 @@ impl Islands {
                 self.wake(body, masses, woken);
             }
         }
+    }
+}
+
+/// Sets or clears bit `body` of `bits` (see [`Islands::asleep_bits`]).
+fn set_bit(bits: &mut [u32], body: u32, value: bool) {
+    let (word, bit) = ((body / 32) as usize, 1 << (body % 32));
+    if value {
+        bits[word] |= bit;
+    } else {
+        bits[word] &= !bit;
     }
 }
 
@@ -409,6 +448,17 @@ mod tests {
         islands.unlink_all();
         islands.link(edges, masses);
         islands.fall_asleep(masses, velocities, keep_awake, asleep);
+    }
+
+    /// [`Islands::asleep_bits`] holds each body's state, and no bit past the bodies.
+    fn assert_bits_follow_states(islands: &Islands) {
+        let (bits, _) = islands.asleep_bits();
+        assert_eq!(bits.len(), islands.states.len().div_ceil(32));
+        for body in 0..bits.len() * 32 {
+            let bit = bits[body / 32] & (1 << (body % 32)) != 0;
+            let asleep = islands.states.get(body).is_some_and(SleepState::is_asleep);
+            assert_eq!(bit, asleep, "body {body}");
+        }
     }
 
     fn dynamic() -> BodyMass {
@@ -519,6 +569,7 @@ mod tests {
             islands.link(&edges[..split], &masses);
             islands.link(&edges[split..], &masses);
             islands.fall_asleep(&mut masses, &mut velocities, keep_awake, &mut asleep);
+            assert_bits_follow_states(&islands);
             let found: Vec<(u32, u32)> = asleep
                 .iter()
                 .map(|&body| (body, islands.state(body).island))
@@ -593,13 +644,23 @@ mod tests {
         let island = islands.state(0).island;
         assert!(islands.state(1).island == island && islands.state(2).island == island);
         assert_ne!(islands.state(3).island, island);
+        assert_bits_follow_states(&islands);
         // Waking one wakes the island, with its masses back, and not the other island.
+        let version = islands.asleep_bits().1;
         let mut woken = Vec::new();
         islands.wake(2, &mut masses, &mut woken);
         assert_eq!(woken, [0, 1, 2]);
+        assert_bits_follow_states(&islands);
+        assert_ne!(islands.asleep_bits().1, version);
         assert!(masses[..3].iter().all(|m| *m == dynamic()));
         assert!(islands.state(3).is_asleep());
         assert_eq!(islands.sleeping_count(), 1);
+        // Fewer slots clear the bits past them; a slot added again is awake.
+        islands.resize(3);
+        assert_bits_follow_states(&islands);
+        islands.resize(5);
+        assert_bits_follow_states(&islands);
+        assert!(!islands.state(3).is_asleep());
     }
 
     #[test]

@@ -3,3 +3,4 @@
 pub mod body;
 pub mod island;
 pub mod joint;
+pub mod wake;

@@ -2,6 +2,7 @@ use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::dynamics::joint::Joint;
+use crate::dynamics::wake::GpuWakeCandidates;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Dispatch, encode_all};
@@ -161,7 +162,8 @@ fn encode_summary_downloads(
 
 /// [`GpuStages::collide`]'s kernels, timed as four passes: the AABBs and the trees' builds,
 /// the trees' traversal and the sort of its pairs (the broadphase), each pair's lookup in last
-/// step's, and the narrowphase with the pairs' summaries (the contacts).
+/// step's, and the narrowphase with the pairs' summaries and, while bodies sleep, the wake
+/// test's candidates (the contacts).
 const COLLISION_KERNELS: [SpanPath; 4] = [
     &["collision", "kernels: aabbs, trees"],
     &["collision", "kernels: pairs"],
@@ -230,8 +232,20 @@ pub(crate) enum CollideOutput<'a> {
     Contacts(&'a mut Vec<PairContact>),
     /// Each pair's [`PairSummary`] only: the contacts stay on the device, where the rows read
     /// them and the solver writes their impulses, until the host asks for them
-    /// ([`GpuStages::download_pair_contacts`]).
-    Summaries(&'a mut Vec<PairSummary>),
+    /// ([`GpuStages::download_pair_contacts`]). With a [`WakeQuery`], also the wake test's
+    /// candidates.
+    Summaries(&'a mut Vec<PairSummary>, Option<WakeQuery<'a>>),
+}
+
+/// The wake test's pass over the pairs, asked of [`GpuStages::collide`] while bodies sleep:
+/// [`wake_candidates`](crate::dynamics::wake::wake_candidates) on the device.
+pub(crate) struct WakeQuery<'a> {
+    /// [`Islands::asleep_bits`](crate::dynamics::island::Islands::asleep_bits).
+    pub asleep: (&'a [u32], u64),
+    /// Gets the candidates' indices among the pairs, in pair order, and `listed` whether it
+    /// did (not when the tests ask for the host's pass).
+    pub candidates: &'a mut Vec<u32>,
+    pub listed: &'a mut bool,
 }
 
 /// The joint rows of a GPU stage 5 ([`GpuStages::build_constraints`]).
@@ -399,6 +413,12 @@ pub(crate) struct GpuStages {
     /// bit for bit turn it off: NVIDIA's compiler rounds the gather and the sweeps apart).
     warm_start_by_body: bool,
     host_layout_offsets: Vec<u32>,
+    /// The wake test's candidates listed in the collision's submission while bodies sleep;
+    /// the tests that compare it with the host's pass turn it off (`host_wake_candidates`),
+    /// and count the steps that listed them on the device.
+    wake: GpuWakeCandidates,
+    host_wake_candidates: bool,
+    wake_candidates_listed: usize,
     solver: GpuSolver,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
@@ -497,6 +517,9 @@ impl GpuStages {
             device_layouts: 0,
             warm_start_by_body: true,
             host_layout_offsets: Vec::new(),
+            wake: GpuWakeCandidates::new(&context)?,
+            host_wake_candidates: false,
+            wake_candidates_listed: 0,
             solver: GpuSolver::new(&context)?,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
@@ -758,7 +781,13 @@ impl GpuStages {
         output: CollideOutput,
     ) -> Result<(), GpuError> {
         let context = &self.context;
-        let summarize = matches!(output, CollideOutput::Summaries(_));
+        let summarize = matches!(output, CollideOutput::Summaries(..));
+        let wake_asleep = match &output {
+            CollideOutput::Summaries(_, Some(query)) if !self.host_wake_candidates => {
+                Some(query.asleep)
+            }
+            _ => None,
+        };
         let start = Instant::now();
         upload_bodies(context, &mut self.bodies, &mut self.collider_data, bodies)?;
         record_copy(profiler, COLLISION.upload, elapsed_ms(start));
@@ -768,6 +797,9 @@ impl GpuStages {
         let start = Instant::now();
         self.broadphase.set_extra_pairs(context, resting)?;
         self.skipped.upload(context, skipped)?;
+        if let Some(asleep) = wake_asleep {
+            self.wake.set_asleep(context, asleep)?;
+        }
         record_copy(profiler, COLLISION_EXTRA_PAIRS, elapsed_ms(start));
         // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
         // keeps its size from step to step and is not built again.
@@ -801,6 +833,7 @@ impl GpuStages {
         // the count is known: as many as last step had and some more (see
         // `expected_pair_count`), a second copy bringing the rest when there are more.
         let mut staged = 0;
+        let mut wake_staged = 0;
         loop {
             if summarize {
                 self.keys.resize(context, self.broadphase.capacity())?;
@@ -812,6 +845,7 @@ impl GpuStages {
             let (broadphase, diff) = (&mut self.broadphase, &mut self.pair_diff);
             let (narrowphase, contacts) = (&mut self.narrowphase, &mut self.contacts);
             let (summaries, row_keys) = (&mut self.summaries, &mut self.keys);
+            let wake = &mut self.wake;
             let (old_keys, old_contacts, skipped) =
                 (&self.old_keys, &self.old_contacts, &self.skipped);
             // Only the first run copies: a run again after the broadphase grew reads the same
@@ -872,6 +906,16 @@ impl GpuStages {
                                 contacts,
                                 capacity,
                             )?;
+                            if wake_asleep.is_some() {
+                                wake.encode(
+                                    context,
+                                    pass,
+                                    broadphase.count(),
+                                    broadphase.keys(),
+                                    &summaries.summaries,
+                                    capacity,
+                                )?;
+                            }
                         }
                         Ok(())
                     })?;
@@ -880,6 +924,9 @@ impl GpuStages {
                         encode_summary_downloads(
                             context, encoder, broadphase, row_keys, summaries, staged,
                         );
+                    }
+                    if wake_asleep.is_some() {
+                        wake_staged = wake.encode_download(context, encoder);
                     }
                     Ok(())
                 },
@@ -892,7 +939,7 @@ impl GpuStages {
         let start = Instant::now();
         let count = self.broadphase.last_pair_count();
         match output {
-            CollideOutput::Summaries(out) => {
+            CollideOutput::Summaries(out, wake) => {
                 if count > staged {
                     let mut encoder =
                         context
@@ -916,6 +963,13 @@ impl GpuStages {
                 keys.truncate(count);
                 out.truncate(count);
                 self.keys.resize(context, count)?;
+                if let Some(query) = wake {
+                    *query.listed = wake_asleep.is_some();
+                    if *query.listed {
+                        self.wake.read(context, wake_staged, query.candidates)?;
+                        self.wake_candidates_listed += 1;
+                    }
+                }
             }
             CollideOutput::Contacts(contacts) => {
                 // Only the counted keys and contacts come back, in one submission; the rows
@@ -2379,6 +2433,158 @@ mod tests {
         assert_eq!(asleep, uploaded.2);
         assert!(velocities == uploaded.1, "the velocities differ");
         assert!(poses == uploaded.0, "the poses differ");
+    }
+
+    /// The wake test's candidates listed on the device are the host pass's, in pair order, on
+    /// random sorted keys padded past their count as the broadphase's are, random point counts
+    /// and random sleeping bodies, at 0, 1, about 250 and about 10 000 pairs. The read-back
+    /// stages last call's count and 256 more, so the large case takes the second copy.
+    #[test]
+    fn wake_candidates_on_the_device_are_the_hosts() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut wake = GpuWakeCandidates::new(&context).unwrap();
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move |bound: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % bound
+        };
+        let mut sizes_seen = Vec::new();
+        for (version, (pairs, bodies)) in [(0, 10), (1, 3), (260, 60), (10_000, 3_000)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut keys: Vec<u64> = (0..pairs)
+                .map(|_| {
+                    let (a, b) = (next(bodies), next(bodies));
+                    (a.min(b) << 32) | a.max(b)
+                })
+                .collect();
+            keys.sort_unstable();
+            keys.dedup();
+            let count = keys.len();
+            let summaries: Vec<PairSummary> = (0..count)
+                .map(|_| PairSummary {
+                    point_count: next(2) as u32 * (1 + next(4) as u32),
+                    depth: 0.0,
+                })
+                .collect();
+            let mut bits = vec![0u32; (bodies as usize).div_ceil(32)];
+            for body in 0..bodies as usize {
+                if next(10) < 3 {
+                    bits[body / 32] |= 1 << (body % 32);
+                }
+            }
+            let slots = count + count / 3 + 5;
+            let mut padded = keys.clone();
+            padded.resize(slots, u64::MAX);
+            let mut padded_summaries = summaries.clone();
+            padded_summaries.resize(slots, PairSummary::default());
+            let count_buffer = GpuVec::from_slice(&context, "count", &[count as u32]).unwrap();
+            let keys_buffer = GpuVec::from_slice(&context, "keys", &padded).unwrap();
+            let summaries_buffer =
+                GpuVec::from_slice(&context, "summaries", &padded_summaries).unwrap();
+            wake.set_asleep(&context, (&bits, version as u64)).unwrap();
+            let mut encoder = context.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                wake.encode(
+                    &context,
+                    &mut pass,
+                    &count_buffer,
+                    &keys_buffer,
+                    &summaries_buffer,
+                    slots,
+                )
+                .unwrap();
+            }
+            let staged = wake.encode_download(&context, &mut encoder);
+            context.queue.submit([encoder.finish()]);
+            let mut listed = Vec::new();
+            wake.read(&context, staged, &mut listed).unwrap();
+            let device: Vec<(u32, u32)> = listed
+                .iter()
+                .map(|&pair| crate::stages::pairs::pair_bodies(keys[pair as usize]))
+                .collect();
+            let asleep = |body: u32| bits[body as usize / 32] & (1 << (body % 32)) != 0;
+            let touching = |pair: usize| summaries[pair].point_count > 0;
+            let (mut parts, mut host) = (Default::default(), Vec::new());
+            crate::dynamics::wake::wake_candidates(&keys, touching, asleep, &mut parts, &mut host);
+            assert_eq!(device, host, "{count} pairs");
+            sizes_seen.push((host.len(), staged));
+        }
+        // Some candidates past what was staged: the second copy brought them.
+        assert!(
+            sizes_seen.iter().any(|&(listed, staged)| listed > staged),
+            "{sizes_seen:?}"
+        );
+    }
+
+    /// While bodies sleep, the collision lists the wake test's candidates on the device: the
+    /// run is bitwise the one whose host walks every pair. Towers of two boxes stand apart on
+    /// a plane and fall asleep an island each (so the lists hold pairs of two sleeping bodies
+    /// and of a sleeping body and the plane); a ball dropped on one wakes its island through
+    /// the list, and the towers beside it sleep on.
+    #[test]
+    fn the_wake_test_on_the_device_wakes_as_the_hosts() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let run = |host_wake_candidates: bool| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world.gpu.as_mut().unwrap().host_wake_candidates = host_wake_candidates;
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            for index in 0..4 {
+                for level in 0..2 {
+                    let position = Vec3::new(3.0 * index as f32, 0.5 + level as f32, 0.0);
+                    let block =
+                        BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position);
+                    world.add_body(block).unwrap();
+                }
+            }
+            let (mut asleep, mut listed) = (Vec::new(), Vec::new());
+            for step in 0..200 {
+                if step == 60 {
+                    let ball =
+                        BodyDesc::dynamic(Shape::sphere(0.3)).position(Vec3::new(0.0, 3.5, 0.0));
+                    world.add_body(ball).unwrap();
+                }
+                world.step();
+                asleep.push(world.stats().sleeping);
+                if world.scratch.wake_listed {
+                    listed.push(world.scratch.wake_pair_indices.len());
+                }
+            }
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let steps_listed = world.gpu.as_ref().unwrap().wake_candidates_listed;
+            (poses, velocities, asleep, listed, steps_listed)
+        };
+        let (poses, velocities, asleep, listed, steps_listed) = run(false);
+        let host = run(true);
+        // All asleep, the hit tower woken by the ball, all asleep again with it.
+        let woke = asleep.windows(2).any(|w| w[1] < w[0]);
+        assert!(woke && asleep.last() == Some(&9), "{asleep:?}");
+        // Every step with bodies asleep listed its candidates on the device: 4 towers asleep,
+        // 2 touching pairs each (box on box, box on plane); 3 of them while the hit one is
+        // awake; with the ball, 9.
+        assert_eq!(steps_listed, listed.len());
+        for count in [8, 6, 9] {
+            assert!(listed.contains(&count), "{listed:?}");
+        }
+        assert_eq!((host.3.len(), host.4), (0, 0));
+        assert_eq!(asleep, host.2);
+        assert!(velocities == host.1, "the velocities differ");
+        assert!(poses == host.0, "the poses differ");
     }
 
     /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts

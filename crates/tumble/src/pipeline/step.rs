@@ -8,12 +8,13 @@ use rayon::prelude::*;
 use crate::dynamics::body::BodyMass;
 use crate::dynamics::island::Islands;
 use crate::dynamics::joint::MAX_ANGULAR_ROWS;
+use crate::dynamics::wake::wake_candidates;
 use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
-    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo,
+    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo, WakeQuery,
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
@@ -26,6 +27,7 @@ use crate::stages::constraints::{
     joint_slots, world_inverse_inertia,
 };
 use crate::stages::narrowphase::summary::PairSummary;
+use crate::stages::pairs::pair_bodies;
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses};
 use crate::stages::solver::jacobi::{self, JacobiScratch};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
@@ -68,6 +70,10 @@ pub(crate) struct StepScratch {
     sleep_edges: Vec<(u32, u32)>,
     /// The touching pairs with a sleeping body, which the wake walks ([`World::wake_touched`]).
     wake_candidates: Vec<(u32, u32)>,
+    /// Their indices among the pairs, when the collision listed them on the device this step
+    /// (`wake_listed`).
+    pub(crate) wake_pair_indices: Vec<u32>,
+    pub(crate) wake_listed: bool,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
     pub(crate) coloring: Coloring,
@@ -765,6 +771,13 @@ impl World {
             !self.contacts_on_device || gpu.holds_pair_cache(self.pairs.version()),
             "the host's contacts are stale and the device's are not the cache's"
         );
+        scratch.wake_listed = false;
+        // While bodies sleep, the device lists the wake test's candidates with the pairs.
+        let wake = (device_contacts && self.islands.sleeping_count() > 0).then(|| WakeQuery {
+            asleep: self.islands.asleep_bits(),
+            candidates: &mut scratch.wake_pair_indices,
+            listed: &mut scratch.wake_listed,
+        });
         profiler.begin("collision");
         let collided = gpu.collide(
             profiler,
@@ -775,7 +788,7 @@ impl World {
             (config.contact_margin, config.dt),
             &mut scratch.pair_keys,
             if device_contacts {
-                CollideOutput::Summaries(&mut self.pair_summaries)
+                CollideOutput::Summaries(&mut self.pair_summaries, wake)
             } else {
                 CollideOutput::Contacts(&mut scratch.collided)
             },
@@ -978,31 +991,25 @@ impl World {
     /// Wakes every sleeping island that an awake dynamic body touches (a manifold with points)
     /// or is joined to, until none is left: a woken island may touch another.
     fn wake_touched(&mut self) {
-        // A pass over every pair, on every core, in pair order: the touching pairs with a
-        // sleeping body, the only ones that can wake one, then or after a wake.
+        // The touching pairs with a sleeping body, the only ones that can wake one, then or
+        // after a wake: listed by the collision on the device, or a pass over every pair.
         let (keys, values) = (self.pairs.keys(), self.pairs.values());
-        let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
-        let touching = |pair: usize| match summaries {
-            Some(summaries) => summaries[pair].point_count > 0,
-            None => values[pair].manifold.count > 0,
-        };
-        let islands = &self.islands;
-        let asleep = |i: u32| islands.state(i).is_asleep();
-        let may_wake = |pair: usize| {
-            // The summary first: read in order, and most pairs of a pile have no points.
-            if !touching(pair) {
-                return None;
-            }
-            let (a, b) = crate::stages::pairs::pair_bodies(keys[pair]);
-            (asleep(a) || asleep(b)).then_some((a, b))
-        };
         let mut candidates = std::mem::take(&mut self.scratch.wake_candidates);
-        filter_map_ordered(
-            keys.len(),
-            may_wake,
-            &mut self.scratch.edge_parts,
-            &mut candidates,
-        );
+        if self.scratch.wake_listed {
+            let pairs = self.scratch.wake_pair_indices.iter();
+            candidates.clear();
+            candidates.extend(pairs.map(|&pair| pair_bodies(keys[pair as usize])));
+        } else {
+            let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
+            let touching = |pair: usize| match summaries {
+                Some(summaries) => summaries[pair].point_count > 0,
+                None => values[pair].manifold.count > 0,
+            };
+            let islands = &self.islands;
+            let asleep = |body: u32| islands.state(body).is_asleep();
+            let parts = &mut self.scratch.edge_parts;
+            wake_candidates(keys, touching, asleep, parts, &mut candidates);
+        }
         let mut touched = Vec::new();
         loop {
             let awake = |i: u32| self.masses[i as usize].inverse_mass > 0.0;

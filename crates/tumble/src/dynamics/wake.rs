@@ -1,0 +1,241 @@
+//! The wake test's pass over the pairs: the touching pairs (a manifold with points) with a
+//! sleeping body, in pair order. Only those can wake an island, at once or after another
+//! island woke (the step walks them until no island wakes, `World::wake_touched`).
+//!
+//! On the host ([`wake_candidates`]) it is a pass over every pair each step while anything
+//! sleeps: 0.6 ms a step of a settled pile of 100k boxes on 16 cores, 2.8 ms at 500k
+//! (BENCHMARKS.md, 2026-12-04). When the contacts stay on the device, [`GpuWakeCandidates`]
+//! makes the same list in the collision's submission (`wake.wgsl` flags the pairs, the
+//! compaction lists them in order), and the host reads back that list, a few thousand pairs,
+//! with the keys.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+};
+use crate::gpu::prims::compact::Compact;
+use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
+use crate::stages::narrowphase::summary::PairSummary;
+use crate::stages::pairs::pair_bodies;
+
+const WGSL: &str = include_str!("wake.wgsl");
+/// Count, keys, summaries, sleeping bits, flags, parameters.
+const BINDINGS: [Binding; 6] = [
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+    Binding::Uniform,
+];
+
+/// Candidates read back with the collision's kernels, past last step's count: at rest the
+/// list changes by a few pairs a step; a step with more copies the rest in a second
+/// submission.
+const CANDIDATE_SLACK: usize = 256;
+
+/// The touching pairs of `keys` (`touching(pair)`) with a sleeping body (`asleep(body)`), as
+/// body pairs in pair order: a pass over every pair, on every core.
+pub(crate) fn wake_candidates(
+    keys: &[u64],
+    touching: impl Fn(usize) -> bool + Sync,
+    asleep: impl Fn(u32) -> bool + Sync,
+    parts: &mut FilterParts<(u32, u32)>,
+    out: &mut Vec<(u32, u32)>,
+) {
+    let may_wake = |pair: usize| {
+        // The point count first: read in order, and most pairs of a pile have no points.
+        if !touching(pair) {
+            return None;
+        }
+        let (a, b) = pair_bodies(keys[pair]);
+        (asleep(a) || asleep(b)).then_some((a, b))
+    };
+    filter_map_ordered(keys.len(), may_wake, parts, out);
+}
+
+/// Mirrors `WakeParams` in `wake.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct WakeParams {
+    slots: u32,
+    _pad: [u32; 3],
+}
+
+fn wgsl() -> Source {
+    Source::new().snippet("wake.wgsl", WGSL)
+}
+
+/// The buffers the flag kernel binds (count, keys, summaries, sleeping bits, flags) and the
+/// pair slots it covers.
+type FlagKey = ([wgpu::Buffer; 5], usize);
+
+/// [`wake_candidates`] on the device, over the broadphase's keys and the pairs' summaries.
+pub struct GpuWakeCandidates {
+    flag: Kernel,
+    /// [`Islands::asleep_bits`](crate::dynamics::island::Islands::asleep_bits), and the version
+    /// uploaded.
+    asleep: GpuVec<u32>,
+    asleep_version: Option<u64>,
+    flags: GpuVec<u32>,
+    /// 0, 1, 2, …: the values the compaction keeps, each pair's index.
+    indices: GpuVec<u32>,
+    compact: Compact,
+    candidates: GpuVec<u32>,
+    total: GpuVec<u32>,
+    cached: Option<(FlagKey, Dispatch, UniformSlots)>,
+    /// Last step's candidate count.
+    last: usize,
+    /// The count read back.
+    read_total: Vec<u32>,
+}
+
+impl GpuWakeCandidates {
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            flag: Kernel::new(
+                context,
+                "flag_wake_candidates",
+                &wgsl(),
+                "flag_wake_candidates",
+                &BINDINGS,
+            ),
+            asleep: GpuVec::with_capacity(context, "sleeping bodies", 0)?,
+            asleep_version: None,
+            flags: GpuVec::with_capacity(context, "wake candidate flags", 0)?,
+            indices: GpuVec::with_capacity(context, "pair indices", 0)?,
+            compact: Compact::new(),
+            candidates: GpuVec::with_capacity(context, "wake candidates", 0)?,
+            total: GpuVec::with_capacity(context, "wake candidate count", 0)?,
+            cached: None,
+            last: 0,
+            read_total: Vec::new(),
+        })
+    }
+
+    /// Sends which bodies sleep
+    /// ([`Islands::asleep_bits`](crate::dynamics::island::Islands::asleep_bits)), unless the device has this
+    /// version already.
+    pub fn set_asleep(
+        &mut self,
+        context: &GpuContext,
+        (bits, version): (&[u32], u64),
+    ) -> Result<(), GpuError> {
+        if self.asleep_version != Some(version) || self.asleep.len() != bits.len() {
+            self.asleep.upload(context, bits)?;
+            self.asleep_version = Some(version);
+        }
+        Ok(())
+    }
+
+    /// Encodes the candidates among the first `count[0]` of `keys` (padded up to `slots`),
+    /// whose summaries are `summaries`, into a list of pair indices; after
+    /// [`Self::set_asleep`].
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        count: &GpuVec<u32>,
+        keys: &GpuVec<u64>,
+        summaries: &GpuVec<PairSummary>,
+        slots: usize,
+    ) -> Result<(), GpuError> {
+        self.flags.resize(context, slots)?;
+        if self.indices.len() != slots {
+            let indices: Vec<u32> = (0..slots as u32).collect();
+            self.indices.upload(context, &indices)?;
+        }
+        let key = (
+            [
+                count.buffer().clone(),
+                keys.buffer().clone(),
+                summaries.buffer().clone(),
+                self.asleep.buffer().clone(),
+                self.flags.buffer().clone(),
+            ],
+            slots,
+        );
+        if self
+            .cached
+            .as_ref()
+            .is_none_or(|(cached, ..)| *cached != key)
+        {
+            let params = WakeParams {
+                slots: slots as u32,
+                _pad: [0; 3],
+            };
+            let uniform = UniformSlots::new(context, "wake params", &[params]);
+            let group = self.flag.bind(
+                context,
+                &[
+                    count.whole(),
+                    keys.whole(),
+                    summaries.whole(),
+                    self.asleep.whole(),
+                    self.flags.whole(),
+                    uniform.binding(0),
+                ],
+            );
+            let dispatch = self
+                .flag
+                .dispatch(group, workgroups_for(slots, WORKGROUP_SIZE));
+            self.cached = Some((key, dispatch, uniform));
+        }
+        if let Some((_, dispatch, _)) = &self.cached {
+            encode_all(pass, std::slice::from_ref(dispatch));
+        }
+        self.compact.encode(
+            context,
+            pass,
+            &self.indices,
+            &self.flags,
+            &mut self.candidates,
+            &mut self.total,
+        )
+    }
+
+    /// Encodes the read-back of the count and of as many candidates as last step had and
+    /// some more, after [`Self::encode`]'s pass; returns how many candidates it copies.
+    pub fn encode_download(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> usize {
+        let staged = (self.last + CANDIDATE_SLACK).min(self.candidates.len());
+        self.total.encode_download(context, encoder);
+        self.candidates
+            .encode_download_prefix(context, encoder, staged);
+        staged
+    }
+
+    /// After the submission of [`Self::encode_download`], which copied `staged` candidates:
+    /// the candidates' pair indices, in pair order, into `out`. Copies the rest in a second
+    /// submission when there were more.
+    pub fn read(
+        &mut self,
+        context: &GpuContext,
+        staged: usize,
+        out: &mut Vec<u32>,
+    ) -> Result<(), GpuError> {
+        self.total.read_download(context, &mut self.read_total)?;
+        let count = self.read_total[0] as usize;
+        if count > staged {
+            let mut encoder =
+                context
+                    .device
+                    .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                        label: Some("wake candidates read-back"),
+                    });
+            self.candidates
+                .encode_download_prefix(context, &mut encoder, count);
+            context.queue.submit([encoder.finish()]);
+        }
+        self.candidates.read_download(context, out)?;
+        out.truncate(count);
+        self.last = count;
+        Ok(())
+    }
+}
