@@ -232,9 +232,19 @@ pub(crate) enum CollideOutput<'a> {
     Contacts(&'a mut Vec<PairContact>),
     /// Each pair's [`PairSummary`] only: the contacts stay on the device, where the rows read
     /// them and the solver writes their impulses, until the host asks for them
-    /// ([`GpuStages::download_pair_contacts`]). With a [`WakeQuery`], also the wake test's
-    /// candidates.
-    Summaries(&'a mut Vec<PairSummary>, Option<WakeQuery<'a>>),
+    /// ([`GpuStages::download_pair_contacts`]).
+    Summaries(SummaryOutput<'a>),
+}
+
+/// What [`GpuStages::collide`] reads back when the contacts stay on the device.
+pub(crate) struct SummaryOutput<'a> {
+    /// Gets each pair's [`PairSummary`].
+    pub summaries: &'a mut Vec<PairSummary>,
+    /// Gets how many pairs were added and removed since last step's (the device's diff),
+    /// what [`PairCache::adopt_keys`](crate::stages::pairs::PairCache::adopt_keys) takes.
+    pub changes: &'a mut (usize, usize),
+    /// The wake test's candidates, while bodies sleep.
+    pub wake: Option<WakeQuery<'a>>,
 }
 
 /// The wake test's pass over the pairs, asked of [`GpuStages::collide`] while bodies sleep:
@@ -781,11 +791,11 @@ impl GpuStages {
         output: CollideOutput,
     ) -> Result<(), GpuError> {
         let context = &self.context;
-        let summarize = matches!(output, CollideOutput::Summaries(..));
+        let summarize = matches!(output, CollideOutput::Summaries(_));
         let wake_asleep = match &output {
-            CollideOutput::Summaries(_, Some(query)) if !self.host_wake_candidates => {
-                Some(query.asleep)
-            }
+            CollideOutput::Summaries(SummaryOutput {
+                wake: Some(query), ..
+            }) if !self.host_wake_candidates => Some(query.asleep),
             _ => None,
         };
         let start = Instant::now();
@@ -880,7 +890,11 @@ impl GpuStages {
                     // The broadphase's keys are padded with u64::MAX past the count, which both
                     // the diff and the narrowphase pass over: the count stays on the device.
                     encode_pass(encoder, timer, lookup, |pass| {
-                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())
+                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
+                        if summarize {
+                            diff.encode_counts(context, pass)?;
+                        }
+                        Ok(())
                     })?;
                     encode_pass(encoder, timer, contacts_kernels, |pass| {
                         let inputs = GpuNarrowphaseInputs {
@@ -924,6 +938,7 @@ impl GpuStages {
                         encode_summary_downloads(
                             context, encoder, broadphase, row_keys, summaries, staged,
                         );
+                        diff.encode_counts_download(context, encoder);
                     }
                     if wake_asleep.is_some() {
                         wake_staged = wake.encode_download(context, encoder);
@@ -939,7 +954,11 @@ impl GpuStages {
         let start = Instant::now();
         let count = self.broadphase.last_pair_count();
         match output {
-            CollideOutput::Summaries(out, wake) => {
+            CollideOutput::Summaries(SummaryOutput {
+                summaries: out,
+                changes,
+                wake,
+            }) => {
                 if count > staged {
                     let mut encoder =
                         context
@@ -963,6 +982,7 @@ impl GpuStages {
                 keys.truncate(count);
                 out.truncate(count);
                 self.keys.resize(context, count)?;
+                *changes = self.pair_diff.read_counts(context)?;
                 if let Some(query) = wake {
                     *query.listed = wake_asleep.is_some();
                     if *query.listed {
@@ -2588,13 +2608,15 @@ mod tests {
     }
 
     /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts
-    /// left on the device between steps or not, the pair buffers starting too small: (poses, the contact queries' answer, the step
-    /// statistics' deepest penetration, the steps that left them there, bodies asleep).
+    /// left on the device between steps or not, the pair buffers starting too small: (poses,
+    /// the contact queries' answer, the step statistics' deepest penetration, the steps that
+    /// left them there, bodies asleep, each step's pairs with those added and removed).
+    #[allow(clippy::type_complexity)]
     fn steps_on_the_gpu(
         contacts_may_stay_on_device: bool,
         sleeping: bool,
         steps: usize,
-    ) -> (Vec<u8>, Vec<u8>, f32, usize, usize) {
+    ) -> (Vec<u8>, Vec<u8>, f32, usize, usize, Vec<[usize; 3]>) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig {
@@ -2634,10 +2656,12 @@ mod tests {
             let joint = crate::JointDesc::new(crate::JointKind::Point, pair[0], pair[1], anchor);
             world.add_joint(joint).unwrap();
         }
-        let mut left_on_device = 0;
+        let (mut left_on_device, mut pairs) = (0, Vec::new());
         for _ in 0..steps {
             world.step();
             left_on_device += usize::from(world.contacts_on_device);
+            let stats = world.stats();
+            pairs.push([stats.pairs, stats.pairs_added, stats.pairs_removed]);
         }
         let contacts: Vec<PairContact> = world.contacts().map(|(_, _, c)| *c).collect();
         (
@@ -2646,6 +2670,7 @@ mod tests {
             world.stats().max_penetration,
             left_on_device,
             world.stats().sleeping,
+            pairs,
         )
     }
 
@@ -2799,6 +2824,8 @@ mod tests {
         assert_eq!(kept.2.to_bits(), brought.2.to_bits());
         assert!(kept.1 == brought.1, "the contacts differ");
         assert!(kept.0 == brought.0, "the poses differ");
+        // The pairs added and removed as the device's diff counted them, the host's diff's.
+        assert_eq!(kept.5, brought.5);
     }
 
     /// Bodies falling asleep keep the step on the one-submission path, their resting pairs
@@ -2813,6 +2840,9 @@ mod tests {
         assert!(kept.4 > 0 && kept.4 == brought.4, "asleep: {}", kept.4);
         assert!(kept.1 == brought.1, "the contacts differ");
         assert!(kept.0 == brought.0, "the poses differ");
+        assert_eq!(kept.5, brought.5);
+        let changed = |column: usize| kept.5.iter().filter(|step| step[column] > 0).count();
+        assert!(changed(1) > 5 && changed(2) > 5, "{:?}", kept.5);
     }
 
     /// A collision that fails while the contacts are on the device (here the pairs outgrow the

@@ -14,7 +14,8 @@ use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
-    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo, WakeQuery,
+    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo,
+    SummaryOutput, WakeQuery,
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
@@ -41,6 +42,8 @@ pub(crate) struct StepScratch {
     /// Which bodies a GPU broadphase puts in its static tree.
     is_static: Vec<bool>,
     pair_keys: Vec<u64>,
+    /// Pairs added and removed by this step's collision, as the device counted them.
+    pair_changes: (usize, usize),
     /// The contacts of `pair_keys` as one GPU submission computed them.
     collided: Vec<narrowphase::PairContact>,
     /// Every manifold slot's key and contact (pairs, then children), for GPU rows.
@@ -688,7 +691,6 @@ impl World {
         self.stats = StepStats {
             batch_histogram: histogram,
             ..collect_stats(
-                &scratch.pair_keys,
                 &self.pairs,
                 &self.children,
                 self.contacts_on_device.then_some(&self.pair_summaries[..]),
@@ -788,7 +790,11 @@ impl World {
             (config.contact_margin, config.dt),
             &mut scratch.pair_keys,
             if device_contacts {
-                CollideOutput::Summaries(&mut self.pair_summaries, wake)
+                CollideOutput::Summaries(SummaryOutput {
+                    summaries: &mut self.pair_summaries,
+                    changes: &mut scratch.pair_changes,
+                    wake,
+                })
             } else {
                 CollideOutput::Contacts(&mut scratch.collided)
             },
@@ -805,8 +811,9 @@ impl World {
         }
         collided?;
         if device_contacts {
-            // The contacts are the device's: only the keys move here.
-            profiler.scope("pairs", || self.pairs.update_keys(&scratch.pair_keys));
+            // The contacts are the device's, and so is the diff: the keys only move here.
+            let (keys, changes) = (&mut scratch.pair_keys, scratch.pair_changes);
+            profiler.scope("pairs", || self.pairs.adopt_keys(keys, changes));
         } else {
             profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
         }
@@ -1318,7 +1325,6 @@ const MIN_PER_TASK: usize = 8192;
 /// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
 /// device.
 fn collect_stats(
-    pair_keys: &[u64],
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
     children: &narrowphase::ChildCache,
     summaries: Option<&[PairSummary]>,
@@ -1344,9 +1350,9 @@ fn collect_stats(
             .fold(0.0f32, f32::max),
     };
     StepStats {
-        pairs: pair_keys.len(),
-        pairs_added: pairs.added().len(),
-        pairs_removed: pairs.removed().len(),
+        pairs: pairs.len(),
+        pairs_added: pairs.changes().0,
+        pairs_removed: pairs.changes().1,
         child_manifolds: children.len(),
         child_manifolds_added: children.added(),
         child_manifolds_removed: children.removed(),

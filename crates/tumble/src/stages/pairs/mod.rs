@@ -44,6 +44,9 @@ pub struct PairCache<T> {
     next_values: Vec<T>,
     added: Vec<u64>,
     removed: Vec<u64>,
+    /// How many pairs the last update added and removed: the lengths of `added` and
+    /// `removed`, or what [`Self::adopt_keys`] was told.
+    changes: (usize, usize),
     /// Bumped by every method that may change keys or values, so that a copy of the cache
     /// elsewhere (the GPU step's) can tell whether it is still the same.
     version: u64,
@@ -98,6 +101,7 @@ impl<T: Default> PairCache<T> {
 
         std::mem::swap(&mut self.keys, &mut self.next_keys);
         std::mem::swap(&mut self.values, &mut self.next_values);
+        self.changes = (self.added.len(), self.removed.len());
     }
 
     /// [`Self::update`] for a cache whose values live elsewhere (the GPU step's contacts): the
@@ -114,6 +118,25 @@ impl<T: Default> PairCache<T> {
         self.keys.resize(new_keys.len(), 0);
         copy_in_parallel(&mut self.keys, new_keys);
         self.values.resize_with(new_keys.len(), T::default);
+        self.changes = (self.added.len(), self.removed.len());
+    }
+
+    /// [`Self::update_keys`] for keys diffed elsewhere (the GPU step's, whose device counts
+    /// the changes, `(added, removed)`): takes `new_keys` by swapping it with the old keys,
+    /// which `new_keys` then holds, and passes over no key. [`Self::added`] and
+    /// [`Self::removed`] are then empty; [`Self::changes`] gives the counts. The keys must be
+    /// sorted ascending and unique (checked in debug builds).
+    pub fn adopt_keys(&mut self, new_keys: &mut Vec<u64>, changes: (usize, usize)) {
+        debug_assert!(
+            sorted_unique(new_keys),
+            "pair keys must be sorted ascending and unique"
+        );
+        self.version += 1;
+        self.added.clear();
+        self.removed.clear();
+        self.changes = changes;
+        std::mem::swap(&mut self.keys, new_keys);
+        self.values.resize_with(self.keys.len(), T::default);
     }
 
     /// This step's pair keys, sorted ascending.
@@ -164,6 +187,11 @@ impl<T: Default> PairCache<T> {
     /// Keys that the last update removed, sorted ascending.
     pub fn removed(&self) -> &[u64] {
         &self.removed
+    }
+
+    /// How many pairs the last update added and removed.
+    pub fn changes(&self) -> (usize, usize) {
+        self.changes
     }
 
     pub fn len(&self) -> usize {
@@ -316,6 +344,27 @@ mod tests {
         let version = keys_only.version();
         keys_only.update_keys(&[3, 4]);
         assert_ne!(keys_only.version(), version);
+    }
+
+    /// Adopted keys are the cache's, with the counts it was told and its values resized; the
+    /// vector handed over gets the old keys, and both diffs count alike.
+    #[test]
+    fn adopt_keys_swaps_the_keys_and_keeps_the_counts_it_is_told() {
+        let steps: [&[u64]; 4] = [&[1, 4, 9], &[0, 4, 5, 9, 12], &[], &[3, 4]];
+        let (mut full, mut adopted) = (PairCache::<u32>::new(), PairCache::<u32>::new());
+        for keys in steps {
+            full.update(keys);
+            let old = adopted.keys().to_vec();
+            let version = adopted.version();
+            let mut new = keys.to_vec();
+            adopted.adopt_keys(&mut new, (full.added().len(), full.removed().len()));
+            assert_eq!((adopted.keys(), &new[..]), (full.keys(), &old[..]));
+            assert_eq!(adopted.changes(), full.changes());
+            assert!(adopted.added().is_empty() && adopted.removed().is_empty());
+            assert_eq!(adopted.values().len(), keys.len());
+            assert_ne!(adopted.version(), version);
+        }
+        assert_eq!(full.changes(), (2, 0));
     }
 
     #[test]
