@@ -171,9 +171,9 @@ const COLLISION_KERNELS: [SpanPath; 4] = [
     &["collision", "kernels: contacts"],
 ];
 /// [`GpuStages::collide`]'s other uploads: the trees' body lists (when bodies fell asleep or
-/// woke), and the resting and skipped pairs.
+/// woke), and the jointed pairs the narrowphase skips with, while bodies sleep, which do.
 const COLLISION_TREE_BODIES: SpanPath = &["collision", "copy tree bodies to gpu"];
-const COLLISION_EXTRA_PAIRS: SpanPath = &["collision", "copy resting pairs to gpu"];
+const COLLISION_PAIR_LISTS: SpanPath = &["collision", "copy pair lists to gpu"];
 /// [`GpuStages::collide`]'s upload of the host's pair cache: its own line, shown only on the
 /// steps that need it.
 const PAIR_UPLOAD: SpanPath = &["collision", "copy pairs to gpu"];
@@ -743,15 +743,16 @@ impl GpuStages {
     /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
     /// again (from the same inputs). When the step fails (pairs past the adapter's limits),
     /// the pair buffers keep their size from before it, so that a smaller scene steps again.
-    /// `resting` (sorted keys) are pairs of bodies that `is_static` holds still, asleep on
-    /// each other or on a static body: no tree finds them, so the broadphase adds them
-    /// ([`GpuBroadphase::set_extra_pairs`]) and they keep their contacts while they sleep.
+    /// Last step's pairs of two bodies that `is_static` holds still (asleep on each other or
+    /// on a static body, the host's resting pairs) are found by no tree: the broadphase adds
+    /// them from last step's keys on the device ([`GpuBroadphase::set_resting_pairs_from`]),
+    /// and they keep their contacts while they sleep. Every body slot must be live.
     #[allow(clippy::too_many_arguments)]
     pub fn collide(
         &mut self,
         profiler: &mut Profiler,
         bodies: &BodyInputs,
-        (is_static, resting): (&[bool], &[u64]),
+        is_static: &[bool],
         old: (&[u64], &[PairContact], u64),
         skipped: &[u64],
         margin_dt: (f32, f32),
@@ -760,14 +761,7 @@ impl GpuStages {
     ) -> Result<(), GpuError> {
         let capacity = self.broadphase.capacity();
         let collided = self.collide_growing(
-            profiler,
-            bodies,
-            (is_static, resting),
-            old,
-            skipped,
-            margin_dt,
-            keys,
-            output,
+            profiler, bodies, is_static, old, skipped, margin_dt, keys, output,
         );
         if collided.is_err() && self.broadphase.capacity() != capacity {
             // Smaller than what failed, and allocated before: the original error is the one
@@ -783,7 +777,7 @@ impl GpuStages {
         &mut self,
         profiler: &mut Profiler,
         bodies: &BodyInputs,
-        (is_static, resting): (&[bool], &[u64]),
+        is_static: &[bool],
         (old_keys, old_contacts, old_version): (&[u64], &[PairContact], u64),
         skipped: &[u64],
         (margin, dt): (f32, f32),
@@ -805,12 +799,11 @@ impl GpuStages {
         self.broadphase.set_bodies(context, is_static)?;
         record_copy(profiler, COLLISION_TREE_BODIES, elapsed_ms(start));
         let start = Instant::now();
-        self.broadphase.set_extra_pairs(context, resting)?;
         self.skipped.upload(context, skipped)?;
         if let Some(asleep) = wake_asleep {
             self.wake.set_asleep(context, asleep)?;
         }
-        record_copy(profiler, COLLISION_EXTRA_PAIRS, elapsed_ms(start));
+        record_copy(profiler, COLLISION_PAIR_LISTS, elapsed_ms(start));
         // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
         // keeps its size from step to step and is not built again.
         let padded = old_keys.len().max(self.broadphase.capacity());
@@ -839,6 +832,7 @@ impl GpuStages {
             self.old_contacts.upload(context, old_contacts)?;
             record_copy(profiler, PAIR_UPLOAD, elapsed_ms(start));
         }
+        self.broadphase.set_resting_pairs_from(&self.old_keys);
         // The keys and summaries come back with the kernels (one wait for the stage), before
         // the count is known: as many as last step had and some more (see
         // `expected_pair_count`), a second copy bringing the rest when there are more.
@@ -3010,7 +3004,8 @@ mod tests {
 
     /// The same with the bottom layer of the pile held still, as sleeping bodies are: their
     /// pairs with the plane and each other are in no tree, and the one submission gets them
-    /// from the host's resting pairs, where the stages one by one merge them on the host.
+    /// on the device from last step's pairs, where the stages one by one merge the host's list
+    /// of them.
     #[test]
     fn one_submission_collision_keeps_resting_pairs() {
         let _turn = turn();
@@ -3066,7 +3061,7 @@ mod tests {
         one.collide(
             &mut profiler,
             &bodies,
-            (&is_static, &resting),
+            &is_static,
             (&old_keys, &old_contacts, world.pairs.version()),
             &world.jointed_pairs,
             (config.contact_margin, config.dt),

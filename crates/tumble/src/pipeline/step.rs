@@ -103,10 +103,11 @@ impl World {
         if !device_contacts {
             self.sync_contacts()?;
         }
-        self.refresh_resting_pairs();
         if self.collides_in_one_submission() {
+            // The resting pairs are found on the device, from last step's pairs there.
             self.collide_in_one_submission(device_contacts)?;
         } else {
+            self.refresh_resting_pairs();
             self.collide_stage_by_stage()?;
         }
 
@@ -784,7 +785,7 @@ impl World {
         let collided = gpu.collide(
             profiler,
             &bodies,
-            (&scratch.is_static, &self.resting_pairs),
+            &scratch.is_static,
             (self.pairs.keys(), self.pairs.values(), self.pairs.version()),
             &self.jointed_pairs,
             (config.contact_margin, config.dt),

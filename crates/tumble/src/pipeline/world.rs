@@ -148,7 +148,8 @@ pub struct World {
     pub(crate) islands: Islands,
     /// Sorted keys of the pairs between sleeping bodies, or a sleeping and a static one: the
     /// broadphase no longer looks for them (both are in its fixed tree), so they are merged
-    /// into its result to keep their manifolds for when the island wakes.
+    /// into its result to keep their manifolds for when the island wakes. Made for the stages
+    /// one by one: the collision in one GPU submission finds them on the device.
     pub(crate) resting_pairs: Vec<u64>,
     /// Bodies fell asleep, woke or went since `resting_pairs` was made: the next step makes it
     /// again before its broadphase ([`World::refresh_resting_pairs`]).

@@ -113,7 +113,8 @@ pub struct TraverseParams {
     pub capacity: u32,
     /// Bits of a body index: the bit length of the body count.
     pub body_bits: u32,
-    /// Pairs given to append ([`GpuBroadphase::set_extra_pairs`]).
+    /// Keys `append_extra` or `append_resting` reads ([`GpuBroadphase::set_extra_pairs`],
+    /// [`GpuBroadphase::set_resting_pairs_from`]).
     pub extra_count: u32,
     pub _pad0: u32,
     pub _pad1: u32,
@@ -145,7 +146,7 @@ const BUILD_BINDINGS: [Binding; 7] = [
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
-const TRAVERSE_BINDINGS: [Binding; 10] = [
+const TRAVERSE_BINDINGS: [Binding; 11] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -155,6 +156,7 @@ const TRAVERSE_BINDINGS: [Binding; 10] = [
     Binding::StorageReadWrite,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageRead,
     Binding::StorageRead,
 ];
 
@@ -346,8 +348,19 @@ impl Lbvh {
     }
 }
 
-/// What the cached traversal dispatches were built for.
-type PairsKey = (Traversal, [wgpu::Buffer; 9], [usize; 5]);
+/// What the cached traversal dispatches were built for: the buffers bound, the sizes, and
+/// whether the extra pairs are last step's resting ones.
+type PairsKey = (Traversal, [wgpu::Buffer; 10], [usize; 5], bool);
+
+/// Where the pairs that no tree finds come from.
+#[derive(Clone, Debug)]
+enum Extra {
+    /// The host's list, in `extra` ([`GpuBroadphase::set_extra_pairs`]).
+    Host,
+    /// Last step's keys on the device, `len` of them (padding included), of which those of
+    /// two static bodies ([`GpuBroadphase::set_resting_pairs_from`]).
+    Resting { keys: wgpu::Buffer, len: usize },
+}
 
 /// The GPU broadphase; see the module documentation.
 #[derive(Debug)]
@@ -378,6 +391,9 @@ pub struct GpuBroadphase {
     count_host: Vec<u32>,
     /// Pairs appended to the trees' ([`Self::set_extra_pairs`]).
     extra: GpuVec<u64>,
+    extra_source: Extra,
+    /// `is_static` a bit a body (bit b % 32 of word b / 32), for `append_resting`.
+    static_bits: GpuVec<u32>,
     sort: RadixSort,
     /// Dispatches before the key sort (fills, traversal) and after it (unpacking).
     cached: Option<(PairsKey, Vec<Dispatch>, Vec<Dispatch>)>,
@@ -403,6 +419,8 @@ impl GpuBroadphase {
             count: GpuVec::from_slice(context, "pair count", &[0])?,
             count_host: Vec::with_capacity(1),
             extra: GpuVec::with_capacity(context, "extra pair keys", 0)?,
+            extra_source: Extra::Host,
+            static_bits: GpuVec::from_slice(context, "static body bits", &[0])?,
             sort: RadixSort::new(),
             cached: None,
         };
@@ -465,6 +483,11 @@ impl GpuBroadphase {
         }
         self.dynamic.set_bodies(context, dynamic)?;
         self.fixed.set_bodies(context, fixed)?;
+        let mut bits = vec![0u32; is_static.len().div_ceil(32).max(1)];
+        for &body in fixed.iter() {
+            bits[body as usize / 32] |= 1 << (body % 32);
+        }
+        self.static_bits.upload(context, &bits)?;
         self.is_static.clear();
         self.is_static.extend_from_slice(is_static);
         self.fixed_stale = true;
@@ -477,10 +500,23 @@ impl GpuBroadphase {
     /// which the host keeps), so none is found twice. Empty by default.
     pub fn set_extra_pairs(&mut self, context: &GpuContext, keys: &[u64]) -> Result<(), GpuError> {
         debug_assert!(keys.windows(2).all(|w| w[0] < w[1]), "sorted, distinct");
+        self.extra_source = Extra::Host;
         if keys.is_empty() && self.extra.is_empty() {
             return Ok(());
         }
         self.extra.upload(context, keys)
+    }
+
+    /// The extra pairs are, from the next encode on, those of `keys` (last step's pair keys,
+    /// sorted, padded with `u64::MAX`, as this stage left them) whose bodies are both static
+    /// to the trees ([`Self::set_bodies`]): a sleeping body's resting pairs, found on the
+    /// device instead of sent by the host. The same pairs as the host's list when every body
+    /// slot is live (a free slot is static too, and its pairs are the host's to drop).
+    pub fn set_resting_pairs_from(&mut self, keys: &GpuVec<u64>) {
+        self.extra_source = Extra::Resting {
+            keys: keys.buffer().clone(),
+            len: keys.len(),
+        };
     }
 
     /// Rebuilds the static tree at the next encode (static bodies moved).
@@ -534,6 +570,7 @@ impl GpuBroadphase {
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
     ) -> Result<(), GpuError> {
+        let (extra, extra_len) = self.extra_keys();
         let key = (
             self.traversal,
             [
@@ -545,15 +582,17 @@ impl GpuBroadphase {
                 self.count.buffer().clone(),
                 self.sorted_packed.buffer().clone(),
                 self.sorted_keys.buffer().clone(),
-                self.extra.buffer().clone(),
+                extra.clone(),
+                self.static_bits.buffer().clone(),
             ],
             [
                 self.dynamic.leaves(),
                 self.fixed.leaves(),
                 self.capacity(),
                 self.is_static.len(),
-                self.extra.len(),
+                extra_len,
             ],
+            matches!(self.extra_source, Extra::Resting { .. }),
         );
         if self
             .cached
@@ -580,6 +619,14 @@ impl GpuBroadphase {
         Ok(())
     }
 
+    /// The buffer of keys the extra pairs come from, and how many it holds.
+    fn extra_keys(&self) -> (&wgpu::Buffer, usize) {
+        match &self.extra_source {
+            Extra::Host => (self.extra.buffer(), self.extra.len()),
+            Extra::Resting { keys, len } => (keys, *len),
+        }
+    }
+
     /// Bit length of the body count: every body index fits in it, and all ones does not
     /// occur as an index (indices are below the count). At least 1, as the kernels expect.
     fn body_bits(&self) -> u32 {
@@ -591,6 +638,7 @@ impl GpuBroadphase {
         context: &GpuContext,
     ) -> Result<(Vec<Dispatch>, Vec<Dispatch>), GpuError> {
         let [_, _, source] = wgsl();
+        let (extra, extra_len) = self.extra_keys();
         let slots = UniformSlots::new(
             context,
             "traverse params",
@@ -599,15 +647,19 @@ impl GpuBroadphase {
                 static_leaves: self.fixed.leaves() as u32,
                 capacity: self.capacity() as u32,
                 body_bits: self.body_bits(),
-                extra_count: self.extra.len() as u32,
+                extra_count: extra_len as u32,
                 _pad0: 0,
                 _pad1: 0,
                 _pad2: 0,
             }],
         );
         let kernel = |entry| Kernel::new(context, entry, &source, entry, &TRAVERSE_BINDINGS);
+        let append_entry = match self.extra_source {
+            Extra::Host => "append_extra",
+            Extra::Resting { .. } => "append_resting",
+        };
         let [traverse, append, unpack] =
-            [self.traversal.entry(), "append_extra", "unpack_keys"].map(kernel);
+            [self.traversal.entry(), append_entry, "unpack_keys"].map(kernel);
         let bind = |kernel: &Kernel| {
             kernel.bind(
                 context,
@@ -621,7 +673,8 @@ impl GpuBroadphase {
                     self.count.whole(),
                     self.sorted_packed.whole(),
                     self.sorted_keys.whole(),
-                    self.extra.whole(),
+                    extra.as_entire_buffer_binding(),
+                    self.static_bits.whole(),
                 ],
             )
         };
@@ -636,11 +689,8 @@ impl GpuBroadphase {
             bind(&traverse),
             workgroups_for(self.dynamic.leaves(), WORKGROUP_SIZE),
         ));
-        if !self.extra.is_empty() {
-            search.push(append.dispatch(
-                bind(&append),
-                workgroups_for(self.extra.len(), WORKGROUP_SIZE),
-            ));
+        if extra_len > 0 {
+            search.push(append.dispatch(bind(&append), workgroups_for(extra_len, WORKGROUP_SIZE)));
         }
         let unpack = vec![unpack.dispatch(
             bind(&unpack),

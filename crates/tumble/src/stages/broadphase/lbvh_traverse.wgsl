@@ -48,8 +48,11 @@ struct TraverseParams {
 // `unpack_keys`: sorted packed keys in, pair keys (higher body, lower body) out.
 @group(0) @binding(7) var<storage, read> sorted_packed: array<u32>;
 @group(0) @binding(8) var<storage, read_write> sorted_keys: array<u32>;
-// `append_extra`: pair keys as (low word: higher body, high word: lower body).
+// `append_extra`: pair keys as (low word: higher body, high word: lower body); for
+// `append_resting`, last step's keys, padded with NONE.
 @group(0) @binding(9) var<storage, read> extra: array<vec2<u32>>;
+// `append_resting`: bit b % 32 of word b / 32 is set when body b is static to the trees.
+@group(0) @binding(10) var<storage, read> static_bits: array<u32>;
 
 const NONE: u32 = 0xffffffffu;
 const DYNAMIC: u32 = 0u;
@@ -286,6 +289,28 @@ fn append_extra(
     if index < params.extra_count {
         let key = extra[index];
         append(key.y, key.x);
+    }
+}
+
+fn is_static_body(body: u32) -> bool {
+    return ((static_bits[body >> 5u] >> (body & 31u)) & 1u) != 0u;
+}
+
+// Last step's pairs of two bodies static to the trees (sleeping bodies' resting pairs, which
+// no tree walk finds), appended as `append_extra` appends the host's list of them.
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn append_resting(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = query_index(workgroup, groups, local);
+    if index < params.extra_count {
+        let key = extra[index];
+        // Padding is NONE in both words, never a body.
+        if key.y != NONE && is_static_body(key.y) && is_static_body(key.x) {
+            append(key.y, key.x);
+        }
     }
 }
 
