@@ -22,6 +22,7 @@ use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
 use crate::pipeline::world::{StepStats, World};
 use crate::profile::SpanKind;
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
+use crate::stages::constraints::tally::PairTally;
 use crate::stages::constraints::{
     ContactConstraint, DRAG_JOINT, Drag, JointConstraint, RowInputs, build_constraints,
     build_joint_constraints, constraint_bodies, constraint_slots, drag_constraint, has_constraint,
@@ -44,6 +45,11 @@ pub(crate) struct StepScratch {
     pair_keys: Vec<u64>,
     /// Pairs added and removed by this step's collision, as the device counted them.
     pair_changes: (usize, usize),
+    /// The rows' counts as this step's collision made them on the device (`tally_fresh`),
+    /// and whether an island woke since (its rows are then counted on the host).
+    pair_tally: PairTally,
+    tally_fresh: bool,
+    woke: bool,
     /// The contacts of `pair_keys` as one GPU submission computed them.
     collided: Vec<narrowphase::PairContact>,
     /// Every manifold slot's key and contact (pairs, then children), for GPU rows.
@@ -97,6 +103,7 @@ impl World {
         if let Some(gpu) = &mut self.gpu {
             gpu.begin_step();
         }
+        (self.scratch.tally_fresh, self.scratch.woke) = (false, false);
         // With every stage on the GPU and only pairs it computes, the contacts stay there from
         // step to step; a step that needs them on the host brings them over first.
         let device_contacts = self.keeps_contacts_on_device();
@@ -217,10 +224,16 @@ impl World {
                 let at_most = if !chained {
                     None
                 } else if self.contacts_on_device {
-                    // Their point counts came back: a count on every core, the rows' summaries
-                    // after the rows are submitted.
-                    let summaries = self.pair_summaries.par_iter().with_min_len(MIN_PER_TASK);
-                    Some(summaries.filter(|s| s.point_count > 0).count())
+                    // The collision counted the pairs with points on the device.
+                    debug_assert!(scratch.tally_fresh, "the contacts stay on the device");
+                    debug_assert_eq!(
+                        scratch.pair_tally.touching,
+                        self.pair_summaries
+                            .iter()
+                            .filter(|s| s.point_count > 0)
+                            .count()
+                    );
+                    Some(scratch.pair_tally.touching)
                 } else {
                     let slots = constraint_slots(
                         self.pairs.keys(),
@@ -259,7 +272,6 @@ impl World {
                     && config.solver == SolverKind::Pgs
                     && gpu.lays_out_batches();
                 if chained && self.contacts_on_device {
-                    // A pass over every pair, on every core, while the device builds the rows.
                     let rows = DeviceRows {
                         keys: self.pairs.keys(),
                         summaries: &self.pair_summaries,
@@ -267,7 +279,19 @@ impl World {
                         colliders: self.may_bounce.then_some(&self.colliders[..]),
                     };
                     if device_layout {
-                        row_tally = Some(rows.tally());
+                        // The collision's counts, unless an island woke since and so gave
+                        // rows to its pairs: then a pass over every pair, on every core, while
+                        // the device builds the rows.
+                        let tally = scratch.pair_tally;
+                        let counted = RowTally {
+                            rows: tally.rows,
+                            bounces: tally.bouncing > 0,
+                        };
+                        row_tally = Some(if scratch.woke { rows.tally() } else { counted });
+                        debug_assert!(
+                            scratch.woke || rows.tally() == counted,
+                            "the device's tally of the rows is not the host's"
+                        );
                     } else {
                         rows.summarize(&mut scratch.row_parts, &mut scratch.row_summaries);
                     }
@@ -794,6 +818,7 @@ impl World {
                 CollideOutput::Summaries(SummaryOutput {
                     summaries: &mut self.pair_summaries,
                     changes: &mut scratch.pair_changes,
+                    tally: &mut scratch.pair_tally,
                     wake,
                 })
             } else {
@@ -812,6 +837,7 @@ impl World {
         }
         collided?;
         if device_contacts {
+            scratch.tally_fresh = true;
             // The contacts are the device's, and so is the diff: the keys only move here.
             let (keys, changes) = (&mut scratch.pair_keys, scratch.pair_changes);
             profiler.scope("pairs", || self.pairs.adopt_keys(keys, changes));
@@ -1037,6 +1063,7 @@ impl World {
             if touched.is_empty() {
                 break;
             }
+            self.scratch.woke = true;
             self.wake(&touched);
             touched.clear();
         }
@@ -1192,7 +1219,7 @@ struct DeviceRows<'a> {
 }
 
 /// How many rows [`DeviceRows`] makes, and whether any bounces.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct RowTally {
     rows: usize,
     bounces: bool,

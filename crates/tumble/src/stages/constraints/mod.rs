@@ -6,6 +6,7 @@ pub mod contact;
 pub mod gpu;
 pub mod joint;
 pub mod joint_gpu;
+pub mod tally;
 
 pub use contact::{
     CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row, RowInputs,

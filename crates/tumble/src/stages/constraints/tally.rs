@@ -1,0 +1,137 @@
+//! What the step needs of the contact rows before it builds them, counted on the device
+//! (`tally.wgsl`) in the collision's submission, when the contacts stay there: how many pairs
+//! touch (what the rows' buffers are sized by), how many get a row and how many rows bounce
+//! (what the batching and the solver are planned by). On the host these are two passes over
+//! every pair (0.57 ms a step of a settled pile of 100k boxes on 16 cores, BENCHMARKS.md
+//! 2026-12-04); the device's counts come back with the pair keys.
+//!
+//! The rows depend on the masses, which an island that wakes after the collision changes: the
+//! step then counts the rows on the host (`World::step_stages`). The touching pairs do not.
+
+use crate::dynamics::body::{BODY_WGSL, BodyMass, ColliderData};
+use crate::gpu::buffer::GpuVec;
+use crate::gpu::context::{GpuContext, GpuError};
+use crate::gpu::kernel::{
+    Binding, Dispatch, Kernel, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
+};
+use crate::gpu::prims::fill::fill_dispatch;
+use crate::stages::narrowphase::summary::PairSummary;
+
+const WGSL: &str = include_str!("tally.wgsl");
+/// Count, keys, summaries, masses, colliders, totals.
+const BINDINGS: [Binding; 6] = [
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+];
+
+/// The counts of [`GpuRowTally`], as the masses stood at the collision.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PairTally {
+    /// Pairs whose manifold has points.
+    pub touching: usize,
+    /// Those with a moving body: the contact rows.
+    pub rows: usize,
+    /// Rows whose restitution is above zero.
+    pub bouncing: usize,
+}
+
+fn wgsl() -> Source {
+    Source::new()
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("tally.wgsl", WGSL)
+}
+
+/// The buffers the dispatches bind (count, keys, summaries, masses, colliders) and the pair
+/// slots they cover.
+type TallyKey = ([wgpu::Buffer; 5], usize);
+
+/// The tally kernel, its totals and their read-back.
+pub struct GpuRowTally {
+    kernel: Kernel,
+    totals: GpuVec<u32>,
+    read: Vec<u32>,
+    /// The zeroing of the totals, then the tally.
+    cached: Option<(TallyKey, Vec<Dispatch>)>,
+}
+
+impl GpuRowTally {
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            kernel: Kernel::new(context, "tally_rows", &wgsl(), "tally_rows", &BINDINGS),
+            totals: GpuVec::from_slice(context, "row tally", &[0; 3])?,
+            read: Vec::new(),
+            cached: None,
+        })
+    }
+
+    /// Encodes the tally of the first `count[0]` of `keys` (padded up to `slots`), whose
+    /// summaries are `summaries`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        count: &GpuVec<u32>,
+        keys: &GpuVec<u64>,
+        summaries: &GpuVec<PairSummary>,
+        (masses, colliders): (&GpuVec<BodyMass>, &GpuVec<ColliderData>),
+        slots: usize,
+    ) -> Result<(), GpuError> {
+        let key = (
+            [
+                count.buffer().clone(),
+                keys.buffer().clone(),
+                summaries.buffer().clone(),
+                masses.buffer().clone(),
+                colliders.buffer().clone(),
+            ],
+            slots,
+        );
+        if self
+            .cached
+            .as_ref()
+            .is_none_or(|(cached, _)| *cached != key)
+        {
+            let mut dispatches = fill_dispatch(context, self.totals.buffer(), 3, 0)?;
+            let group = self.kernel.bind(
+                context,
+                &[
+                    count.whole(),
+                    keys.whole(),
+                    summaries.whole(),
+                    masses.whole(),
+                    colliders.whole(),
+                    self.totals.whole(),
+                ],
+            );
+            dispatches.push(
+                self.kernel
+                    .dispatch(group, workgroups_for(slots, WORKGROUP_SIZE)),
+            );
+            self.cached = Some((key, dispatches));
+        }
+        if let Some((_, dispatches)) = &self.cached {
+            encode_all(pass, dispatches);
+        }
+        Ok(())
+    }
+
+    /// Encodes the read-back of the totals, after [`Self::encode`]'s pass.
+    pub fn encode_download(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+        self.totals.encode_download(context, encoder);
+    }
+
+    /// After the submission of [`Self::encode_download`]: the counts.
+    pub fn read(&mut self, context: &GpuContext) -> Result<PairTally, GpuError> {
+        self.totals.read_download(context, &mut self.read)?;
+        Ok(PairTally {
+            touching: self.read[0] as usize,
+            rows: self.read[1] as usize,
+            bouncing: self.read[2] as usize,
+        })
+    }
+}

@@ -1,0 +1,54 @@
+// What the step needs of the contact rows before they are built (stages/constraints/tally.rs):
+// over the pairs, how many touch (a manifold with points), how many of those get a row (one
+// of the bodies moves, `has_constraint` in rows.wgsl) and how many rows bounce. Each workgroup
+// sums its pairs in shared memory and adds its sums to the totals: integer sums, the same in
+// any order.
+
+// Word 0: the pair count (the broadphase's); the keys past it are padding.
+@group(0) @binding(0) var<storage, read> count: array<u32>;
+// Pair keys, u64 as two words, low word first: the higher body index, then the lower.
+@group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
+// Per pair: its point count and deepest penetration (stages/narrowphase/summary.wgsl).
+@group(0) @binding(2) var<storage, read> summaries: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read> masses: array<BodyMass>;
+@group(0) @binding(4) var<storage, read> colliders: array<ColliderData>;
+// Touching pairs, rows, bouncing rows; zero before the dispatch.
+@group(0) @binding(5) var<storage, read_write> totals: array<atomic<u32>, 3>;
+
+var<workgroup> sums: array<vec3<u32>, WORKGROUP_SIZE>;
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn tally_rows(
+    @builtin(local_invocation_index) local: u32,
+    @builtin(workgroup_id) workgroup: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
+    var tally = vec3<u32>(0u);
+    if index < count[0] && summaries[index].x > 0u {
+        tally.x = 1u;
+        let key = keys[index];
+        let a = key.y;
+        let b = key.x;
+        if masses[a].inverse_mass != 0.0 || masses[b].inverse_mass != 0.0 {
+            tally.y = 1u;
+            // The rows' restitution is the larger of the two.
+            if max(colliders[a].restitution, colliders[b].restitution) > 0.0 {
+                tally.z = 1u;
+            }
+        }
+    }
+    sums[local] = tally;
+    workgroupBarrier();
+    for (var stride = WORKGROUP_SIZE / 2u; stride > 0u; stride /= 2u) {
+        if local < stride {
+            sums[local] += sums[local + stride];
+        }
+        workgroupBarrier();
+    }
+    if local == 0u && any(sums[0] != vec3<u32>(0u)) {
+        atomicAdd(&totals[0], sums[0].x);
+        atomicAdd(&totals[1], sums[0].y);
+        atomicAdd(&totals[2], sums[0].z);
+    }
+}
