@@ -2621,17 +2621,33 @@ mod tests {
                 }
             }
             let (mut asleep, mut listed) = (Vec::new(), Vec::new());
-            for step in 0..200 {
-                if step == 60 {
-                    let ball =
-                        BodyDesc::dynamic(Shape::sphere(0.3)).position(Vec3::new(0.0, 3.5, 0.0));
-                    world.add_body(ball).unwrap();
+            let mut towers = Vec::new();
+            for step in 0..300 {
+                match step {
+                    0 => towers = (1..9).map(|index| world.handle_of(index)).collect(),
+                    60 => {
+                        let ball = BodyDesc::dynamic(Shape::sphere(0.3))
+                            .position(Vec3::new(0.0, 3.5, 0.0));
+                        world.add_body(ball).unwrap();
+                    }
+                    // A free slot: the steps after run the stages one by one, which list the
+                    // candidates on the host, while three towers sleep; a ball wakes one.
+                    200 => world.remove_body(towers[7]).unwrap(),
+                    220 => {
+                        let ball = BodyDesc::dynamic(Shape::sphere(0.3))
+                            .position(Vec3::new(3.0, 3.5, 0.0));
+                        world.add_body(ball).unwrap();
+                    }
+                    _ => {}
                 }
                 world.step();
                 asleep.push(world.stats().sleeping);
-                if world.scratch.wake_listed {
-                    listed.push(world.scratch.wake_pair_indices.len());
-                }
+                let scratch = &world.scratch;
+                listed.push(
+                    scratch
+                        .wake_listed
+                        .then_some(scratch.wake_pair_indices.len()),
+                );
             }
             let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
             let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
@@ -2640,17 +2656,26 @@ mod tests {
         };
         let (poses, velocities, asleep, listed, steps_listed) = run(false);
         let host = run(true);
-        // All asleep, the hit tower woken by the ball, all asleep again with it.
-        let woke = asleep.windows(2).any(|w| w[1] < w[0]);
-        assert!(woke && asleep.last() == Some(&9), "{asleep:?}");
-        // Every step with bodies asleep listed its candidates on the device: 4 towers asleep,
-        // 2 touching pairs each (box on box, box on plane); 3 of them while the hit one is
-        // awake; with the ball, 9.
-        assert_eq!(steps_listed, listed.len());
-        for count in [8, 6, 9] {
-            assert!(listed.contains(&count), "{listed:?}");
+        // All asleep, the hit tower woken by the ball, all asleep again with it; the second
+        // ball wakes its tower, whose free slot it took, after the removal.
+        let woke = asleep[..200].windows(2).any(|w| w[1] < w[0]);
+        assert!(woke && asleep[199] == 9, "{asleep:?}");
+        assert!(asleep[225..].windows(2).any(|w| w[1] < w[0]), "{asleep:?}");
+        // The steps with bodies asleep listed their candidates on the device, but for those
+        // with a free slot: 4 towers asleep, 2 touching pairs each (box on box, box on plane);
+        // 3 of them while the hit one is awake; with the ball, 9.
+        assert_eq!(steps_listed, listed.iter().flatten().count());
+        assert!(listed[200..220].iter().all(Option::is_none));
+        for step in 1..listed.len() {
+            // The wake test sees the bodies that the step before put to sleep.
+            let free_slot = (200..220).contains(&step);
+            let expected = asleep[step - 1] > 0 && !free_slot;
+            assert_eq!(listed[step].is_some(), expected, "step {step}");
         }
-        assert_eq!((host.3.len(), host.4), (0, 0));
+        for count in [8, 6, 9] {
+            assert!(listed.contains(&Some(count)), "{listed:?}");
+        }
+        assert_eq!((host.3.iter().flatten().count(), host.4), (0, 0));
         assert_eq!(asleep, host.2);
         assert!(velocities == host.1, "the velocities differ");
         assert!(poses == host.0, "the poses differ");

@@ -103,7 +103,9 @@ impl World {
         if let Some(gpu) = &mut self.gpu {
             gpu.begin_step();
         }
-        (self.scratch.tally_fresh, self.scratch.woke) = (false, false);
+        // What this step's collision may bring from the device.
+        let scratch = &mut self.scratch;
+        (scratch.tally_fresh, scratch.woke, scratch.wake_listed) = (false, false, false);
         // With every stage on the GPU and only pairs it computes, the contacts stay there from
         // step to step; a step that needs them on the host brings them over first.
         let device_contacts = self.keeps_contacts_on_device();
@@ -798,7 +800,6 @@ impl World {
             !self.contacts_on_device || gpu.holds_pair_cache(self.pairs.version()),
             "the host's contacts are stale and the device's are not the cache's"
         );
-        scratch.wake_listed = false;
         // While bodies sleep, the device lists the wake test's candidates with the pairs.
         let wake = (device_contacts && self.islands.sleeping_count() > 0).then(|| WakeQuery {
             asleep: self.islands.asleep_bits(),
