@@ -2684,13 +2684,14 @@ mod tests {
     /// A world of boxes and balls with every stage on the GPU, `steps` steps, with the contacts
     /// left on the device between steps or not, the pair buffers starting too small: (poses,
     /// the contact queries' answer, the step statistics' deepest penetration, the steps that
-    /// left them there, bodies asleep, each step's pairs with those added and removed).
+    /// left them there, bodies asleep, each step's pairs with those added and removed, its
+    /// manifolds and its contact points).
     #[allow(clippy::type_complexity)]
     fn steps_on_the_gpu(
         contacts_may_stay_on_device: bool,
         sleeping: bool,
         steps: usize,
-    ) -> (Vec<u8>, Vec<u8>, f32, usize, usize, Vec<[usize; 3]>) {
+    ) -> (Vec<u8>, Vec<u8>, f32, usize, usize, Vec<[usize; 5]>) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig {
@@ -2735,7 +2736,14 @@ mod tests {
             world.step();
             left_on_device += usize::from(world.contacts_on_device);
             let stats = world.stats();
-            pairs.push([stats.pairs, stats.pairs_added, stats.pairs_removed]);
+            let counts = [stats.pairs, stats.pairs_added, stats.pairs_removed];
+            pairs.push([
+                counts[0],
+                counts[1],
+                counts[2],
+                stats.manifolds,
+                stats.contacts,
+            ]);
         }
         let contacts: Vec<PairContact> = world.contacts().map(|(_, _, c)| *c).collect();
         (
@@ -2898,7 +2906,8 @@ mod tests {
         assert_eq!(kept.2.to_bits(), brought.2.to_bits());
         assert!(kept.1 == brought.1, "the contacts differ");
         assert!(kept.0 == brought.0, "the poses differ");
-        // The pairs added and removed as the device's diff counted them, the host's diff's.
+        // The pairs added and removed as the device's diff counted them, and the contact
+        // points as its tally did, the host's.
         assert_eq!(kept.5, brought.5);
     }
 

@@ -721,6 +721,8 @@ impl World {
                 &self.pairs,
                 &self.children,
                 self.contacts_on_device.then_some(&self.pair_summaries[..]),
+                // The collision's tally holds the rows' points unless an island woke since.
+                (scratch.tally_fresh && !scratch.woke).then_some(scratch.pair_tally),
                 scratch,
             )
         };
@@ -1352,15 +1354,64 @@ pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
 const MIN_PER_TASK: usize = 8192;
 
 /// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
-/// device.
+/// device, and `tally` for the passes over them and the rows when the device counted them.
 fn collect_stats(
+    pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
+    children: &narrowphase::ChildCache,
+    summaries: Option<&[PairSummary]>,
+    tally: Option<PairTally>,
+    scratch: &StepScratch,
+) -> StepStats {
+    let stats = StepStats {
+        pairs: pairs.len(),
+        pairs_added: pairs.changes().0,
+        pairs_removed: pairs.changes().1,
+        child_manifolds: children.len(),
+        child_manifolds_added: children.added(),
+        child_manifolds_removed: children.removed(),
+        manifolds: scratch.contacts.len() + scratch.row_summaries.len(),
+        contacts: 0,
+        max_penetration: 0.0,
+        // The rows that stayed on the device are known by their slots.
+        joints: scratch.joints.len().max(scratch.joint_row_slots.len()),
+        sleeping: 0,
+        batch_histogram: Vec::new(),
+    };
+    let host_contacts = scratch.contacts.iter().map(|c| c.point_count as usize);
+    let host_contacts = host_contacts.sum::<usize>();
+    if let Some(tally) = tally {
+        let counted = StepStats {
+            contacts: host_contacts + tally.contacts,
+            max_penetration: tally.deepest,
+            ..stats.clone()
+        };
+        debug_assert_eq!(
+            counted,
+            host_stats(
+                stats.clone(),
+                host_contacts,
+                pairs,
+                children,
+                summaries,
+                scratch
+            ),
+            "the device's tally of the rows is not the host's"
+        );
+        return counted;
+    }
+    host_stats(stats, host_contacts, pairs, children, summaries, scratch)
+}
+
+/// [`collect_stats`]' passes over every pair and row, on every core when there are many (max
+/// and sum give the same result in any order).
+fn host_stats(
+    stats: StepStats,
+    host_contacts: usize,
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
     children: &narrowphase::ChildCache,
     summaries: Option<&[PairSummary]>,
     scratch: &StepScratch,
 ) -> StepStats {
-    // Passes over every pair and row, on every core when there are many (max and sum give
-    // the same result in any order).
     let max_penetration = match summaries {
         Some(summaries) => {
             summaries
@@ -1378,29 +1429,10 @@ fn collect_stats(
             .map(|c| PairSummary::of(c).depth)
             .fold(0.0f32, f32::max),
     };
+    let rows = scratch.row_summaries.par_iter().with_min_len(MIN_PER_TASK);
     StepStats {
-        pairs: pairs.len(),
-        pairs_added: pairs.changes().0,
-        pairs_removed: pairs.changes().1,
-        child_manifolds: children.len(),
-        child_manifolds_added: children.added(),
-        child_manifolds_removed: children.removed(),
-        manifolds: scratch.contacts.len() + scratch.row_summaries.len(),
-        contacts: scratch
-            .contacts
-            .iter()
-            .map(|c| c.point_count as usize)
-            .sum::<usize>()
-            + scratch
-                .row_summaries
-                .par_iter()
-                .with_min_len(MIN_PER_TASK)
-                .map(|r| r.point_count as usize)
-                .sum::<usize>(),
+        contacts: host_contacts + rows.map(|r| r.point_count as usize).sum::<usize>(),
         max_penetration,
-        // The rows that stayed on the device are known by their slots.
-        joints: scratch.joints.len().max(scratch.joint_row_slots.len()),
-        sleeping: 0,
-        batch_histogram: Vec::new(),
+        ..stats
     }
 }

@@ -2,8 +2,11 @@
 //! `rigid_host_memory.rs`): with RLIMIT_AS set a little above what the process uses, no
 //! allocation can succeed lazily under Linux's overcommit and be killed when touched.
 
-/// The process' address space now (bytes), from /proc/self/status.
+/// The process' address space now (bytes), from /proc/self/status, once every worker of
+/// rayon's pool has run: a worker that the OS had not started yet would map its signal stack
+/// after the cap and abort the process (seen once, on a loaded 2-core machine).
 pub fn address_space() -> u64 {
+    rayon::broadcast(|_| ());
     let status = std::fs::read_to_string("/proc/self/status").expect("/proc/self/status");
     let line = status
         .lines()

@@ -1,9 +1,10 @@
 //! What the step needs of the contact rows before it builds them, counted on the device
 //! (`tally.wgsl`) in the collision's submission, when the contacts stay there: how many pairs
 //! touch (what the rows' buffers are sized by), how many get a row and how many rows bounce
-//! (what the batching and the solver are planned by). On the host these are two passes over
-//! every pair (0.57 ms a step of a settled pile of 100k boxes on 16 cores, BENCHMARKS.md
-//! 2026-12-04); the device's counts come back with the pair keys.
+//! (what the batching and the solver are planned by), and for the step's statistics the rows'
+//! points and the deepest penetration. On the host these are passes over every pair (0.57 ms
+//! a step of a settled pile of 100k boxes on 16 cores for the first three, 0.13 for the
+//! statistics, BENCHMARKS.md 2026-12-04); the device's counts come back with the pair keys.
 //!
 //! The rows depend on the masses, which an island that wakes after the collision changes: the
 //! step then counts the rows on the host (`World::step_stages`). The touching pairs do not.
@@ -29,7 +30,7 @@ const BINDINGS: [Binding; 6] = [
 ];
 
 /// The counts of [`GpuRowTally`], as the masses stood at the collision.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PairTally {
     /// Pairs whose manifold has points.
     pub touching: usize,
@@ -37,6 +38,10 @@ pub struct PairTally {
     pub rows: usize,
     /// Rows whose restitution is above zero.
     pub bouncing: usize,
+    /// The rows' points.
+    pub contacts: usize,
+    /// The deepest penetration of any pair (m, >= 0; 0 without a touching pair).
+    pub deepest: f32,
 }
 
 fn wgsl() -> Source {
@@ -62,7 +67,7 @@ impl GpuRowTally {
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             kernel: Kernel::new(context, "tally_rows", &wgsl(), "tally_rows", &BINDINGS),
-            totals: GpuVec::from_slice(context, "row tally", &[0; 3])?,
+            totals: GpuVec::from_slice(context, "row tally", &[0; 5])?,
             read: Vec::new(),
             cached: None,
         })
@@ -96,7 +101,7 @@ impl GpuRowTally {
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let mut dispatches = fill_dispatch(context, self.totals.buffer(), 3, 0)?;
+            let mut dispatches = fill_dispatch(context, self.totals.buffer(), 5, 0)?;
             let group = self.kernel.bind(
                 context,
                 &[
@@ -132,6 +137,8 @@ impl GpuRowTally {
             touching: self.read[0] as usize,
             rows: self.read[1] as usize,
             bouncing: self.read[2] as usize,
+            contacts: self.read[3] as usize,
+            deepest: f32::from_bits(self.read[4]),
         })
     }
 }

@@ -1,8 +1,9 @@
 // What the step needs of the contact rows before they are built (stages/constraints/tally.rs):
 // over the pairs, how many touch (a manifold with points), how many of those get a row (one
-// of the bodies moves, `has_constraint` in rows.wgsl) and how many rows bounce. Each workgroup
-// sums its pairs in shared memory and adds its sums to the totals: integer sums, the same in
-// any order.
+// of the bodies moves, `has_constraint` in rows.wgsl), how many rows bounce, and for the step's
+// statistics the rows' points and the deepest penetration. Each workgroup sums (and maxes) its
+// pairs in shared memory and adds its results to the totals: integer sums and maxima, the
+// same in any order.
 
 // Word 0: the pair count (the broadphase's); the keys past it are padding.
 @group(0) @binding(0) var<storage, read> count: array<u32>;
@@ -12,10 +13,12 @@
 @group(0) @binding(2) var<storage, read> summaries: array<vec2<u32>>;
 @group(0) @binding(3) var<storage, read> masses: array<BodyMass>;
 @group(0) @binding(4) var<storage, read> colliders: array<ColliderData>;
-// Touching pairs, rows, bouncing rows; zero before the dispatch.
-@group(0) @binding(5) var<storage, read_write> totals: array<atomic<u32>, 3>;
+// Touching pairs, rows, bouncing rows, the rows' points, the deepest penetration (f32 bits, a
+// depth being >= 0); zero before the dispatch.
+@group(0) @binding(5) var<storage, read_write> totals: array<atomic<u32>, 5>;
 
-var<workgroup> sums: array<vec3<u32>, WORKGROUP_SIZE>;
+var<workgroup> sums: array<vec4<u32>, WORKGROUP_SIZE>;
+var<workgroup> deepest: array<u32, WORKGROUP_SIZE>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn tally_rows(
@@ -24,14 +27,19 @@ fn tally_rows(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let index = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
-    var tally = vec3<u32>(0u);
+    var tally = vec4<u32>(0u);
+    var depth = 0u;
     if index < count[0] && summaries[index].x > 0u {
+        let summary = summaries[index];
         tally.x = 1u;
+        // A depth of -0 counts as 0, as on the host: the sign bit cleared.
+        depth = summary.y & 0x7fffffffu;
         let key = keys[index];
         let a = key.y;
         let b = key.x;
         if masses[a].inverse_mass != 0.0 || masses[b].inverse_mass != 0.0 {
             tally.y = 1u;
+            tally.w = summary.x;
             // The rows' restitution is the larger of the two.
             if max(colliders[a].restitution, colliders[b].restitution) > 0.0 {
                 tally.z = 1u;
@@ -39,16 +47,20 @@ fn tally_rows(
         }
     }
     sums[local] = tally;
+    deepest[local] = depth;
     workgroupBarrier();
     for (var stride = WORKGROUP_SIZE / 2u; stride > 0u; stride /= 2u) {
         if local < stride {
             sums[local] += sums[local + stride];
+            deepest[local] = max(deepest[local], deepest[local + stride]);
         }
         workgroupBarrier();
     }
-    if local == 0u && any(sums[0] != vec3<u32>(0u)) {
+    if local == 0u && sums[0].x != 0u {
         atomicAdd(&totals[0], sums[0].x);
         atomicAdd(&totals[1], sums[0].y);
         atomicAdd(&totals[2], sums[0].z);
+        atomicAdd(&totals[3], sums[0].w);
+        atomicMax(&totals[4], deepest[0]);
     }
 }
