@@ -163,14 +163,16 @@ fn encode_summary_downloads(
 
 /// [`GpuStages::collide`]'s kernels, timed as four passes: the AABBs and the trees' builds,
 /// the trees' traversal and the sort of its pairs (the broadphase), each pair's lookup in last
-/// step's, and the narrowphase with the pairs' summaries and, while bodies sleep, the wake
-/// test's candidates (the contacts).
+/// step's, and the narrowphase with the pairs' summaries (the contacts).
 const COLLISION_KERNELS: [SpanPath; 4] = [
     &["collision", "kernels: aabbs, trees"],
     &["collision", "kernels: pairs"],
     &["collision", "kernels: pair lookup"],
     &["collision", "kernels: contacts"],
 ];
+/// With the contacts on the device, a fifth pass: what the host would pass over every pair
+/// for (the pairs added and removed, the rows' tally, the wake test's candidates).
+const COLLISION_COUNTS_KERNEL: SpanPath = &["collision", "kernels: counts for the host"];
 /// [`GpuStages::collide`]'s other uploads: the trees' body lists (when bodies fell asleep or
 /// woke), and the jointed pairs the narrowphase skips with, while bodies sleep, which do.
 const COLLISION_TREE_BODIES: SpanPath = &["collision", "copy tree bodies to gpu"];
@@ -498,7 +500,7 @@ impl GpuStages {
     pub fn new(context: GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             // Passes timed between two waits: at most the rows' two, the batching's and the
-            // solver's four (the collision has four).
+            // solver's four (the collision has five).
             profiler: GpuProfiler::new(&context, 16),
             bodies: DeviceBodies {
                 poses: GpuVec::with_capacity(&context, "poses", 0)?,
@@ -892,11 +894,7 @@ impl GpuStages {
                     // The broadphase's keys are padded with u64::MAX past the count, which both
                     // the diff and the narrowphase pass over: the count stays on the device.
                     encode_pass(encoder, timer, lookup, |pass| {
-                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())?;
-                        if summarize {
-                            diff.encode_counts(context, pass)?;
-                        }
-                        Ok(())
+                        diff.encode_lookup(context, pass, old_keys, broadphase.keys())
                     })?;
                     encode_pass(encoder, timer, contacts_kernels, |pass| {
                         let inputs = GpuNarrowphaseInputs {
@@ -922,6 +920,13 @@ impl GpuStages {
                                 contacts,
                                 capacity,
                             )?;
+                        }
+                        Ok(())
+                    })?;
+                    if summarize {
+                        encode_pass(encoder, timer, COLLISION_COUNTS_KERNEL, |pass| {
+                            let capacity = broadphase.capacity();
+                            diff.encode_counts(context, pass)?;
                             row_tally.encode(
                                 context,
                                 pass,
@@ -941,9 +946,9 @@ impl GpuStages {
                                     capacity,
                                 )?;
                             }
-                        }
-                        Ok(())
-                    })?;
+                            Ok(())
+                        })?;
+                    }
                     broadphase.encode_count_download(context, encoder);
                     if summarize {
                         encode_summary_downloads(
