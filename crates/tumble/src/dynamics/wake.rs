@@ -89,8 +89,6 @@ pub struct GpuWakeCandidates {
     cached: Option<(FlagKey, Dispatch, UniformSlots)>,
     /// Last step's candidate count.
     last: usize,
-    /// The count read back.
-    read_total: Vec<u32>,
 }
 
 impl GpuWakeCandidates {
@@ -112,7 +110,6 @@ impl GpuWakeCandidates {
             total: GpuVec::with_capacity(context, "wake candidate count", 0)?,
             cached: None,
             last: 0,
-            read_total: Vec::new(),
         })
     }
 
@@ -197,31 +194,34 @@ impl GpuWakeCandidates {
         )
     }
 
-    /// Encodes the read-back of the count and of as many candidates as last step had and
-    /// some more, after [`Self::encode`]'s pass; returns how many candidates it copies.
+    /// One word on the device: how many candidates [`Self::encode`] listed. The caller reads
+    /// it back with its other counts (the rows' tally).
+    pub fn total(&self) -> &GpuVec<u32> {
+        &self.total
+    }
+
+    /// Encodes the read-back of as many candidates as last step had and some more, after
+    /// [`Self::encode`]'s pass; returns how many it copies.
     pub fn encode_download(
         &mut self,
         context: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
     ) -> usize {
         let staged = (self.last + CANDIDATE_SLACK).min(self.candidates.len());
-        self.total.encode_download(context, encoder);
         self.candidates
             .encode_download_prefix(context, encoder, staged);
         staged
     }
 
-    /// After the submission of [`Self::encode_download`], which copied `staged` candidates:
-    /// the candidates' pair indices, in pair order, into `out`. Copies the rest in a second
-    /// submission when there were more.
+    /// After the submission of [`Self::encode_download`], which copied `staged` candidates,
+    /// and given their `count` ([`Self::total`] read back): the candidates' pair indices, in
+    /// pair order, into `out`. Copies the rest in a second submission when there were more.
     pub fn read(
         &mut self,
         context: &GpuContext,
-        staged: usize,
+        (staged, count): (usize, usize),
         out: &mut Vec<u32>,
     ) -> Result<(), GpuError> {
-        self.total.read_download(context, &mut self.read_total)?;
-        let count = self.read_total[0] as usize;
         if count > staged {
             let mut encoder =
                 context

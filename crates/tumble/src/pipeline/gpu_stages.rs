@@ -795,6 +795,7 @@ impl GpuStages {
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let summarize = matches!(output, CollideOutput::Summaries(_));
+        let old_count = old_keys.len();
         let wake_asleep = match &output {
             CollideOutput::Summaries(SummaryOutput {
                 wake: Some(query), ..
@@ -926,13 +927,12 @@ impl GpuStages {
                     if summarize {
                         encode_pass(encoder, timer, COLLISION_COUNTS_KERNEL, |pass| {
                             let capacity = broadphase.capacity();
-                            diff.encode_counts(context, pass)?;
+                            let pairs = (broadphase.keys(), &summaries.summaries, diff.old_index());
                             row_tally.encode(
                                 context,
                                 pass,
                                 broadphase.count(),
-                                broadphase.keys(),
-                                &summaries.summaries,
+                                pairs,
                                 (&device.masses, &device.colliders),
                                 capacity,
                             )?;
@@ -954,8 +954,8 @@ impl GpuStages {
                         encode_summary_downloads(
                             context, encoder, broadphase, row_keys, summaries, staged,
                         );
-                        diff.encode_counts_download(context, encoder);
-                        row_tally.encode_download(context, encoder);
+                        let wake_total = wake_asleep.map(|_| wake.total());
+                        row_tally.encode_download(context, encoder, wake_total);
                     }
                     if wake_asleep.is_some() {
                         wake_staged = wake.encode_download(context, encoder);
@@ -1000,12 +1000,15 @@ impl GpuStages {
                 keys.truncate(count);
                 out.truncate(count);
                 self.keys.resize(context, count)?;
-                *changes = self.pair_diff.read_counts(context)?;
                 *tally = self.row_tally.read(context)?;
+                // The pairs the lookup found among last step's are kept; the others were added,
+                // and last step's that it did not find were removed.
+                *changes = (count - tally.kept, old_count - tally.kept);
                 if let Some(query) = wake {
                     *query.listed = wake_asleep.is_some();
                     if *query.listed {
-                        self.wake.read(context, wake_staged, query.candidates)?;
+                        let listed = (wake_staged, tally.wake_candidates);
+                        self.wake.read(context, listed, query.candidates)?;
                         self.wake_candidates_listed += 1;
                     }
                 }
@@ -2542,8 +2545,9 @@ mod tests {
             }
             let staged = wake.encode_download(&context, &mut encoder);
             context.queue.submit([encoder.finish()]);
+            let total = wake.total().read(&context).unwrap()[0] as usize;
             let mut listed = Vec::new();
-            wake.read(&context, staged, &mut listed).unwrap();
+            wake.read(&context, (staged, total), &mut listed).unwrap();
             let device: Vec<(u32, u32)> = listed
                 .iter()
                 .map(|&pair| crate::stages::pairs::pair_bodies(keys[pair as usize]))
@@ -2595,6 +2599,131 @@ mod tests {
         }
         assert!(world.gpu.as_ref().unwrap().device_layouts > 0);
         assert!(landed && apex > 1.0, "landed {landed}, rose to {apex} m");
+    }
+
+    /// The rows' tally on the device is the host's passes: on random sorted keys padded past
+    /// their count, random point counts and depths (−0 among them), bodies static or not,
+    /// bouncing or not, and random lookups into last step's pairs, at 0, 1, about 250 and
+    /// about 10 000 pairs: the touching pairs, the rows (`has_constraint`), the bouncing rows,
+    /// their points, the deepest penetration and the pairs kept, and the wake count copied in.
+    #[test]
+    fn the_rows_tally_on_the_device_is_the_hosts() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut tally = GpuRowTally::new(&context).unwrap();
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move |bound: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % bound
+        };
+        for (pairs, bodies) in [(0, 10), (1, 3), (260, 60), (10_000, 3_000)] {
+            let mut keys: Vec<u64> = (0..pairs)
+                .map(|_| {
+                    let a = next(bodies) as u32;
+                    crate::stages::pairs::pair_key(a, a + 1 + next(4) as u32)
+                })
+                .collect();
+            keys.sort_unstable();
+            keys.dedup();
+            let count = keys.len();
+            let summaries: Vec<PairSummary> = (0..count)
+                .map(|_| match next(3) {
+                    0 => PairSummary::default(),
+                    1 => PairSummary {
+                        point_count: 1 + next(4) as u32,
+                        depth: -0.0,
+                    },
+                    _ => PairSummary {
+                        point_count: 1 + next(4) as u32,
+                        depth: next(1000) as f32 * 1e-4,
+                    },
+                })
+                .collect();
+            let masses: Vec<BodyMass> = (0..bodies + 5)
+                .map(|_| BodyMass {
+                    inverse_inertia: Vec3::ONE,
+                    inverse_mass: if next(3) == 0 { 0.0 } else { 1.0 },
+                })
+                .collect();
+            let colliders: Vec<ColliderData> = (0..bodies + 5)
+                .map(|_| ColliderData {
+                    restitution: if next(8) == 0 { 0.5 } else { 0.0 },
+                    ..bytemuck::Zeroable::zeroed()
+                })
+                .collect();
+            let old_index: Vec<u32> = (0..count)
+                .map(|i| if next(4) == 0 { u32::MAX } else { i as u32 })
+                .collect();
+            let slots = count + count / 3 + 5;
+            fn padded<T: Copy>(values: &[T], slots: usize, pad: T) -> Vec<T> {
+                let mut padded = values.to_vec();
+                padded.resize(slots, pad);
+                padded
+            }
+            let keys_buffer = padded(&keys, slots, u64::MAX);
+            let summaries_buffer = padded(&summaries, slots, PairSummary::default());
+            let old_index_buffer = padded(&old_index, slots, u32::MAX);
+            let count_buffer = GpuVec::from_slice(&context, "count", &[count as u32]).unwrap();
+            let keys_buffer = GpuVec::from_slice(&context, "keys", &keys_buffer).unwrap();
+            let summaries_buffer =
+                GpuVec::from_slice(&context, "summaries", &summaries_buffer).unwrap();
+            let old_index_buffer =
+                GpuVec::from_slice(&context, "old index", &old_index_buffer).unwrap();
+            let masses_buffer = GpuVec::from_slice(&context, "masses", &masses).unwrap();
+            let colliders_buffer = GpuVec::from_slice(&context, "colliders", &colliders).unwrap();
+            let wake_total = GpuVec::from_slice(&context, "wake total", &[count as u32 / 2]);
+            let wake_total = wake_total.unwrap();
+            let mut encoder = context.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                let pairs = (&keys_buffer, &summaries_buffer, &old_index_buffer);
+                let bodies = (&masses_buffer, &colliders_buffer);
+                tally
+                    .encode(&context, &mut pass, &count_buffer, pairs, bodies, slots)
+                    .unwrap();
+            }
+            tally.encode_download(&context, &mut encoder, Some(&wake_total));
+            context.queue.submit([encoder.finish()]);
+            let device = tally.read(&context).unwrap();
+
+            let touching: Vec<usize> = (0..count)
+                .filter(|&i| summaries[i].point_count > 0)
+                .collect();
+            let rows: Vec<usize> = (touching.iter().copied())
+                .filter(|&i| {
+                    let point_count = summaries[i].point_count;
+                    crate::stages::constraints::has_constraint(keys[i], point_count, &masses)
+                })
+                .collect();
+            let bounces = |i: usize| {
+                let (a, b) = crate::stages::pairs::pair_bodies(keys[i]);
+                colliders[a as usize]
+                    .restitution
+                    .max(colliders[b as usize].restitution)
+                    > 0.0
+            };
+            let host = PairTally {
+                touching: touching.len(),
+                rows: rows.len(),
+                bouncing: rows.iter().filter(|&&i| bounces(i)).count(),
+                contacts: rows
+                    .iter()
+                    .map(|&i| summaries[i].point_count as usize)
+                    .sum(),
+                deepest: summaries.iter().map(|s| s.depth).fold(0.0f32, f32::max) + 0.0,
+                kept: old_index.iter().filter(|&&i| i != u32::MAX).count(),
+                wake_candidates: count / 2,
+            };
+            assert_eq!(device, host, "{count} pairs");
+            assert_eq!(
+                device.deepest.to_bits(),
+                host.deepest.to_bits(),
+                "{count} pairs"
+            );
+        }
     }
 
     /// While bodies sleep, the collision lists the wake test's candidates on the device: the

@@ -392,8 +392,10 @@ pub struct GpuBroadphase {
     /// Pairs appended to the trees' ([`Self::set_extra_pairs`]).
     extra: GpuVec<u64>,
     extra_source: Extra,
-    /// `is_static` a bit a body (bit b % 32 of word b / 32), for `append_resting`.
+    /// `is_static` a bit a body (bit b % 32 of word b / 32), for `append_resting`, and the
+    /// host's words, kept from call to call.
     static_bits: GpuVec<u32>,
+    static_words: Vec<u32>,
     sort: RadixSort,
     /// Dispatches before the key sort (fills, traversal) and after it (unpacking).
     cached: Option<(PairsKey, Vec<Dispatch>, Vec<Dispatch>)>,
@@ -421,6 +423,7 @@ impl GpuBroadphase {
             extra: GpuVec::with_capacity(context, "extra pair keys", 0)?,
             extra_source: Extra::Host,
             static_bits: GpuVec::from_slice(context, "static body bits", &[0])?,
+            static_words: Vec::new(),
             sort: RadixSort::new(),
             cached: None,
         };
@@ -483,11 +486,13 @@ impl GpuBroadphase {
         }
         self.dynamic.set_bodies(context, dynamic)?;
         self.fixed.set_bodies(context, fixed)?;
-        let mut bits = vec![0u32; is_static.len().div_ceil(32).max(1)];
+        let words = &mut self.static_words;
+        words.clear();
+        words.resize(is_static.len().div_ceil(32).max(1), 0);
         for &body in fixed.iter() {
-            bits[body as usize / 32] |= 1 << (body % 32);
+            words[body as usize / 32] |= 1 << (body % 32);
         }
-        self.static_bits.upload(context, &bits)?;
+        self.static_bits.upload(context, words)?;
         self.is_static.clear();
         self.is_static.extend_from_slice(is_static);
         self.fixed_stale = true;

@@ -1,10 +1,12 @@
 //! What the step needs of the contact rows before it builds them, counted on the device
 //! (`tally.wgsl`) in the collision's submission, when the contacts stay there: how many pairs
 //! touch (what the rows' buffers are sized by), how many get a row and how many rows bounce
-//! (what the batching and the solver are planned by), and for the step's statistics the rows'
-//! points and the deepest penetration. On the host these are passes over every pair (0.57 ms
-//! a step of a settled pile of 100k boxes on 16 cores for the first three, 0.13 for the
-//! statistics, BENCHMARKS.md 2026-12-04); the device's counts come back with the pair keys.
+//! (what the batching and the solver are planned by), for the step's statistics the rows'
+//! points and the deepest penetration, and for the pair cache the pairs kept from last step
+//! (which give the added and the removed ones). On the host these are passes over every pair
+//! (0.57 ms a step of a settled pile of 100k boxes on 16 cores for the rows, 0.13 for the
+//! statistics, 0.46 for the pair diff, BENCHMARKS.md 2026-12-04). The device's counts, with the
+//! wake test's candidate count copied beside them, come back in one read-back with the keys.
 //!
 //! The rows depend on the masses, which an island that wakes after the collision changes: the
 //! step then counts the rows on the host (`World::step_stages`). The touching pairs do not.
@@ -19,15 +21,19 @@ use crate::gpu::prims::fill::fill_dispatch;
 use crate::stages::narrowphase::summary::PairSummary;
 
 const WGSL: &str = include_str!("tally.wgsl");
-/// Count, keys, summaries, masses, colliders, totals.
-const BINDINGS: [Binding; 6] = [
+/// Count, keys, summaries, masses, colliders, totals, old index.
+const BINDINGS: [Binding; 7] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
+    Binding::StorageRead,
 ];
+/// Words of the totals (`tally.wgsl`); the last is the wake test's candidate count.
+const TOTALS: usize = 7;
+const WAKE_CANDIDATES_WORD: u64 = 6;
 
 /// The counts of [`GpuRowTally`], as the masses stood at the collision.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -42,6 +48,10 @@ pub struct PairTally {
     pub contacts: usize,
     /// The deepest penetration of any pair (m, >= 0; 0 without a touching pair).
     pub deepest: f32,
+    /// Pairs that were last step's too.
+    pub kept: usize,
+    /// The wake test's candidates, when they were listed (else 0).
+    pub wake_candidates: usize,
 }
 
 fn wgsl() -> Source {
@@ -50,9 +60,9 @@ fn wgsl() -> Source {
         .snippet("tally.wgsl", WGSL)
 }
 
-/// The buffers the dispatches bind (count, keys, summaries, masses, colliders) and the pair
-/// slots they cover.
-type TallyKey = ([wgpu::Buffer; 5], usize);
+/// The buffers the dispatches bind (count, keys, summaries, masses, colliders, old index) and
+/// the pair slots they cover.
+type TallyKey = ([wgpu::Buffer; 6], usize);
 
 /// The tally kernel, its totals and their read-back.
 pub struct GpuRowTally {
@@ -67,22 +77,21 @@ impl GpuRowTally {
     pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             kernel: Kernel::new(context, "tally_rows", &wgsl(), "tally_rows", &BINDINGS),
-            totals: GpuVec::from_slice(context, "row tally", &[0; 5])?,
+            totals: GpuVec::from_slice(context, "row tally", &[0; TOTALS])?,
             read: Vec::new(),
             cached: None,
         })
     }
 
     /// Encodes the tally of the first `count[0]` of `keys` (padded up to `slots`), whose
-    /// summaries are `summaries`.
+    /// summaries are `summaries` and whose indices among last step's pairs are `old_index`.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         count: &GpuVec<u32>,
-        keys: &GpuVec<u64>,
-        summaries: &GpuVec<PairSummary>,
+        (keys, summaries, old_index): (&GpuVec<u64>, &GpuVec<PairSummary>, &GpuVec<u32>),
         (masses, colliders): (&GpuVec<BodyMass>, &GpuVec<ColliderData>),
         slots: usize,
     ) -> Result<(), GpuError> {
@@ -93,6 +102,7 @@ impl GpuRowTally {
                 summaries.buffer().clone(),
                 masses.buffer().clone(),
                 colliders.buffer().clone(),
+                old_index.buffer().clone(),
             ],
             slots,
         );
@@ -101,7 +111,7 @@ impl GpuRowTally {
             .as_ref()
             .is_none_or(|(cached, _)| *cached != key)
         {
-            let mut dispatches = fill_dispatch(context, self.totals.buffer(), 5, 0)?;
+            let mut dispatches = fill_dispatch(context, self.totals.buffer(), TOTALS, 0)?;
             let group = self.kernel.bind(
                 context,
                 &[
@@ -111,6 +121,7 @@ impl GpuRowTally {
                     masses.whole(),
                     colliders.whole(),
                     self.totals.whole(),
+                    old_index.whole(),
                 ],
             );
             dispatches.push(
@@ -125,8 +136,18 @@ impl GpuRowTally {
         Ok(())
     }
 
-    /// Encodes the read-back of the totals, after [`Self::encode`]'s pass.
-    pub fn encode_download(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
+    /// Encodes the read-back of the totals, after [`Self::encode`]'s pass, with the wake
+    /// test's candidate count (a one-word buffer) copied in first when it was encoded.
+    pub fn encode_download(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        wake_candidates: Option<&GpuVec<u32>>,
+    ) {
+        if let Some(total) = wake_candidates {
+            let word = WAKE_CANDIDATES_WORD * 4;
+            encoder.copy_buffer_to_buffer(total.buffer(), 0, self.totals.buffer(), word, 4);
+        }
         self.totals.encode_download(context, encoder);
     }
 
@@ -139,6 +160,8 @@ impl GpuRowTally {
             bouncing: self.read[2] as usize,
             contacts: self.read[3] as usize,
             deepest: f32::from_bits(self.read[4]),
+            kept: self.read[5] as usize,
+            wake_candidates: self.read[6] as usize,
         })
     }
 }

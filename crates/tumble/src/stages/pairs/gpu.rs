@@ -22,7 +22,6 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
 };
 use crate::gpu::prims::compact::Compact;
-use crate::gpu::prims::reduce::{Reduce, ReduceOp};
 
 const WGSL: &str = include_str!("pairs.wgsl");
 const BINDINGS: [Binding; 6] = [
@@ -80,10 +79,6 @@ pub struct GpuPairDiff {
     removed_count: GpuVec<u32>,
     compact_added: Compact,
     compact_removed: Compact,
-    /// The sums of the added and the removed flags ([`Self::encode_counts`]), and the vector
-    /// their read-back lands in.
-    sums: [(Reduce, GpuVec<u32>); 2],
-    read_sum: Vec<u32>,
     cached: Option<(DiffKey, Dispatch)>,
     /// [`Self::run`]'s device copies of the old and new keys, reused from call to call.
     host_keys: Option<(GpuVec<u64>, GpuVec<u64>)>,
@@ -104,11 +99,6 @@ impl GpuPairDiff {
             removed_count: empty("removed pair count")?,
             compact_added: Compact::new(),
             compact_removed: Compact::new(),
-            sums: [
-                (Reduce::new(), empty("added pair sum")?),
-                (Reduce::new(), empty("removed pair sum")?),
-            ],
-            read_sum: Vec::new(),
             cached: None,
             host_keys: None,
         })
@@ -217,45 +207,6 @@ impl GpuPairDiff {
             bind_group,
             workgroups_for(new_count.max(old_count), WORKGROUP_SIZE),
         )
-    }
-
-    /// Encodes the counts of the added and the removed pairs of the last encoded lookup (sums
-    /// of its flags, without the compacted lists), for [`Self::encode_counts_download`].
-    pub fn encode_counts(
-        &mut self,
-        context: &GpuContext,
-        pass: &mut wgpu::ComputePass<'_>,
-    ) -> Result<(), GpuError> {
-        let [(added, added_sum), (removed, removed_sum)] = &mut self.sums;
-        added.encode(context, pass, &self.added_flags, added_sum, ReduceOp::Sum)?;
-        removed.encode(
-            context,
-            pass,
-            &self.removed_flags,
-            removed_sum,
-            ReduceOp::Sum,
-        )
-    }
-
-    /// Encodes the read-back of [`Self::encode_counts`]' sums, after its pass.
-    pub fn encode_counts_download(
-        &mut self,
-        context: &GpuContext,
-        encoder: &mut wgpu::CommandEncoder,
-    ) {
-        for (_, sum) in &mut self.sums {
-            sum.encode_download(context, encoder);
-        }
-    }
-
-    /// After the submission of [`Self::encode_counts_download`]: the pairs added and removed.
-    pub fn read_counts(&mut self, context: &GpuContext) -> Result<(usize, usize), GpuError> {
-        let mut counts = [0; 2];
-        for ((_, sum), count) in self.sums.iter().zip(&mut counts) {
-            sum.read_download(context, &mut self.read_sum)?;
-            *count = self.read_sum[0] as usize;
-        }
-        Ok((counts[0], counts[1]))
     }
 
     /// Per new key: its index among the old keys, or [`NEW_PAIR`].
