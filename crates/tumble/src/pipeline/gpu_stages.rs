@@ -630,6 +630,12 @@ impl GpuStages {
         self.batching.colors.read(&self.context)
     }
 
+    /// The manifold slot of each contact row last built on the device, in row order (the
+    /// order of [`Self::read_row_colors`]).
+    pub fn read_row_slots(&self) -> Result<Vec<u32>, GpuError> {
+        self.rows.read_slots(&self.context)
+    }
+
     /// The contacts of last step's pairs as they are on the device, impulses included, in
     /// pair order: after a [`Self::collide`] that left them there
     /// ([`CollideOutput::Summaries`]). Reads through a staging buffer of its own, so that a

@@ -70,6 +70,10 @@ pub(crate) struct StepScratch {
     /// With rows, batching and solver on the GPU the contact rows stay there: what the host
     /// keeps of each (see [`RowSummary`]), the batch order sent down, the impulses read back.
     pub(crate) row_summaries: Vec<RowSummary>,
+    /// Rows this step left on the device without summaries: where the batches are laid out
+    /// there and the collision's tally counted them, nothing on the host needs them
+    /// (`World::contact_batches` reads their slots from the device).
+    unsummarized_rows: usize,
     /// [`filter_map_ordered`]'s chunks, for the rows' summaries, the islands' contact edges
     /// and the wake's pairs, and the resting pairs.
     row_parts: FilterParts<RowSummary>,
@@ -178,6 +182,7 @@ impl World {
         scratch.joint_row_bodies.clear();
         scratch.contacts.clear();
         scratch.row_summaries.clear();
+        scratch.unsummarized_rows = 0;
         // The batch layout stays on the device too when nothing on the host needs it: no joint
         // rows (their layout is the host's), the contacts' impulses going to the pairs on the
         // device, and the PGS solver (the Jacobi solver's adjacency is built on the host).
@@ -494,7 +499,12 @@ impl World {
             values: self.pairs.values(),
             summaries: self.contacts_on_device.then_some(&self.pair_summaries[..]),
         };
-        let device_rows = row_tally.map(|_| DeviceRows {
+        // With the collision's tally fresh, nothing needs the rows' summaries.
+        if let Some(tally) = row_tally.filter(|_| !scratch.woke) {
+            scratch.unsummarized_rows = tally.rows;
+        }
+        let summarize = row_tally.is_some() && scratch.unsummarized_rows == 0;
+        let device_rows = summarize.then(|| DeviceRows {
             keys: self.pairs.keys(),
             summaries: &self.pair_summaries,
             masses: &self.masses,
@@ -723,6 +733,7 @@ impl World {
                 self.contacts_on_device.then_some(&self.pair_summaries[..]),
                 // The collision's tally holds the rows' points unless an island woke since.
                 (scratch.tally_fresh && !scratch.woke).then_some(scratch.pair_tally),
+                &self.masses,
                 scratch,
             )
         };
@@ -1360,6 +1371,7 @@ fn collect_stats(
     children: &narrowphase::ChildCache,
     summaries: Option<&[PairSummary]>,
     tally: Option<PairTally>,
+    masses: &[BodyMass],
     scratch: &StepScratch,
 ) -> StepStats {
     let stats = StepStats {
@@ -1369,7 +1381,7 @@ fn collect_stats(
         child_manifolds: children.len(),
         child_manifolds_added: children.added(),
         child_manifolds_removed: children.removed(),
-        manifolds: scratch.contacts.len() + scratch.row_summaries.len(),
+        manifolds: scratch.contacts.len() + scratch.row_summaries.len() + scratch.unsummarized_rows,
         contacts: 0,
         max_penetration: 0.0,
         // The rows that stayed on the device are known by their slots.
@@ -1392,14 +1404,22 @@ fn collect_stats(
                 host_contacts,
                 pairs,
                 children,
-                summaries,
+                (summaries, masses),
                 scratch
             ),
             "the device's tally of the rows is not the host's"
         );
         return counted;
     }
-    host_stats(stats, host_contacts, pairs, children, summaries, scratch)
+    let pair_contacts = (summaries, masses);
+    host_stats(
+        stats,
+        host_contacts,
+        pairs,
+        children,
+        pair_contacts,
+        scratch,
+    )
 }
 
 /// [`collect_stats`]' passes over every pair and row, on every core when there are many (max
@@ -1409,7 +1429,7 @@ fn host_stats(
     host_contacts: usize,
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
     children: &narrowphase::ChildCache,
-    summaries: Option<&[PairSummary]>,
+    (summaries, masses): (Option<&[PairSummary]>, &[BodyMass]),
     scratch: &StepScratch,
 ) -> StepStats {
     let max_penetration = match summaries {
@@ -1429,9 +1449,24 @@ fn host_stats(
             .map(|c| PairSummary::of(c).depth)
             .fold(0.0f32, f32::max),
     };
-    let rows = scratch.row_summaries.par_iter().with_min_len(MIN_PER_TASK);
+    let row_points = if scratch.unsummarized_rows == 0 {
+        let rows = scratch.row_summaries.par_iter().with_min_len(MIN_PER_TASK);
+        rows.map(|r| r.point_count as usize).sum::<usize>()
+    } else {
+        // The rows left on the device unsummarized: the pairs with a constraint.
+        let summaries = summaries.unwrap_or_default();
+        let pairs = pairs.keys().par_iter().zip(summaries);
+        let row = |(&key, summary): (&u64, &PairSummary)| {
+            let count = summary.point_count;
+            has_constraint(key, count, masses).then_some((1, count as usize))
+        };
+        let (rows, points) = (pairs.with_min_len(MIN_PER_TASK).filter_map(row))
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1));
+        debug_assert_eq!(rows, scratch.unsummarized_rows, "rows left on the device");
+        points
+    };
     StepStats {
-        contacts: host_contacts + rows.map(|r| r.point_count as usize).sum::<usize>(),
+        contacts: host_contacts + row_points,
         max_penetration,
         ..stats
     }

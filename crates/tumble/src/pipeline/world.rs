@@ -982,26 +982,33 @@ impl World {
     }
 
     /// The batch of each manifold slot (pairs, then children) in the last step, from its
-    /// rows (the host's summaries of the device's rows, or the host's rows) and their colors,
-    /// which follow the joints' (an empty list if the device's colors cannot be read: the next
-    /// step reports the device's error).
+    /// rows and their colors: the device's when its batch layout stayed there, else the host's
+    /// (summaries of the device's rows, or the host's rows, whose colors follow the joints'). An
+    /// empty list if the device's cannot be read: the next step reports the device's error.
     fn pair_batches(&self) -> &[u32] {
         self.pair_batches.get_or_init(|| {
             let scratch = &self.scratch;
             let coloring = &scratch.coloring;
-            let device_colors: Vec<u8>;
-            let rows = scratch.row_summaries.len() + scratch.contacts.len();
-            let colors = if self.row_colors_on_device {
-                let read = self.gpu.as_ref().map(|gpu| gpu.read_row_colors());
-                let colors = read.and_then(Result::ok).unwrap_or_default();
-                device_colors = colors.into_iter().map(|color| color as u8).collect();
-                &device_colors[..]
-            } else {
-                &coloring.colors[coloring.colors.len().saturating_sub(rows)..]
-            };
-            // One of the two is empty: the step kept summaries of the device's rows or rows.
-            let row_slots = scratch.row_summaries.iter().map(|row| row.slot);
-            let slots = row_slots.chain(scratch.contacts.iter().map(|c| c.pair));
+            let (device_slots, device_colors): (Vec<u32>, Vec<u8>);
+            let (slots, colors): (&mut dyn Iterator<Item = u32>, &[u8]) =
+                if self.row_colors_on_device {
+                    let read = self.gpu.as_ref().map(|gpu| {
+                        let slots = gpu.read_row_slots()?;
+                        gpu.read_row_colors().map(|colors| (slots, colors))
+                    });
+                    let (slots, colors) = read.and_then(Result::ok).unwrap_or_default();
+                    device_colors = colors.into_iter().map(|color| color as u8).collect();
+                    device_slots = slots;
+                    (&mut device_slots.iter().copied(), &device_colors[..])
+                } else {
+                    let rows = scratch.row_summaries.len() + scratch.contacts.len();
+                    let colors = &coloring.colors[coloring.colors.len().saturating_sub(rows)..];
+                    // One of the two is empty: the step kept summaries of the device's rows, or
+                    // rows.
+                    let row_slots = scratch.row_summaries.iter().map(|row| row.slot);
+                    let contact_slots = scratch.contacts.iter().map(|c| c.pair);
+                    (&mut row_slots.chain(contact_slots), colors)
+                };
             let mut batches = vec![NO_BATCH; self.pairs.len() + self.children.len()];
             for (slot, &color) in slots.zip(colors) {
                 if let Some(batch) = batches.get_mut(slot as usize) {

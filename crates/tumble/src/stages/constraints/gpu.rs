@@ -199,6 +199,16 @@ impl GpuRows {
         [bind("flag", &self.flags), bind("build", &self.places)]
     }
 
+    /// The manifold slot of each row the last encoded pass built, in row order (after it ran):
+    /// from the places, where a slot with a row is one whose place the next slot's passes.
+    /// Through a staging buffer of its own, so that a caller holding `&self` can read it.
+    pub fn read_slots(&self, context: &GpuContext) -> Result<Vec<u32>, GpuError> {
+        let places = self.places.read(context)?;
+        let rows = places.windows(2).enumerate();
+        let slots = rows.filter(|(_, place)| place[1] > place[0]);
+        Ok(slots.map(|(slot, _)| slot as u32).collect())
+    }
+
     /// Reads the built constraints back (after the encoded pass ran) into `out`.
     pub fn read_back(
         &mut self,
