@@ -180,16 +180,21 @@ impl Islands {
 
     /// Starts this step's islands: every body on its own, until [`Self::link`] joins them.
     pub fn unlink_all(&mut self) {
+        let parents = self.start_links().par_iter_mut().enumerate();
+        parents
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .for_each(|(i, parent)| *parent.get_mut() = i as u32);
+    }
+
+    /// The parents of this step's links, one per body, for the caller to set.
+    fn start_links(&mut self) -> &mut [AtomicU32] {
         let count = self.states.len();
         if self.parent.len() < count {
             self.parent.resize_with(count, || AtomicU32::new(0));
             self.held.resize_with(count, || AtomicBool::new(false));
         }
-        let parents = self.parent[..count].par_iter_mut().enumerate();
-        parents
-            .with_min_len(MIN_BODIES_PER_TASK)
-            .for_each(|(i, parent)| *parent.get_mut() = i as u32);
         self.linked = true;
+        &mut self.parent[..count]
     }
 
     /// Joins the islands of the awake dynamic bodies that `edges` connect (body pairs of
@@ -216,6 +221,42 @@ impl Islands {
             .into_par_iter()
             .with_min_len(MIN_BODIES_PER_TASK)
             .for_each(|body| parent[body as usize].store(root(parent, body), Ordering::Relaxed));
+    }
+
+    /// This step's islands as the device linked them
+    /// ([`GpuIslandLinks`](super::island_gpu::GpuIslandLinks)): each body's root, its island's
+    /// lowest body, as [`Self::unlink_all`] and [`Self::link`] of the same edges leave it. Any
+    /// number of [`Self::link`]s may follow (the joints'). Returns false, and links nothing,
+    /// when `roots` is not one per body.
+    pub fn adopt_links(&mut self, roots: &[u32]) -> bool {
+        if roots.len() != self.states.len() {
+            return false;
+        }
+        let parents = self.start_links().par_iter_mut().zip(roots);
+        parents
+            .with_min_len(MIN_BODIES_PER_TASK)
+            .for_each(|(parent, &root)| *parent.get_mut() = root);
+        true
+    }
+
+    /// Whether an awake dynamic body may rest [`TIME_TO_SLEEP`] by the end of a step of `dt`
+    /// ([`Self::update_timers`] adds at most `dt`, rounded as here): until one may, no island
+    /// can fall asleep, and the step need not link its islands.
+    pub fn may_rest(&self, masses: &[BodyMass], dt: f32) -> bool {
+        let may_rest = |(state, mass): (&SleepState, &BodyMass)| {
+            !state.is_asleep() && mass.inverse_mass != 0.0 && state.timer + dt >= TIME_TO_SLEEP
+        };
+        let states = self.states.par_iter().zip(masses);
+        states.with_min_len(MIN_BODIES_PER_TASK).any(may_rest)
+    }
+
+    /// Each body's root in the union-find forest of the last links (for the device's test).
+    #[cfg(test)]
+    pub(crate) fn roots(&self) -> Vec<u32> {
+        let parent = &self.parent[..self.states.len()];
+        (0..parent.len() as u32)
+            .map(|body| root(parent, body))
+            .collect()
     }
 
     /// Puts to sleep each island of the last [`Self::unlink_all`] and [`Self::link`]s whose

@@ -2,5 +2,6 @@
 
 pub mod body;
 pub mod island;
+pub mod island_gpu;
 pub mod joint;
 pub mod wake;

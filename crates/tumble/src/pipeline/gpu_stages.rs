@@ -1,6 +1,7 @@
 use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
+use crate::dynamics::island_gpu::{GpuIslandLinks, GpuLinkPairs};
 use crate::dynamics::joint::Joint;
 use crate::dynamics::wake::GpuWakeCandidates;
 use crate::gpu::buffer::GpuVec;
@@ -88,6 +89,10 @@ const CONSTRAINTS_SUBMIT: SpanPath = &["constraints", "submit"];
 /// The joint rows' kernel: its own pass in the constraints' submission, so the profile shows
 /// it beside the contact rows' kernels.
 const JOINT_ROWS_KERNEL: SpanPath = &["constraints", "joint kernel"];
+/// The islands' links ([`GpuIslandLinks`]): a pass of their own in the rows' submission.
+const ISLAND_LINKS_KERNEL: SpanPath = &["constraints", "kernels: island links"];
+/// Their roots' read-back, which the sleep waits for.
+const ISLAND_LINKS_DOWNLOAD: SpanPath = &["sleep", "copy links to cpu"];
 const BATCHING: StageSpans = StageSpans {
     upload: &["batching", "copy to gpu"],
     encode: &["batching", "encode"],
@@ -226,7 +231,9 @@ pub(crate) enum RowsTo<'a> {
     /// manifolds with points, counted on the host). The rows' buffers are sized by it rather
     /// than by the manifold slots: a settled pile has about 2.3 pairs for each manifold with
     /// points, and at 500k bodies one row per pair would not fit one storage binding.
-    Device { at_most: usize },
+    /// `link_islands`: the islands' links made in the same submission, where this step's
+    /// collision left its pairs' summaries on the device ([`GpuStages::read_island_links`]).
+    Device { at_most: usize, link_islands: bool },
 }
 
 /// What [`GpuStages::collide`] reads back besides the keys.
@@ -437,6 +444,14 @@ pub(crate) struct GpuStages {
     /// The rows' counts, made with the pairs' summaries ([`SummaryOutput::tally`]).
     row_tally: GpuRowTally,
     wake_candidates_listed: usize,
+    /// The islands' links, whether this step's rows' submission made them (its collision
+    /// left the pairs' summaries on the device: `summarized`), and how many steps did; the
+    /// tests that compare them with the host's turn them off (`host_island_links`).
+    island_links: GpuIslandLinks,
+    summarized: bool,
+    islands_linked: bool,
+    island_links_made: usize,
+    host_island_links: bool,
     solver: GpuSolver,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
@@ -539,6 +554,11 @@ impl GpuStages {
             row_tally: GpuRowTally::new(&context)?,
             host_wake_candidates: false,
             wake_candidates_listed: 0,
+            island_links: GpuIslandLinks::new(&context)?,
+            summarized: false,
+            islands_linked: false,
+            island_links_made: 0,
+            host_island_links: false,
             solver: GpuSolver::new(&context)?,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
@@ -605,6 +625,8 @@ impl GpuStages {
         self.rows_from_narrowphase = false;
         self.impulses_scattered = false;
         self.laid_out_on_device = false;
+        self.summarized = false;
+        self.islands_linked = false;
     }
 
     /// The host stored this step's solved impulses in its pair cache, now at `version`: when
@@ -628,6 +650,28 @@ impl GpuStages {
     /// the device. Reads through a staging buffer of its own, for callers holding `&self`.
     pub fn read_row_colors(&self) -> Result<Vec<u32>, GpuError> {
         self.batching.colors.read(&self.context)
+    }
+
+    /// Whether this step's rows' submission linked the islands ([`Self::read_island_links`]).
+    pub fn islands_linked(&self) -> bool {
+        self.islands_linked
+    }
+
+    /// This step's islands as [`Self::build_constraints`] linked them on the device (each
+    /// body's root, see [`GpuIslandLinks`]) into `out`; false, and nothing read, when it did
+    /// not link them. Waits for that submission.
+    pub fn read_island_links(
+        &mut self,
+        profiler: &mut Profiler,
+        out: &mut Vec<u32>,
+    ) -> Result<bool, GpuError> {
+        if !self.islands_linked {
+            return Ok(false);
+        }
+        let start = Instant::now();
+        self.island_links.read(&self.context, out)?;
+        record_copy(profiler, ISLAND_LINKS_DOWNLOAD, elapsed_ms(start));
+        Ok(true)
     }
 
     /// The manifold slot of each contact row last built on the device, in row order (the
@@ -1046,6 +1090,7 @@ impl GpuStages {
         record_copy(profiler, COLLISION.download, elapsed_ms(start));
         self.pair_contacts_fresh = false;
         self.collided = true;
+        self.summarized = summarize;
         Ok(())
     }
 
@@ -1202,10 +1247,21 @@ impl GpuStages {
             softness: joints.softness,
         };
         let (rows, joint_rows) = (&mut self.rows, &mut self.joint_rows);
-        let count = match to {
-            RowsTo::Host(..) => None,
-            RowsTo::Device { at_most } => Some(at_most),
+        let (count, link_islands) = match to {
+            RowsTo::Host(..) => (None, false),
+            RowsTo::Device {
+                at_most,
+                link_islands,
+            } => (Some(at_most), link_islands),
         };
+        let link_islands = link_islands && self.summarized && !self.host_island_links;
+        let link_pairs = GpuLinkPairs {
+            count: self.broadphase.count(),
+            keys: self.broadphase.keys(),
+            summaries: &self.summaries.summaries,
+            slots: self.broadphase.capacity(),
+        };
+        let island_links = &mut self.island_links;
         let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
             encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
                 rows.encode(context, pass, &device_inputs, count)
@@ -1215,6 +1271,12 @@ impl GpuStages {
                     joint_rows.encode_build(context, pass, &joint_inputs);
                     Ok(())
                 })?;
+            }
+            if link_islands {
+                encode_pass(encoder, timer, ISLAND_LINKS_KERNEL, |pass| {
+                    island_links.encode(context, pass, &link_pairs, device_inputs.masses)
+                })?;
+                island_links.encode_download(context, encoder);
             }
             Ok(())
         };
@@ -1226,6 +1288,8 @@ impl GpuStages {
             let spans = (&CONSTRAINTS, CONSTRAINTS_SUBMIT);
             submit_passes(context, &mut self.profiler, profiler, spans, encode)?;
         }
+        self.islands_linked = link_islands;
+        self.island_links_made += usize::from(link_islands);
         if let RowsTo::Host(contacts, joint_constraints) = to {
             let start = Instant::now();
             self.rows.read_back(context, contacts)?;
@@ -2572,6 +2636,105 @@ mod tests {
         );
     }
 
+    /// The islands' links made on the device give each body the root the host's union-find
+    /// gives it (its island's lowest body), on random pairs at 0, 1, about 250 and 10 000
+    /// pairs with random point counts and static or sleeping bodies, on a long chain linked
+    /// from its far end, and on bodies with no pair at all; the keys padded past the count.
+    #[test]
+    fn island_links_on_the_device_are_the_hosts() {
+        use crate::dynamics::body::BodyMass;
+        use crate::dynamics::island::Islands;
+        use crate::dynamics::island_gpu::{GpuIslandLinks, GpuLinkPairs};
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut links = GpuIslandLinks::new(&context).unwrap();
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = move |bound: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % bound
+        };
+        let chain: Vec<(u64, u64)> = (0..4000u64).rev().map(|i| (i, i + 1)).collect();
+        let mut random = |pairs: usize, bodies: u64| -> Vec<(u64, u64)> {
+            (0..pairs)
+                .map(|_| (next(bodies), next(bodies)))
+                .filter(|(a, b)| a != b)
+                .collect()
+        };
+        let cases = [
+            (random(0, 10), 10),
+            (random(1, 3), 3),
+            (random(260, 200), 200),
+            (random(10_000, 6_000), 6_000),
+            (chain, 4001),
+            (Vec::new(), 0),
+        ];
+        let mut largest = 0;
+        for (edges, bodies) in cases {
+            let mut keys: Vec<u64> = (edges.iter())
+                .map(|&(a, b)| (a.min(b) << 32) | a.max(b))
+                .collect();
+            keys.sort_unstable();
+            keys.dedup();
+            let count = keys.len();
+            let summaries: Vec<PairSummary> = (0..count)
+                .map(|_| PairSummary {
+                    point_count: (next(4) as u32).min(2),
+                    depth: 0.0,
+                })
+                .collect();
+            // One body in five static or asleep: it joins nothing.
+            let masses: Vec<BodyMass> = (0..bodies)
+                .map(|_| BodyMass {
+                    inverse_mass: if next(5) == 0 { 0.0 } else { 0.5 },
+                    ..Default::default()
+                })
+                .collect();
+            let slots = count + count / 3 + 5;
+            let mut padded = keys.clone();
+            padded.resize(slots, u64::MAX);
+            let mut padded_summaries = summaries.clone();
+            padded_summaries.resize(slots, PairSummary::default());
+            let count_buffer = GpuVec::from_slice(&context, "count", &[count as u32]).unwrap();
+            let pairs = GpuLinkPairs {
+                count: &count_buffer,
+                keys: &GpuVec::from_slice(&context, "keys", &padded).unwrap(),
+                summaries: &GpuVec::from_slice(&context, "summaries", &padded_summaries).unwrap(),
+                slots,
+            };
+            let masses_buffer = GpuVec::from_slice(&context, "masses", &masses).unwrap();
+            let mut encoder = context.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                links
+                    .encode(&context, &mut pass, &pairs, &masses_buffer)
+                    .unwrap();
+            }
+            links.encode_download(&context, &mut encoder);
+            context.queue.submit([encoder.finish()]);
+            let mut device = Vec::new();
+            links.read(&context, &mut device).unwrap();
+            let mut islands = Islands::default();
+            islands.resize(bodies as usize);
+            let edges: Vec<(u32, u32)> = (keys.iter().zip(&summaries))
+                .filter(|(_, summary)| summary.point_count > 0)
+                .map(|(&key, _)| crate::stages::pairs::pair_bodies(key))
+                .collect();
+            islands.unlink_all();
+            islands.link(&edges, &masses);
+            assert_eq!(device, islands.roots(), "{count} pairs, {bodies} bodies");
+            // The oracle links too: the largest island's size.
+            let mut sizes = vec![0; bodies as usize];
+            for &root in &device {
+                sizes[root as usize] += 1;
+            }
+            largest = largest.max(sizes.into_iter().max().unwrap_or(0));
+        }
+        assert!(largest > 1000, "the largest island has {largest} bodies");
+    }
+
     /// Bouncing rows counted with the collision on the device plan the restitution sweep:
     /// balls of restitution 0.8 dropped 2 m onto the plane beside a resting box, with every
     /// stage on the GPU and the batches laid out there, come back up above 1 m (without the
@@ -2816,6 +2979,71 @@ mod tests {
             assert!(listed.contains(&Some(count)), "{listed:?}");
         }
         assert_eq!((host.3.iter().flatten().count(), host.4), (0, 0));
+        assert_eq!(asleep, host.2);
+        assert!(velocities == host.1, "the velocities differ");
+        assert!(poses == host.0, "the poses differ");
+    }
+
+    /// Where the contacts stay on the device, the rows' submission links the islands there:
+    /// the run is bitwise the one whose host links them. A light ball rolls across a heavy
+    /// table, which rests under it but stays awake with it (the links make them one island),
+    /// while towers of two boxes apart sleep an island each.
+    #[test]
+    fn the_islands_linked_on_the_device_sleep_as_the_hosts() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let run = |host_island_links: bool| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world.gpu.as_mut().unwrap().host_island_links = host_island_links;
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            let table = BodyDesc::dynamic(Shape::cuboid(Vec3::new(3.0, 0.25, 3.0)))
+                .position(Vec3::new(0.0, 0.25, 0.0));
+            let table = world.add_body(table).unwrap();
+            let (radius, speed) = (0.3, 1.5);
+            let ball = BodyDesc::dynamic(Shape::sphere(radius))
+                .position(Vec3::new(-2.7, 0.5 + radius, 0.0))
+                .linear_velocity(Vec3::new(speed, 0.0, 0.0))
+                .angular_velocity(Vec3::new(0.0, 0.0, -speed / radius));
+            world.add_body(ball).unwrap();
+            for index in 0..3 {
+                for level in 0..2 {
+                    let position = Vec3::new(3.0 * index as f32, 0.5 + level as f32, 6.0);
+                    let block =
+                        BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position);
+                    world.add_body(block).unwrap();
+                }
+            }
+            let (mut asleep, mut table_asleep) = (Vec::new(), Vec::new());
+            for _ in 0..150 {
+                world.step();
+                asleep.push(world.stats().sleeping);
+                table_asleep.push(world.is_sleeping(table).unwrap());
+            }
+            let rested = world.islands.state(table.index()).timer;
+            assert!(
+                rested >= crate::dynamics::island::TIME_TO_SLEEP,
+                "the table rested {rested} s"
+            );
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let made = world.gpu.as_ref().unwrap().island_links_made;
+            (poses, velocities, asleep, table_asleep, made)
+        };
+        let (poses, velocities, asleep, table_asleep, made) = run(false);
+        let host = run(true);
+        // The towers sleep; the table stays awake under the rolling ball.
+        assert_eq!(asleep.last(), Some(&6), "{asleep:?}");
+        assert!(table_asleep.iter().all(|&asleep| !asleep));
+        // From the first step whose bodies may have rested, every step linked on the device.
+        assert!(made > 100, "{made} steps linked on the device");
+        assert_eq!(host.4, 0);
         assert_eq!(asleep, host.2);
         assert!(velocities == host.1, "the velocities differ");
         assert!(poses == host.0, "the poses differ");

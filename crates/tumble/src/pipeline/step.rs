@@ -81,6 +81,8 @@ pub(crate) struct StepScratch {
     pub(crate) key_parts: FilterParts<u64>,
     /// The edges of the islands: the contacts' ([`link_contacts`]), then the joints'.
     sleep_edges: Vec<(u32, u32)>,
+    /// Each body's root as the device linked the islands.
+    island_roots: Vec<u32>,
     /// The touching pairs with a sleeping body, which the wake walks ([`World::wake_touched`]).
     wake_candidates: Vec<(u32, u32)>,
     /// Their indices among the pairs, when the collision listed them on the device this step
@@ -130,6 +132,9 @@ impl World {
             self.wake_touched();
             self.profiler.end();
         }
+        // Until an awake body may have rested long enough by the end of this step, no island
+        // can fall asleep: the islands need no links.
+        let may_sleep = config.sleeping && self.islands.may_rest(&self.masses, dt);
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
 
@@ -258,7 +263,11 @@ impl World {
                     Some(scratch.row_summaries.len())
                 };
                 let to = match at_most {
-                    Some(at_most) => RowsTo::Device { at_most },
+                    Some(at_most) => RowsTo::Device {
+                        at_most,
+                        // With the pairs' summaries: the device links the islands too.
+                        link_islands: may_sleep && self.contacts_on_device,
+                    },
                     None => RowsTo::Host(&mut scratch.contacts, &mut scratch.joints),
                 };
                 let built = gpu.build_constraints(
@@ -490,8 +499,10 @@ impl World {
         // islands (they need the contacts and masses, not the velocities: see `fall_asleep`)
         // and, with the layout on the device, the rows' summaries.
         let overlap = self.pairs.len() >= OVERLAP_MIN_PAIRS;
+        let linked_on_device = self.gpu.as_ref().is_some_and(|gpu| gpu.islands_linked());
         let link_now = overlap
-            && config.sleeping
+            && may_sleep
+            && !linked_on_device
             && self.gpu.is_some()
             && self.devices.get(Stage::Solver) == Executor::Gpu;
         let pair_edges = PairEdges {
@@ -744,8 +755,9 @@ impl World {
         }
         if config.sleeping {
             self.profiler.begin("sleep");
-            self.fall_asleep(linked);
+            let slept = self.fall_asleep(linked);
             self.profiler.end();
+            slept?;
         }
         self.stats.sleeping = self.islands.sleeping_count();
         Ok(())
@@ -1086,8 +1098,9 @@ impl World {
 
     /// Rest times from this step's velocities; islands that rested long enough go to sleep
     /// and into the broadphase's fixed tree. `linked`: this step's contacts were linked into
-    /// islands already (while the device solved).
-    fn fall_asleep(&mut self, linked: bool) {
+    /// islands already (while the device solved); else the device's links are taken where it
+    /// made them, or the host links them now.
+    fn fall_asleep(&mut self, linked: bool) -> Result<(), GpuError> {
         let colliders = &self.colliders;
         self.profiler.begin("rest timers");
         let any_rested = self.islands.update_timers(
@@ -1099,9 +1112,15 @@ impl World {
         self.profiler.end();
         // No body has rested long enough to sleep: no island can (see update_timers).
         if !any_rested {
-            return;
+            return Ok(());
         }
         let scratch = &mut self.scratch;
+        let mut linked = linked;
+        if !linked && let Some(gpu) = &mut self.gpu {
+            let roots = &mut scratch.island_roots;
+            linked = gpu.read_island_links(&mut self.profiler, roots)?
+                && self.islands.adopt_links(roots);
+        }
         if !linked {
             let contacts = PairEdges {
                 keys: self.pairs.keys(),
@@ -1131,7 +1150,7 @@ impl World {
         );
         self.profiler.end();
         if self.changed_bodies.is_empty() {
-            return;
+            return Ok(());
         }
         // Their masses and velocities are zero now.
         self.masses_changed();
@@ -1140,6 +1159,7 @@ impl World {
         }
         self.resting_pairs_changed();
         self.refresh_resting = true;
+        Ok(())
     }
 }
 
