@@ -775,16 +775,22 @@ impl GpuStages {
         // The host merges the resting pairs into these.
         self.broadphase.set_extra_pairs(context, &[])?;
         record_copy(profiler, BROADPHASE.upload, elapsed_ms(start));
-        loop {
+        let found = loop {
             let (broadphase, aabbs) = (&mut self.broadphase, &self.aabbs);
-            run_pass(context, &mut self.profiler, profiler, &BROADPHASE, |pass| {
+            let run = run_pass(context, &mut self.profiler, profiler, &BROADPHASE, |pass| {
                 broadphase.encode(context, pass, aabbs)
-            })?;
+            });
             // Reads the pair count back: more pairs than room means grow and run again.
-            if !self.broadphase.check_capacity(context)? {
-                break;
+            match run.and_then(|()| self.broadphase.check_capacity(context)) {
+                Ok(true) => continue,
+                other => break other,
             }
+        };
+        if found.is_err() {
+            // Its submission may not have run: the trees' body lists are made again.
+            self.broadphase.forget_bodies();
         }
+        found?;
         let start = Instant::now();
         self.broadphase.download_keys_into(context, keys)?;
         record_copy(profiler, BROADPHASE.download, elapsed_ms(start));
@@ -822,6 +828,10 @@ impl GpuStages {
         let collided = self.collide_growing(
             profiler, bodies, is_static, old, skipped, margin_dt, keys, output,
         );
+        if collided.is_err() {
+            // Its submission may not have run: the trees' body lists are made again.
+            self.broadphase.forget_bodies();
+        }
         if collided.is_err() && self.broadphase.capacity() != capacity {
             // Smaller than what failed, and allocated before: the original error is the one
             // to report either way.

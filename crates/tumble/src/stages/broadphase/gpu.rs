@@ -19,8 +19,11 @@
 //! tree (bounds 2, codes 1, 4 sort passes of 3, build 2) and 24 for the pairs (2 fills, the
 //! traversal, 4 sort passes of 5, unpacking), one more with extra pairs.
 //!
+//! The trees' body lists are made on the device from one bit a body
+//! (`body_lists.rs`), when the mask of [`GpuBroadphase::set_bodies`] changes.
+//!
 //! Dispatch sizes: the traversal's thread count is the dynamic body count, known on the host
-//! (the body lists change only with [`GpuBroadphase::set_bodies`]); the only count produced on
+//! (the host counts the mask's bits); the only count produced on
 //! the GPU is the pair count, and the stages after the traversal are sized by the key buffer's
 //! *capacity* instead: slots past the count hold `u64::MAX`, which sorts last and which no
 //! binary search for a real key matches (the GPU pair cache relies on this). That keeps the
@@ -43,6 +46,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::body_lists::GpuBodyLists;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
@@ -202,11 +206,13 @@ impl Lbvh {
         self.bodies.len()
     }
 
-    /// Replaces the bodies (ascending) and sizes the buffers for them.
-    fn set_bodies(&mut self, context: &GpuContext, bodies: &[u32]) -> Result<(), GpuError> {
-        let leaves = bodies.len();
+    /// Sizes the buffers for `leaves` bodies, which [`GpuBodyLists`] then writes (ascending)
+    /// into `bodies`.
+    fn set_body_count(&mut self, context: &GpuContext, leaves: usize) -> Result<(), GpuError> {
         let nodes = (2 * leaves).saturating_sub(1);
-        self.bodies.upload(context, bodies)?;
+        // The old list is written over: nothing to keep if the buffer grows.
+        self.bodies.resize(context, 0)?;
+        self.bodies.resize(context, leaves)?;
         self.scene
             .resize(context, 2 + 2 * leaves.div_ceil(BOUNDS_BLOCK as usize))?;
         self.codes.resize(context, leaves)?;
@@ -370,10 +376,11 @@ pub struct GpuBroadphase {
     fixed: Lbvh,
     /// Whether the static tree must be rebuilt at the next encode.
     fixed_stale: bool,
-    /// The mask of the last [`Self::set_bodies`], and the dynamic and static bodies it makes.
+    /// The mask of the last [`Self::set_bodies`]; the trees' body lists made from it on the
+    /// device, and whether they are still to be made at the next encode.
     is_static: Vec<bool>,
-    dynamic_bodies: Vec<u32>,
-    static_bodies: Vec<u32>,
+    body_lists: GpuBodyLists,
+    lists_stale: bool,
     /// [`Self::find_pairs`]: the static AABBs the static tree was built from, and the AABBs.
     static_aabbs: Vec<Aabb>,
     aabbs: Option<GpuVec<Aabb>>,
@@ -409,8 +416,8 @@ impl GpuBroadphase {
             fixed: Lbvh::new(context)?,
             fixed_stale: true,
             is_static: Vec::new(),
-            dynamic_bodies: Vec::new(),
-            static_bodies: Vec::new(),
+            body_lists: GpuBodyLists::new(context)?,
+            lists_stale: false,
             static_aabbs: Vec::new(),
             aabbs: None,
             appended: GpuVec::with_capacity(context, "pair keys", 0)?,
@@ -459,8 +466,8 @@ impl GpuBroadphase {
         Ok(())
     }
 
-    /// Which body slots are static (the rest are dynamic): builds the body lists. A changed
-    /// mask rebuilds the static tree at the next encode.
+    /// Which body slots are static (the rest are dynamic). A changed mask makes the trees' body
+    /// lists (`body_lists.rs`) and rebuilds the static tree at the next encode.
     pub fn set_bodies(&mut self, context: &GpuContext, is_static: &[bool]) -> Result<(), GpuError> {
         if is_static == self.is_static {
             return Ok(());
@@ -469,35 +476,38 @@ impl GpuBroadphase {
             u32::try_from(is_static.len()).is_ok_and(|count| count < u32::MAX),
             "body indices fit below u32::MAX"
         );
-        // In a settling pile islands sleep or wake, and so change this, at most steps: one
-        // pass on this thread into lists kept from call to call. Two order-keeping filters on
-        // every core into new vectors took 0.43 ms for 100k bodies on 2 cores (this pass
-        // 0.28), and 1.7 ms a step on the 16 cores of an H200 machine.
-        let (dynamic, fixed) = (&mut self.dynamic_bodies, &mut self.static_bodies);
-        dynamic.clear();
-        fixed.clear();
-        for (body, &is_static) in is_static.iter().enumerate() {
-            if is_static {
-                &mut *fixed
-            } else {
-                &mut *dynamic
-            }
-            .push(body as u32);
-        }
-        self.dynamic.set_bodies(context, dynamic)?;
-        self.fixed.set_bodies(context, fixed)?;
+        // In a settling pile islands sleep or wake, and so change this, at most steps: the
+        // host packs the bits and counts them, the device makes the lists.
         let words = &mut self.static_words;
         words.clear();
-        words.resize(is_static.len().div_ceil(32).max(1), 0);
-        for &body in fixed.iter() {
-            words[body as usize / 32] |= 1 << (body % 32);
+        words.extend(is_static.chunks(32).map(|bodies| {
+            let bits = bodies.iter().enumerate();
+            bits.fold(0u32, |word, (bit, &fixed)| word | u32::from(fixed) << bit)
+        }));
+        let fixed = words
+            .iter()
+            .map(|word| word.count_ones() as usize)
+            .sum::<usize>();
+        // A binding cannot be empty.
+        if words.is_empty() {
+            words.push(0);
         }
+        self.dynamic
+            .set_body_count(context, is_static.len() - fixed)?;
+        self.fixed.set_body_count(context, fixed)?;
         self.static_bits.upload(context, words)?;
         self.is_static.clear();
         self.is_static.extend_from_slice(is_static);
+        self.lists_stale = true;
         self.fixed_stale = true;
         self.cached = None;
         Ok(())
+    }
+
+    /// Forgets the mask, so that the next [`Self::set_bodies`] makes the lists again: after a
+    /// submission that failed, whose lists may not have been made.
+    pub fn forget_bodies(&mut self) {
+        self.is_static.clear();
     }
 
     /// Sorted pair keys that the stage reports besides the trees' pairs, from the next encode
@@ -560,6 +570,12 @@ impl GpuBroadphase {
         aabbs: &GpuVec<Aabb>,
     ) -> Result<(), GpuError> {
         debug_assert_eq!(aabbs.len(), self.is_static.len(), "one AABB per body slot");
+        if self.lists_stale {
+            let bits = (&self.static_bits, self.is_static.len());
+            let lists = (&self.dynamic.bodies, &self.fixed.bodies);
+            self.body_lists.encode(context, pass, bits, lists)?;
+            self.lists_stale = false;
+        }
         self.dynamic.encode(context, pass, aabbs)?;
         if self.fixed_stale {
             self.fixed.encode(context, pass, aabbs)?;

@@ -47,6 +47,7 @@
 //! - Once the buffers have grown to the largest scene seen, a step allocates nothing.
 
 pub mod alternatives;
+mod body_lists;
 mod cpu;
 pub mod gpu;
 mod query;
