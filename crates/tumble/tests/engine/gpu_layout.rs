@@ -771,7 +771,7 @@ fn row_and_batching_parameters_match_rust() {
         vec![rust_layout!(RowParams {
             softness,
             static_softness,
-            slot_count,
+            slots,
             _pad0,
             _pad1,
             _pad2

@@ -1,14 +1,17 @@
 // Contact rows on the GPU: the twin of build_constraints in contact.rs (read its docs for the
 // formulas). One thread per manifold slot (pairs, then children): `flag` marks the slots
 // that get a constraint, an exclusive scan of the flags gives each one its place (the CPU's
-// order), and `build` writes it there.
+// order), and `build` writes it there. The threads cover the slots' buffers (`slots`), which
+// change size only when they grow, and the live slots are counted on the device (`count`): the
+// dispatches stay the same from step to step while the pairs come and go.
 
 // Softness as (bias_rate, mass_scale, impulse_scale, unused): a struct member of a uniform
 // block would be padded to 16 bytes anyway.
 struct RowParams {
     softness: vec4<f32>,
     static_softness: vec4<f32>,
-    slot_count: u32,
+    // Slots the dispatches cover, at least the live ones.
+    slots: u32,
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
@@ -19,8 +22,8 @@ struct RowParams {
 @group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
 @group(0) @binding(2) var<storage, read> contacts: array<PairContact>;
 @group(0) @binding(3) var<storage, read> masses: array<BodyMass>;
-// `flag`: 1 where a slot gets a constraint (slot_count + 1 entries, the last 0). `build`: their
-// exclusive scan, so entry slot_count is the number of constraints.
+// `flag`: 1 where a slot gets a constraint (slots + 1 entries, 0 past the live slots). `build`:
+// their exclusive scan, so entry `slots` is the number of constraints.
 @group(0) @binding(4) var<storage, read_write> places: array<u32>;
 @group(0) @binding(5) var<storage, read> poses: array<BodyPose>;
 @group(0) @binding(6) var<storage, read> velocities: array<BodyVelocity>;
@@ -28,6 +31,8 @@ struct RowParams {
 @group(0) @binding(8) var<storage, read_write> constraints: array<ContactConstraint>;
 // Per constraint: its bodies as the constraint has them, for a batching on the device.
 @group(0) @binding(9) var<storage, read_write> row_bodies: array<vec2<u32>>;
+// Word 0: the live slots.
+@group(0) @binding(10) var<storage, read> count: array<u32>;
 
 fn slot_index(id: vec3<u32>, workgroup: vec3<u32>, groups: vec3<u32>) -> u32 {
     return flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + id.x;
@@ -53,10 +58,8 @@ fn flag(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let slot = slot_index(id, workgroup, groups);
-    if slot < params.slot_count {
-        places[slot] = select(0u, 1u, has_constraint(slot));
-    } else if slot == params.slot_count {
-        places[slot] = 0u;
+    if slot <= params.slots {
+        places[slot] = select(0u, 1u, slot < count[0] && has_constraint(slot));
     }
 }
 
@@ -95,7 +98,7 @@ fn build(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let slot = slot_index(id, workgroup, groups);
-    if slot >= params.slot_count || !has_constraint(slot) {
+    if slot >= count[0] || !has_constraint(slot) {
         return;
     }
     let bodies = slot_bodies(slot);
