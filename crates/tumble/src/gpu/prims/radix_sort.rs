@@ -176,6 +176,10 @@ pub struct RadixSort {
     /// None: the context's best path.
     path: Option<SortPath>,
     cached: Option<(SortKey, Vec<Dispatch>)>,
+    /// The histogram and scatter kernels for (key words, path): kept, so that a sort of a new
+    /// count (a tree's leaves, each step a body sleeps) binds them again without composing
+    /// and hashing their source (about half of rebuilding the dispatches).
+    kernels: Option<((u32, SortPath), [Kernel; 2])>,
 }
 
 /// What the cached dispatches were built for: buffers, count, key bits.
@@ -195,7 +199,7 @@ impl RadixSort {
     pub fn on(path: SortPath) -> Self {
         Self {
             path: Some(path),
-            cached: None,
+            ..Self::default()
         }
     }
 
@@ -229,7 +233,18 @@ impl RadixSort {
             Some((cached_key, dispatches)) if *cached_key == key => dispatches,
             cached => {
                 let path = self.path.unwrap_or_else(|| SortPath::best(context));
-                let dispatches = sort_dispatches::<K>(path, context, &key.0, count, key_bits)?;
+                let kernels = match &self.kernels {
+                    Some((built_for, kernels)) if *built_for == (K::WORDS, path) => kernels,
+                    _ => {
+                        &self
+                            .kernels
+                            .insert(((K::WORDS, path), kernels(context, K::WORDS, path)))
+                            .1
+                    }
+                };
+                let buffers = &key.0;
+                let dispatches =
+                    sort_dispatches::<K>(path, context, kernels, buffers, count, key_bits)?;
                 &mut cached.insert((key, dispatches)).1
             }
         };
@@ -238,10 +253,22 @@ impl RadixSort {
     }
 }
 
-/// Builds the passes. `buffers` = [keys in, values in, keys out, values out].
+/// The histogram and scatter kernels for keys of `words` u32 on `path`.
+fn kernels(context: &GpuContext, words: u32, path: SortPath) -> [Kernel; 2] {
+    let source = wgsl(words, path, context.info.subgroup_min_size);
+    let kernel = |label, entry| Kernel::new(context, label, &source, entry, &BINDINGS);
+    [
+        kernel("radix histogram", "histogram"),
+        kernel("radix scatter", "scatter"),
+    ]
+}
+
+/// Builds the passes with `kernels` ([`kernels`]). `buffers` = [keys in, values in, keys out,
+/// values out].
 fn sort_dispatches<K: RadixKey>(
     path: SortPath,
     context: &GpuContext,
+    [histogram, scatter]: &[Kernel; 2],
     buffers: &[wgpu::Buffer; 4],
     count: usize,
     key_bits: u32,
@@ -262,9 +289,6 @@ fn sort_dispatches<K: RadixKey>(
         path.runs_on(context),
         "{path:?} does not run on this adapter"
     );
-    let source = wgsl(K::WORDS, path, context.info.subgroup_min_size);
-    let histogram = Kernel::new(context, "radix histogram", &source, "histogram", &BINDINGS);
-    let scatter = Kernel::new(context, "radix scatter", &source, "scatter", &BINDINGS);
     let tiles = workgroups_for(count, RADIX_TILE) as usize;
     // Input windows also bound the look-back ([`look_back_tiles`]); output windows only the
     // binding.
@@ -325,7 +349,7 @@ fn sort_dispatches<K: RadixKey>(
     let mut runs: Vec<Run> = inputs
         .iter()
         .map(|&input| Run {
-            kernel: &histogram,
+            kernel: histogram,
             workgroups: workgroups_for(input.len, HISTOGRAM_BLOCK),
             pass: 0,
             input,
@@ -337,7 +361,7 @@ fn sort_dispatches<K: RadixKey>(
         for &input in &inputs {
             for (index, &output) in outputs.iter().enumerate() {
                 runs.push(Run {
-                    kernel: &scatter,
+                    kernel: scatter,
                     workgroups: workgroups_for(input.len, RADIX_TILE),
                     pass,
                     input,

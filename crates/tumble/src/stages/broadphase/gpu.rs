@@ -183,12 +183,23 @@ struct Lbvh {
     sort: RadixSort,
     /// Dispatches before and after the sort, and the AABB buffer they read.
     cached: Option<(wgpu::Buffer, Vec<Dispatch>, Vec<Dispatch>)>,
+    /// The codes' kernels (bounds, fold, Morton) and the build's (internal nodes, refit),
+    /// compiled once: the dispatches are built again for each new leaf count.
+    kernels: [Kernel; 5],
 }
 
 impl Lbvh {
     fn new(context: &GpuContext) -> Result<Self, GpuError> {
         let empty = |label| GpuVec::<u32>::with_capacity(context, label, 0);
+        let [codes_source, build_source, _] = wgsl();
+        let code_kernel =
+            |entry| Kernel::new(context, entry, &codes_source, entry, &CODES_BINDINGS);
+        let build_kernel =
+            |entry| Kernel::new(context, entry, &build_source, entry, &BUILD_BINDINGS);
+        let [partial, fold, morton] = ["bounds_partial", "bounds_final", "morton"].map(code_kernel);
+        let [internal, refit] = ["build_internal", "refit"].map(build_kernel);
         Ok(Self {
+            kernels: [partial, fold, morton, internal, refit],
             bodies: empty("lbvh bodies")?,
             scene: GpuVec::with_capacity(context, "lbvh scene bounds", 0)?,
             codes: empty("lbvh codes")?,
@@ -266,7 +277,7 @@ impl Lbvh {
         // groups see the buffers the sort will write.
         self.sorted_codes.resize(context, leaves)?;
         self.sorted_bodies.resize(context, leaves)?;
-        let [codes_source, build_source, _] = wgsl();
+        let [partial, fold, morton, internal, refit] = &self.kernels;
         let partials = workgroups_for(leaves, BOUNDS_BLOCK);
         let code_slots = UniformSlots::new(
             context,
@@ -278,9 +289,6 @@ impl Lbvh {
                 padding1: 0,
             }],
         );
-        let code_kernel =
-            |entry| Kernel::new(context, entry, &codes_source, entry, &CODES_BINDINGS);
-        let [partial, fold, morton] = ["bounds_partial", "bounds_final", "morton"].map(code_kernel);
         let code_group = |kernel: &Kernel| {
             kernel.bind(
                 context,
@@ -294,9 +302,9 @@ impl Lbvh {
             )
         };
         let codes = vec![
-            partial.dispatch(code_group(&partial), partials),
-            fold.dispatch(code_group(&fold), 1),
-            morton.dispatch(code_group(&morton), workgroups_for(leaves, WORKGROUP_SIZE)),
+            partial.dispatch(code_group(partial), partials),
+            fold.dispatch(code_group(fold), 1),
+            morton.dispatch(code_group(morton), workgroups_for(leaves, WORKGROUP_SIZE)),
         ];
         let build_slots = UniformSlots::new(
             context,
@@ -308,9 +316,6 @@ impl Lbvh {
                 padding2: 0,
             }],
         );
-        let build_kernel =
-            |entry| Kernel::new(context, entry, &build_source, entry, &BUILD_BINDINGS);
-        let [internal, refit] = ["build_internal", "refit"].map(build_kernel);
         let build_group = |kernel: &Kernel| {
             kernel.bind(
                 context,
@@ -327,10 +332,10 @@ impl Lbvh {
         };
         let build = vec![
             internal.dispatch(
-                build_group(&internal),
+                build_group(internal),
                 workgroups_for(leaves - 1, WORKGROUP_SIZE),
             ),
-            refit.dispatch(build_group(&refit), workgroups_for(leaves, WORKGROUP_SIZE)),
+            refit.dispatch(build_group(refit), workgroups_for(leaves, WORKGROUP_SIZE)),
         ];
         Ok((codes, build))
     }
