@@ -502,9 +502,6 @@ mod tests {
         }
     }
 
-    /// The islands linked on every core put to sleep exactly the islands that a sequential
-    /// union over every awake edge finds with all their bodies rested, with the same ids, on
-    /// random graphs (static bodies, the held body, bodies just short of the time to sleep).
     /// The holds stamped by one call hold nothing at the next, also across the stamp's wrap:
     /// two islands held by a body short of rest, then, all rested, both asleep.
     #[test]
@@ -546,6 +543,9 @@ mod tests {
         }
     }
 
+    /// The islands linked on every core put to sleep exactly the islands that a sequential
+    /// union over every awake edge finds with all their bodies rested, with the same ids, on
+    /// random graphs (static bodies, the held body, bodies just short of the time to sleep).
     #[test]
     fn linked_islands_sleep_when_all_their_bodies_rested() {
         let mut seed = 0x9E37_79B9_7F4A_7C15u64;

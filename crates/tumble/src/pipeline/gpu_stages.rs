@@ -91,6 +91,8 @@ const CONSTRAINTS_SUBMIT: SpanPath = &["constraints", "submit"];
 const JOINT_ROWS_KERNEL: SpanPath = &["constraints", "joint kernel"];
 /// The islands' links ([`GpuIslandLinks`]): a pass of their own in the rows' submission.
 const ISLAND_LINKS_KERNEL: SpanPath = &["constraints", "kernels: island links"];
+/// The pairs' summaries read back after the collision, when a step needs them after all.
+const SUMMARIES_DOWNLOAD: SpanPath = &["pair summaries to cpu"];
 /// Their roots' read-back, which the sleep waits for.
 const ISLAND_LINKS_DOWNLOAD: SpanPath = &["sleep", "copy links to cpu"];
 const BATCHING: StageSpans = StageSpans {
@@ -153,7 +155,7 @@ fn encode_summary_downloads(
     encoder: &mut wgpu::CommandEncoder,
     broadphase: &GpuBroadphase,
     keys: &mut GpuVec<u64>,
-    summaries: &mut GpuPairSummaries,
+    summaries: Option<&mut GpuPairSummaries>,
     count: usize,
 ) {
     if count > 0 {
@@ -161,9 +163,11 @@ fn encode_summary_downloads(
         encoder.copy_buffer_to_buffer(broadphase.keys().buffer(), 0, keys.buffer(), 0, bytes);
     }
     keys.encode_download_prefix(context, encoder, count);
-    summaries
-        .summaries
-        .encode_download_prefix(context, encoder, count);
+    if let Some(summaries) = summaries {
+        summaries
+            .summaries
+            .encode_download_prefix(context, encoder, count);
+    }
 }
 
 /// [`GpuStages::collide`]'s kernels, timed as four passes: the AABBs and the trees' builds,
@@ -248,8 +252,9 @@ pub(crate) enum CollideOutput<'a> {
 
 /// What [`GpuStages::collide`] reads back when the contacts stay on the device.
 pub(crate) struct SummaryOutput<'a> {
-    /// Gets each pair's [`PairSummary`].
-    pub summaries: &'a mut Vec<PairSummary>,
+    /// Gets each pair's [`PairSummary`], or, when `None`, leaves them on the device for
+    /// [`GpuStages::read_pair_summaries`] (where the step will likely not need them).
+    pub summaries: Option<&'a mut Vec<PairSummary>>,
     /// Gets how many pairs were added and removed since last step's (the device's diff),
     /// what [`PairCache::adopt_keys`](crate::stages::pairs::PairCache::adopt_keys) takes.
     pub changes: &'a mut (usize, usize),
@@ -452,6 +457,10 @@ pub(crate) struct GpuStages {
     islands_linked: bool,
     island_links_made: usize,
     host_island_links: bool,
+    /// Steps whose collision left the pairs' summaries on the device, and those read back
+    /// after all ([`Self::read_pair_summaries`]).
+    summaries_left: usize,
+    summaries_fetched: usize,
     solver: GpuSolver,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
@@ -559,6 +568,8 @@ impl GpuStages {
             islands_linked: false,
             island_links_made: 0,
             host_island_links: false,
+            summaries_left: 0,
+            summaries_fetched: 0,
             solver: GpuSolver::new(&context)?,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
@@ -650,6 +661,42 @@ impl GpuStages {
     /// the device. Reads through a staging buffer of its own, for callers holding `&self`.
     pub fn read_row_colors(&self) -> Result<Vec<u32>, GpuError> {
         self.batching.colors.read(&self.context)
+    }
+
+    /// This step's pairs' summaries, which its [`Self::collide`] left on the device, into
+    /// `out` (one per pair, `count` of them): a submission and a wait of their own.
+    pub fn read_pair_summaries(
+        &mut self,
+        profiler: &mut Profiler,
+        count: usize,
+        out: &mut Vec<PairSummary>,
+    ) -> Result<(), GpuError> {
+        if !self.summarized || count > self.summaries.summaries.len() {
+            return Err(GpuError::Readback {
+                what: "pair summaries",
+                reason: "no collision of this step left them on the device".to_owned(),
+            });
+        }
+        let start = Instant::now();
+        let context = &self.context;
+        let mut encoder = context
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("pair summaries read-back"),
+            });
+        let summaries = &mut self.summaries.summaries;
+        summaries.encode_download_prefix(context, &mut encoder, count);
+        context.queue.submit([encoder.finish()]);
+        summaries.read_download(context, out)?;
+        record_copy(profiler, SUMMARIES_DOWNLOAD, elapsed_ms(start));
+        self.summaries_fetched += 1;
+        Ok(())
+    }
+
+    /// Whether the wake test's candidates are listed on the host (for the tests that compare
+    /// them with the device's), which reads the pairs' summaries.
+    pub fn lists_wake_candidates_on_host(&self) -> bool {
+        self.host_wake_candidates
     }
 
     /// Whether this step's rows' submission linked the islands ([`Self::read_island_links`]).
@@ -855,6 +902,14 @@ impl GpuStages {
     ) -> Result<(), GpuError> {
         let context = &self.context;
         let summarize = matches!(output, CollideOutput::Summaries(_));
+        // Whether the pairs' summaries come back with the keys.
+        let summaries_back = matches!(
+            output,
+            CollideOutput::Summaries(SummaryOutput {
+                summaries: Some(_),
+                ..
+            })
+        );
         let old_count = old_keys.len();
         let wake_asleep = match &output {
             CollideOutput::Summaries(SummaryOutput {
@@ -1011,6 +1066,7 @@ impl GpuStages {
                     }
                     broadphase.encode_count_download(context, encoder);
                     if summarize {
+                        let summaries = summaries_back.then_some(&mut *summaries);
                         encode_summary_downloads(
                             context, encoder, broadphase, row_keys, summaries, staged,
                         );
@@ -1050,15 +1106,17 @@ impl GpuStages {
                         &mut encoder,
                         broadphase,
                         &mut self.keys,
-                        summaries,
+                        summaries_back.then_some(summaries),
                         count,
                     );
                     context.queue.submit([encoder.finish()]);
                 }
                 self.keys.read_download(context, keys)?;
-                self.summaries.summaries.read_download(context, out)?;
                 keys.truncate(count);
-                out.truncate(count);
+                if let Some(out) = out {
+                    self.summaries.summaries.read_download(context, out)?;
+                    out.truncate(count);
+                }
                 self.keys.resize(context, count)?;
                 *tally = self.row_tally.read(context)?;
                 // The pairs the lookup found among last step's are kept; the others were added,
@@ -1101,6 +1159,7 @@ impl GpuStages {
         self.pair_contacts_fresh = false;
         self.collided = true;
         self.summarized = summarize;
+        self.summaries_left += usize::from(summarize && !summaries_back);
         Ok(())
     }
 
@@ -3043,8 +3102,25 @@ mod tests {
             );
             let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
             let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
-            let made = world.gpu.as_ref().unwrap().island_links_made;
-            (poses, velocities, asleep, table_asleep, made)
+            let gpu = world.gpu.as_ref().unwrap();
+            // No joints, the PGS solver: the pairs' summaries stay on the device, unless the
+            // host links the islands, which reads them.
+            let (left, fetched) = (gpu.summaries_left, gpu.summaries_fetched);
+            if host_island_links {
+                assert!(fetched > 100, "{fetched} steps read the summaries back");
+            } else {
+                assert!(
+                    left > 140 && fetched == 0,
+                    "{left} left, {fetched} read back"
+                );
+            }
+            (
+                poses,
+                velocities,
+                asleep,
+                table_asleep,
+                gpu.island_links_made,
+            )
         };
         let (poses, velocities, asleep, table_asleep, made) = run(false);
         let host = run(true);

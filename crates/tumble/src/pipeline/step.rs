@@ -14,7 +14,7 @@ use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
-    BatchLayout, BodyInputs, BodyState, CollideOutput, JointRowInputs, RowSlots, RowsTo,
+    BatchLayout, BodyInputs, BodyState, CollideOutput, GpuStages, JointRowInputs, RowSlots, RowsTo,
     SummaryOutput, WakeQuery,
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
@@ -129,8 +129,17 @@ impl World {
         // Islands touched by an awake body, or joined to one, wake before their rows are built.
         if self.islands.sleeping_count() > 0 {
             self.profiler.begin("wake");
-            self.wake_touched();
+            // The host's pass over every pair reads their summaries.
+            let fetched = if self.scratch.wake_listed {
+                Ok(())
+            } else {
+                self.fetch_pair_summaries()
+            };
+            if fetched.is_ok() {
+                self.wake_touched();
+            }
             self.profiler.end();
+            fetched?;
         }
         // Until an awake body may have rested long enough by the end of this step, no island
         // can fall asleep: the islands need no links.
@@ -238,12 +247,12 @@ impl World {
                 } else if self.contacts_on_device {
                     // The collision counted the pairs with points on the device.
                     debug_assert!(scratch.tally_fresh, "the contacts stay on the device");
-                    debug_assert_eq!(
-                        scratch.pair_tally.touching,
-                        self.pair_summaries
-                            .iter()
-                            .filter(|s| s.point_count > 0)
-                            .count()
+                    debug_assert!(
+                        !self.pair_summaries_fresh
+                            || scratch.pair_tally.touching
+                                == (self.pair_summaries.iter())
+                                    .filter(|s| s.point_count > 0)
+                                    .count()
                     );
                     Some(scratch.pair_tally.touching)
                 } else {
@@ -270,6 +279,26 @@ impl World {
                     },
                     None => RowsTo::Host(&mut scratch.contacts, &mut scratch.joints),
                 };
+                device_layout = chained
+                    && scratch.joint_row_bodies.is_empty()
+                    && self.contacts_on_device
+                    && config.solver == SolverKind::Pgs
+                    && gpu.lays_out_batches();
+                // The host counts the rows itself, or summarizes them, from the pairs'
+                // summaries: read back before the rows are submitted, whose kernels the read's
+                // wait would otherwise wait for.
+                if chained && self.contacts_on_device && (!device_layout || scratch.woke) {
+                    let fetched = fetch_pair_summaries(
+                        gpu,
+                        profiler,
+                        (self.pairs.len(), &mut self.pair_summaries),
+                        &mut self.pair_summaries_fresh,
+                    );
+                    if fetched.is_err() {
+                        profiler.end();
+                    }
+                    fetched?;
+                }
                 let built = gpu.build_constraints(
                     profiler,
                     slots,
@@ -282,11 +311,6 @@ impl World {
                     profiler.end();
                 }
                 built?;
-                device_layout = chained
-                    && scratch.joint_row_bodies.is_empty()
-                    && self.contacts_on_device
-                    && config.solver == SolverKind::Pgs
-                    && gpu.lays_out_batches();
                 if chained && self.contacts_on_device {
                     let rows = DeviceRows {
                         keys: self.pairs.keys(),
@@ -305,7 +329,7 @@ impl World {
                         };
                         row_tally = Some(if scratch.woke { rows.tally() } else { counted });
                         debug_assert!(
-                            scratch.woke || rows.tally() == counted,
+                            scratch.woke || !self.pair_summaries_fresh || rows.tally() == counted,
                             "the device's tally of the rows is not the host's"
                         );
                     } else {
@@ -505,6 +529,19 @@ impl World {
             && !linked_on_device
             && self.gpu.is_some()
             && self.devices.get(Stage::Solver) == Executor::Gpu;
+        // The host's links read the pairs' summaries.
+        if link_now
+            && self.contacts_on_device
+            && let Some(gpu) = &mut self.gpu
+        {
+            let summaries = (self.pairs.len(), &mut self.pair_summaries);
+            let fresh = &mut self.pair_summaries_fresh;
+            let fetched = fetch_pair_summaries(gpu, profiler, summaries, fresh);
+            if fetched.is_err() {
+                profiler.end();
+            }
+            fetched?;
+        }
         let pair_edges = PairEdges {
             keys: self.pairs.keys(),
             values: self.pairs.values(),
@@ -514,7 +551,7 @@ impl World {
         if let Some(tally) = row_tally.filter(|_| !scratch.woke) {
             scratch.unsummarized_rows = tally.rows;
         }
-        let summarize = row_tally.is_some() && scratch.unsummarized_rows == 0;
+        let summarize = row_tally.is_some() && scratch.woke;
         let device_rows = summarize.then(|| DeviceRows {
             keys: self.pairs.keys(),
             summaries: &self.pair_summaries,
@@ -741,7 +778,13 @@ impl World {
             ..collect_stats(
                 &self.pairs,
                 &self.children,
-                self.contacts_on_device.then_some(&self.pair_summaries[..]),
+                // Stale where the collision left this step's on the device: then the tally
+                // stands for them.
+                match (self.contacts_on_device, self.pair_summaries_fresh) {
+                    (true, true) => PairContacts::Summaries(&self.pair_summaries),
+                    (true, false) => PairContacts::OnDevice,
+                    (false, _) => PairContacts::Host,
+                },
                 // The collision's tally holds the rows' points unless an island woke since.
                 (scratch.tally_fresh && !scratch.woke).then_some(scratch.pair_tally),
                 &self.masses,
@@ -755,9 +798,8 @@ impl World {
         }
         if config.sleeping {
             self.profiler.begin("sleep");
-            let slept = self.fall_asleep(linked);
+            self.fall_asleep(linked);
             self.profiler.end();
-            slept?;
         }
         self.stats.sleeping = self.islands.sleeping_count();
         Ok(())
@@ -831,6 +873,15 @@ impl World {
             candidates: &mut scratch.wake_pair_indices,
             listed: &mut scratch.wake_listed,
         });
+        // Where the batches will be laid out on the device (no joint rows, the PGS solver) and
+        // the device lists the wake's candidates, only the rarer steps read the pairs'
+        // summaries (an island woken after the collision, the host's links): they stay there.
+        let device_layout = config.solver == SolverKind::Pgs
+            && gpu.lays_out_batches()
+            && self.drag.is_none()
+            && self.joints.iter().flatten().next().is_none();
+        let summaries_back = !device_layout || gpu.lists_wake_candidates_on_host();
+        self.pair_summaries_fresh = device_contacts && summaries_back;
         profiler.begin("collision");
         let collided = gpu.collide(
             profiler,
@@ -842,7 +893,7 @@ impl World {
             &mut scratch.pair_keys,
             if device_contacts {
                 CollideOutput::Summaries(SummaryOutput {
-                    summaries: &mut self.pair_summaries,
+                    summaries: summaries_back.then_some(&mut self.pair_summaries),
                     changes: &mut scratch.pair_changes,
                     tally: &mut scratch.pair_tally,
                     wake,
@@ -1048,6 +1099,21 @@ impl World {
         Ok(())
     }
 
+    /// This step's pairs' summaries on the host (`pair_summaries`), read back from the device
+    /// where the collision left them; nothing when they are here already, or when the
+    /// contacts are the host's.
+    fn fetch_pair_summaries(&mut self) -> Result<(), GpuError> {
+        match &mut self.gpu {
+            Some(gpu) if self.contacts_on_device => fetch_pair_summaries(
+                gpu,
+                &mut self.profiler,
+                (self.pairs.len(), &mut self.pair_summaries),
+                &mut self.pair_summaries_fresh,
+            ),
+            _ => Ok(()),
+        }
+    }
+
     /// Wakes every sleeping island that an awake dynamic body touches (a manifold with points)
     /// or is joined to, until none is left: a woken island may touch another.
     fn wake_touched(&mut self) {
@@ -1099,8 +1165,8 @@ impl World {
     /// Rest times from this step's velocities; islands that rested long enough go to sleep
     /// and into the broadphase's fixed tree. `linked`: this step's contacts were linked into
     /// islands already (while the device solved); else the device's links are taken where it
-    /// made them, or the host links them now.
-    fn fall_asleep(&mut self, linked: bool) -> Result<(), GpuError> {
+    /// made them, or the host links them now. It cannot fail: the step has moved the bodies.
+    fn fall_asleep(&mut self, linked: bool) {
         let colliders = &self.colliders;
         self.profiler.begin("rest timers");
         let any_rested = self.islands.update_timers(
@@ -1112,15 +1178,22 @@ impl World {
         self.profiler.end();
         // No body has rested long enough to sleep: no island can (see update_timers).
         if !any_rested {
-            return Ok(());
+            return;
         }
-        let scratch = &mut self.scratch;
         let mut linked = linked;
         if !linked && let Some(gpu) = &mut self.gpu {
-            let roots = &mut scratch.island_roots;
-            linked = gpu.read_island_links(&mut self.profiler, roots)?
-                && self.islands.adopt_links(roots);
+            // A read that fails leaves the links to the host (the device's error shows at its
+            // next submission).
+            let roots = &mut self.scratch.island_roots;
+            let read = gpu.read_island_links(&mut self.profiler, roots);
+            linked = read.unwrap_or(false) && self.islands.adopt_links(roots);
         }
+        if !linked && self.fetch_pair_summaries().is_err() {
+            // Nor can the host link them without the pairs' summaries: no island falls asleep
+            // this step.
+            return;
+        }
+        let scratch = &mut self.scratch;
         if !linked {
             let contacts = PairEdges {
                 keys: self.pairs.keys(),
@@ -1150,7 +1223,7 @@ impl World {
         );
         self.profiler.end();
         if self.changed_bodies.is_empty() {
-            return Ok(());
+            return;
         }
         // Their masses and velocities are zero now.
         self.masses_changed();
@@ -1159,8 +1232,22 @@ impl World {
         }
         self.resting_pairs_changed();
         self.refresh_resting = true;
-        Ok(())
     }
+}
+
+/// This step's pairs' summaries into `summaries` (`count` of them) from `gpu`, unless
+/// `fresh` says they are there already (see [`World::fetch_pair_summaries`]).
+fn fetch_pair_summaries(
+    gpu: &mut GpuStages,
+    profiler: &mut crate::profile::Profiler,
+    (count, summaries): (usize, &mut Vec<PairSummary>),
+    fresh: &mut bool,
+) -> Result<(), GpuError> {
+    if !*fresh {
+        gpu.read_pair_summaries(profiler, count, summaries)?;
+        *fresh = true;
+    }
+    Ok(())
 }
 
 /// Pairs from which the host's work during the solve ([`link_contacts`], the rows'
@@ -1384,16 +1471,32 @@ pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
 /// Items a task of [`collect_stats`] takes at least: a few thousand stay on one thread.
 const MIN_PER_TASK: usize = 8192;
 
-/// The step's statistics; `summaries` stand for the pairs' contacts when those stayed on the
-/// device, and `tally` for the passes over them and the rows when the device counted them.
+/// Where [`collect_stats`] finds the pairs' contacts.
+#[derive(Clone, Copy)]
+enum PairContacts<'a> {
+    /// In the pair cache.
+    Host,
+    /// On the device, this step's summaries read back.
+    Summaries(&'a [PairSummary]),
+    /// On the device with their summaries: the collision's tally must stand for them.
+    OnDevice,
+}
+
+/// The step's statistics; `contacts` says where the pairs' contacts are (their summaries
+/// stand for them when they stayed on the device), and `tally` stands for the passes over
+/// them and the rows when the device counted them.
 fn collect_stats(
     pairs: &crate::stages::pairs::PairCache<narrowphase::PairContact>,
     children: &narrowphase::ChildCache,
-    summaries: Option<&[PairSummary]>,
+    contacts: PairContacts,
     tally: Option<PairTally>,
     masses: &[BodyMass],
     scratch: &StepScratch,
 ) -> StepStats {
+    let summaries = match contacts {
+        PairContacts::Summaries(summaries) => Some(summaries),
+        PairContacts::OnDevice | PairContacts::Host => None,
+    };
     let stats = StepStats {
         pairs: pairs.len(),
         pairs_added: pairs.changes().0,
@@ -1417,20 +1520,26 @@ fn collect_stats(
             max_penetration: tally.deepest,
             ..stats.clone()
         };
-        debug_assert_eq!(
-            counted,
-            host_stats(
-                stats.clone(),
-                host_contacts,
-                pairs,
-                children,
-                (summaries, masses),
-                scratch
-            ),
+        // The host's passes, where it has what they read.
+        debug_assert!(
+            matches!(contacts, PairContacts::OnDevice)
+                || counted
+                    == host_stats(
+                        stats.clone(),
+                        host_contacts,
+                        pairs,
+                        children,
+                        (summaries, masses),
+                        scratch
+                    ),
             "the device's tally of the rows is not the host's"
         );
         return counted;
     }
+    debug_assert!(
+        !matches!(contacts, PairContacts::OnDevice),
+        "the host counts from the pairs' summaries, which it has not read"
+    );
     let pair_contacts = (summaries, masses);
     host_stats(
         stats,

@@ -171,6 +171,9 @@ pub struct World {
     /// Whether a step may leave the contacts on the device (tests turn it off to compare).
     pub(crate) contacts_may_stay_on_device: bool,
     pub(crate) pair_summaries: Vec<PairSummary>,
+    /// Whether `pair_summaries` holds this step's: the collision leaves them on the device
+    /// where the step will likely not read them (`World::fetch_pair_summaries`).
+    pub(crate) pair_summaries_fresh: bool,
     pub(crate) device_contacts: OnceLock<Vec<PairContact>>,
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
@@ -225,6 +228,7 @@ impl World {
             contacts_on_device: false,
             contacts_may_stay_on_device: true,
             pair_summaries: Vec::new(),
+            pair_summaries_fresh: false,
             device_contacts: OnceLock::new(),
             host_shapes: 0,
             may_bounce: false,

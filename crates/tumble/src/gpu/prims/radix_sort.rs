@@ -233,15 +233,7 @@ impl RadixSort {
             Some((cached_key, dispatches)) if *cached_key == key => dispatches,
             cached => {
                 let path = self.path.unwrap_or_else(|| SortPath::best(context));
-                let kernels = match &self.kernels {
-                    Some((built_for, kernels)) if *built_for == (K::WORDS, path) => kernels,
-                    _ => {
-                        &self
-                            .kernels
-                            .insert(((K::WORDS, path), kernels(context, K::WORDS, path)))
-                            .1
-                    }
-                };
+                let kernels = &mut self.kernels;
                 let buffers = &key.0;
                 let dispatches =
                     sort_dispatches::<K>(path, context, kernels, buffers, count, key_bits)?;
@@ -263,12 +255,12 @@ fn kernels(context: &GpuContext, words: u32, path: SortPath) -> [Kernel; 2] {
     ]
 }
 
-/// Builds the passes with `kernels` ([`kernels`]). `buffers` = [keys in, values in, keys out,
-/// values out].
+/// Builds the passes, with the kernels `kernels` holds for (key words, path), else compiled
+/// into it ([`kernels`]). `buffers` = [keys in, values in, keys out, values out].
 fn sort_dispatches<K: RadixKey>(
     path: SortPath,
     context: &GpuContext,
-    [histogram, scatter]: &[Kernel; 2],
+    kernels: &mut Option<((u32, SortPath), [Kernel; 2])>,
     buffers: &[wgpu::Buffer; 4],
     count: usize,
     key_bits: u32,
@@ -289,6 +281,14 @@ fn sort_dispatches<K: RadixKey>(
         path.runs_on(context),
         "{path:?} does not run on this adapter"
     );
+    let [histogram, scatter] = match kernels {
+        Some((built_for, kernels)) if *built_for == (K::WORDS, path) => kernels,
+        _ => {
+            &kernels
+                .insert(((K::WORDS, path), self::kernels(context, K::WORDS, path)))
+                .1
+        }
+    };
     let tiles = workgroups_for(count, RADIX_TILE) as usize;
     // Input windows also bound the look-back ([`look_back_tiles`]); output windows only the
     // binding.

@@ -481,6 +481,9 @@ impl GpuBroadphase {
             u32::try_from(is_static.len()).is_ok_and(|count| count < u32::MAX),
             "body indices fit below u32::MAX"
         );
+        // Forgotten until the lists are sized and the bits sent: a failure on the way leaves
+        // the next call to make them again.
+        self.is_static.clear();
         // In a settling pile islands sleep or wake, and so change this, at most steps: the
         // host packs the bits and counts them, the device makes the lists.
         let words = &mut self.static_words;
@@ -501,7 +504,6 @@ impl GpuBroadphase {
             .set_body_count(context, is_static.len() - fixed)?;
         self.fixed.set_body_count(context, fixed)?;
         self.static_bits.upload(context, words)?;
-        self.is_static.clear();
         self.is_static.extend_from_slice(is_static);
         self.lists_stale = true;
         self.fixed_stale = true;
@@ -769,6 +771,10 @@ impl GpuBroadphase {
         };
         // Kept for the next call, so the cached dispatches stay valid.
         self.aabbs = Some(uploaded);
+        if result.is_err() {
+            // Its submission may not have run: the trees' body lists are made again.
+            self.forget_bodies();
+        }
         result?;
         self.download_keys(context)
     }
