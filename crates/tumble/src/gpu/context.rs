@@ -13,7 +13,7 @@
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
-use crate::gpu::kernel::PipelineCache;
+use crate::gpu::kernel::{KernelSource, PipelineCache};
 
 /// Everything that can go wrong while talking to the GPU.
 #[derive(Clone, Debug, thiserror::Error)]
@@ -133,13 +133,32 @@ impl GpuContext {
         SHARED.get_or_init(Self::new).clone()
     }
 
-    /// "name (backend, device type)", for reports.
+    /// From now on, keep the source of each kernel compiled on this context (none is kept
+    /// otherwise), for [`Self::kernel_sources`].
+    pub fn record_kernel_sources(&self) {
+        self.pipelines
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .sources
+            .get_or_insert_default();
+    }
+
+    /// The sources of the kernels compiled since [`Self::record_kernel_sources`], in order.
+    pub fn kernel_sources(&self) -> Vec<KernelSource> {
+        let cache = self
+            .pipelines
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        cache.sources.clone().unwrap_or_default()
+    }
+
     /// True for a driver that runs on the CPU (Mesa's lavapipe or llvmpipe): it runs every
     /// kernel, but slower than the CPU executors, so `--device auto` passes it over.
     pub fn is_cpu_driver(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 
+    /// "name (backend, device type)", for reports.
     pub fn describe(&self) -> String {
         format!(
             "{} ({:?}, {:?})",

@@ -88,6 +88,18 @@ pub struct Kernel {
 #[derive(Debug, Default)]
 pub struct PipelineCache {
     kernels: HashMap<u64, Kernel>,
+    /// Each kernel compiled since [`GpuContext::record_kernel_sources`] was called, in order.
+    pub(crate) sources: Option<Vec<KernelSource>>,
+}
+
+/// What a kernel was compiled from, for tools that compile it again outside wgpu (the
+/// `kernel_stats` example asks the driver how many registers each kernel takes).
+#[derive(Clone, Debug)]
+pub struct KernelSource {
+    pub label: String,
+    pub entry: String,
+    /// The composed WGSL ([`Source::text`]).
+    pub wgsl: String,
 }
 
 impl Kernel {
@@ -108,11 +120,19 @@ impl Kernel {
             .pipelines
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner());
-        cache
-            .kernels
-            .entry(key)
-            .or_insert_with(|| Self::compile(context, label, source, entry, bindings))
-            .clone()
+        if let Some(kernel) = cache.kernels.get(&key) {
+            return kernel.clone();
+        }
+        if let Some(sources) = &mut cache.sources {
+            sources.push(KernelSource {
+                label: label.to_owned(),
+                entry: entry.to_owned(),
+                wgsl: source.text().to_owned(),
+            });
+        }
+        let kernel = Self::compile(context, label, source, entry, bindings);
+        cache.kernels.insert(key, kernel.clone());
+        kernel
     }
 
     fn compile(
