@@ -364,9 +364,13 @@ fn apply_sweep(kind: u32, index: u32) {
 
 // One sweep of this dispatch's batches' contacts (see the top of the file), by thread `local`
 // of its workgroup, `thread` of the dispatch's `threads`. For dispatches without joints, and
-// for the restitution sweep (joints do not bounce).
+// for the restitution sweep (joints do not bounce). Every mode goes through the one loop
+// below, so the constraint's function is inlined once: with a loop a mode it was inlined four
+// times, which made the solve kernel four times as long (RADV's compiler, `kernel_stats`).
 fn sweep(kind: u32, local: u32, thread: u32, threads: u32) {
-    if params.sequential == WALK {
+    let walk = params.sequential == WALK;
+    var end_batch = params.first_batch + 1u;
+    if walk {
         // A device layout's walk ends at the last batch that holds a constraint (its offsets
         // say which): it covers every batch up to the overflow batch, most of them empty, and
         // a barrier each would cost.
@@ -377,41 +381,35 @@ fn sweep(kind: u32, local: u32, thread: u32, threads: u32) {
             }
             walk_end = end;
         }
-        let end = workgroupUniformLoad(&walk_end);
-        for (var batch = params.first_batch; batch < end; batch++) {
-            if batch == params.overflow_batch {
-                // Its constraints may share bodies: in order, by one thread.
-                if local == 0u {
-                    for (var index = offsets[batch]; index < offsets[batch + 1u]; index++) {
-                        apply_sweep(kind, index);
-                    }
-                }
-            } else {
-                for (var index = offsets[batch] + local; index < offsets[batch + 1u];
-                    index += SOLVER_WORKGROUP) {
-                    apply_sweep(kind, index);
-                }
+        end_batch = workgroupUniformLoad(&walk_end);
+    }
+    for (var batch = params.first_batch; batch < end_batch; batch++) {
+        var index = offsets[batch];
+        var end = offsets[batch + 1u];
+        var step = 1u;
+        if (walk && batch == params.overflow_batch) || (!walk && params.sequential != 0u) {
+            // The overflow batch, whose constraints may share bodies: thread 0 alone, in
+            // order (a walk is one workgroup, so its thread 0 is the dispatch's).
+            if thread != 0u {
+                end = index;
             }
+        } else if walk {
+            index += local;
+            step = SOLVER_WORKGROUP;
+        } else {
+            // One batch, a constraint a thread; a dispatch sized for a device layout's
+            // expected size may have fewer threads than the batch has constraints: they take
+            // one more each, and more after that. Constraints of one batch share no body, so
+            // it changes no result.
+            index += thread;
+            step = threads;
+        }
+        for (; index < end; index += step) {
+            apply_sweep(kind, index);
+        }
+        if walk {
             storageBarrier();
         }
-        return;
-    }
-    let first = offsets[params.first_batch];
-    let end = offsets[params.first_batch + 1u];
-    if params.sequential != 0u {
-        // The overflow batch: thread 0 alone, in order.
-        if thread == 0u {
-            for (var index = first; index < end; index++) {
-                apply_sweep(kind, index);
-            }
-        }
-        return;
-    }
-    // One batch, a constraint a thread; a dispatch sized for a device layout's expected size
-    // may have fewer threads than the batch has constraints: they take one more each, and
-    // more after that. Constraints of one batch share no body, so it changes no result.
-    for (var index = first + thread; index < end; index += threads) {
-        apply_sweep(kind, index);
     }
 }
 
