@@ -15,12 +15,11 @@ case "$part" in
 esac
 out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
 binary=.devbin/tumble
+source "$(dirname "$0")/device-env.sh"
 if [ ! -x "$binary" ]; then
   echo "$binary is missing: run scripts/build-devbin.sh on the development machine and carry .devbin" >&2
   exit 1
 fi
-
-source "$(dirname "$0")/device-env.sh"
 
 threads=${THREADS:-1,$(nproc)}
 limit=${TIME_LIMIT_MS:-250}

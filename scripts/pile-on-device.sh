@@ -5,25 +5,29 @@
 # layers fall from higher as the scale grows: at 100k (scale 33.3) the pile is at rest by
 # about step 1500 (kinetic energy 22 J), at 500k (166.1) the last boxes land near step 750 at
 # about 120 m/s and the pile comes to rest by about step 2400 (3.3 J; 17 MJ at step 900). This
-# settles the pile with .devbin/tumble, dumps it, then runs each binary from the same dump:
+# settles the pile with the last of BINS, dumps it, then runs each binary from the same dump:
 # the profile, then the median step without the profiler (`--json`).
 #
 #   bash scripts/pile-on-device.sh [SCALE [SETTLE_STEPS [STEPS]]]    # defaults 33.3 900 120
 #
-# Environment: BINS, the binaries in .devbin/ to run from the dump (default "tumble"; an older
-# build copied to .devbin/tumble-base gives an A/B on the identical pile).
+# Environment: BINS, the binaries in .devbin/ to run from the dump (default "tumble"; builds
+# named by `scripts/build-devbin.sh NAME`, tumble-NAME, give an A/B on the identical pile).
 set -euo pipefail
 
 scale=${1:-33.3}
 settle=${2:-900}
 steps=${3:-120}
 out=${OUT:?"OUT is not set: run this through the device tool, or set OUT to a folder"}
-if [ ! -x .devbin/tumble ]; then
-  echo ".devbin/tumble is missing: run scripts/build-devbin.sh on the development machine and carry .devbin" >&2
-  exit 1
-fi
-
 source "$(dirname "$0")/device-env.sh"
+bins=${BINS:-tumble}
+# The pile is settled by the last of BINS (the newest build, by convention).
+settler=.devbin/${bins##* }
+for bin in $bins; do
+  if [ ! -x ".devbin/$bin" ]; then
+    echo ".devbin/$bin is missing: run scripts/build-devbin.sh on the development machine and carry .devbin" >&2
+    exit 1
+  fi
+done
 
 {
   echo "date: $(date -u +%Y-%m-%dT%H:%M:%SZ)"
@@ -37,10 +41,10 @@ cat "$out/machine.txt"
 # The dump is large (230 MB at 100k bodies): on the machine's disk, not in $OUT.
 dump=$(mktemp -d)/pile.json
 report="$out/pile.txt"
-echo "=== settle: tumble, $settle steps" | tee -a "$report"
-.devbin/tumble run falling-boxes --scale "$scale" --device gpu --steps "$settle" --json \
+echo "=== settle: $settler, $settle steps" | tee -a "$report"
+"$settler" run falling-boxes --scale "$scale" --device gpu --steps "$settle" --json \
   --dump "$dump" | tail -1 | tee -a "$report"
-for bin in ${BINS:-tumble}; do
+for bin in $bins; do
   echo "=== $bin: profile" >> "$report"
   ".devbin/$bin" run "$dump" --device gpu --steps "$steps" --profile >> "$report" 2>&1 || true
   echo "=== $bin: median" | tee -a "$report"
