@@ -17,8 +17,9 @@
 var<private> out: Manifold;
 
 // Candidate points before reduction: 8 box vertices, 8 clipped box vertices, or the clipped
-// incident face of a hull pair (contact_hull.wgsl), of at most 2 * MAX_HULL_FACE_VERTICES.
-var<private> candidates: array<ContactPoint, 2u * MAX_HULL_FACE_VERTICES>;
+// incident face of a hull pair (contact_hull.wgsl), of at most 2 * MAX_HULL_FACE_VERTICES;
+// MAX_CANDIDATES (from Rust) is the most of the world's shape kinds.
+var<private> candidates: array<ContactPoint, MAX_CANDIDATES>;
 
 fn element_sum(v: vec3<f32>) -> f32 {
     return v.x + v.y + v.z;
