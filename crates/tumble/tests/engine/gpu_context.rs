@@ -54,7 +54,10 @@ fn kernel_sources_are_kept_from_when_they_are_asked_for() {
     };
     let bindings = [Binding::Uniform, Binding::StorageReadWrite];
     Kernel::new(&context, "before", &source(1), "main", &bindings);
-    assert!(context.kernel_sources().is_empty(), "none kept unless asked");
+    assert!(
+        context.kernel_sources().is_empty(),
+        "none kept unless asked"
+    );
     context.record_kernel_sources();
     Kernel::new(&context, "after", &source(2), "main", &bindings);
     // Cached, so not compiled again: neither is listed (again).
@@ -62,6 +65,9 @@ fn kernel_sources_are_kept_from_when_they_are_asked_for() {
     Kernel::new(&context, "before", &source(1), "main", &bindings);
     let sources = context.kernel_sources();
     assert_eq!(sources.len(), 1, "{sources:?}");
-    assert_eq!((sources[0].label.as_str(), sources[0].entry.as_str()), ("after", "main"));
+    assert_eq!(
+        (sources[0].label.as_str(), sources[0].entry.as_str()),
+        ("after", "main")
+    );
     assert!(sources[0].wgsl.contains("p.x + 2u"), "{}", sources[0].wgsl);
 }
