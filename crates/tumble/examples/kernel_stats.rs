@@ -13,7 +13,9 @@
 //! outside wgpu: naga writes SPIR-V with the options wgpu's Vulkan backend uses on a device
 //! with `robustBufferAccess2` (the index bounds clamped, buffer accesses left to the driver,
 //! loops bounded), and a Vulkan device of the same adapter, made with the extension, reports
-//! its statistics.
+//! its statistics. STATS_DEVICE names another device to ask instead (part of its name): on a
+//! machine without a GPU, `RADV_FORCE_FAMILY=navi21 TUMBLE_ADAPTER=llvmpipe STATS_DEVICE=RADV`
+//! runs the scene on lavapipe and has Mesa's RADV compile for an AMD chip it does not have.
 
 use std::ffi::CStr;
 use std::path::Path;
@@ -53,7 +55,7 @@ fn run() -> Result<(), String> {
     };
     let context = GpuContext::shared().map_err(|e| e.to_string())?;
     // Another device may compile the kernels than the one that ran the scene: Mesa's RADV
-    // without a GPU (RADV_FORCE_FAMILY=gfx1100), say, on a machine whose wgpu runs lavapipe.
+    // without a GPU (RADV_FORCE_FAMILY=navi21), say, on a machine whose wgpu runs lavapipe.
     let stats_device = std::env::var("STATS_DEVICE").unwrap_or_else(|_| context.info.name.clone());
     context.record_kernel_sources();
     let mut world = scene.build().map_err(|e| e.to_string())?;
