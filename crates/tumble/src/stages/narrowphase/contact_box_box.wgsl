@@ -10,11 +10,12 @@ struct ClipVertex {
     line: u32,
 }
 
-// Sutherland–Hodgman polygons: `polygon` is clipped into `clipped`, then copied back.
-var<private> polygon: array<ClipVertex, 8>;
-var<private> polygon_count: u32;
-var<private> clipped: array<ClipVertex, 8>;
-var<private> clipped_count: u32;
+// Most vertices of a clipped box face: 4, and one more for each of the 4 side planes.
+const BOX_POLYGON_CAPACITY: u32 = 8u;
+
+// Two Sutherland–Hodgman polygons side by side: each clip reads one half and writes the other
+// (as contact_hull.wgsl's), so no polygon is copied; drivers keep this array in memory.
+var<private> box_polygons: array<ClipVertex, 2u * BOX_POLYGON_CAPACITY>;
 
 fn box_box(a: vec4<f32>, pose_a: BodyPose, b: vec4<f32>, pose_b: BodyPose, margin: f32) {
     let half_a = a.xyz;
@@ -222,25 +223,30 @@ fn edge_index(axis: u32, corner: vec3<f32>) -> u32 {
         + select(0u, 2u, corner[(axis + 2u) % 3u] > 0.0);
 }
 
-fn push_clipped(vertex: ClipVertex) {
-    // A ninth vertex could only be a rounding duplicate: left out, as on the CPU.
-    if clipped_count < 8u {
-        clipped[clipped_count] = vertex;
-        clipped_count += 1u;
+// Appends `vertex` to the polygon at `write_at` holding `count` vertices; returns the new
+// count. A ninth vertex could only be a rounding duplicate: left out, as on the CPU.
+fn push_clipped(write_at: u32, count: u32, vertex: ClipVertex) -> u32 {
+    if count >= BOX_POLYGON_CAPACITY {
+        return count;
     }
+    box_polygons[write_at + count] = vertex;
+    return count + 1u;
 }
 
-// `polygon` ← its part where sign * x[axis] <= limit; cut vertices get feature
-// 4 + 4 * line + plane.
-fn clip_polygon(axis: u32, sign: f32, limit: f32, plane: u32) {
-    clipped_count = 0u;
-    if polygon_count == 0u {
-        return;
+// The polygon in half `source` of `box_polygons` (`count` vertices), its part where
+// sign * x[axis] <= limit written to the other half; returns its vertex count. Cut vertices
+// get feature 4 + 4 * line + plane.
+fn clip_polygon(source: u32, count: u32, axis: u32, sign: f32, limit: f32, plane: u32) -> u32 {
+    if count == 0u {
+        return 0u;
     }
-    var previous = polygon[polygon_count - 1u];
+    let read_at = source * BOX_POLYGON_CAPACITY;
+    let write_at = (1u - source) * BOX_POLYGON_CAPACITY;
+    var written = 0u;
+    var previous = box_polygons[read_at + count - 1u];
     var previous_distance = sign * previous.position[axis] - limit;
-    for (var index = 0u; index < polygon_count; index++) {
-        let current = polygon[index];
+    for (var index = 0u; index < count; index++) {
+        let current = box_polygons[read_at + index];
         let current_distance = sign * current.position[axis] - limit;
         // Where the edge crosses the plane; used only when the distances have opposite signs,
         // so the division is safe where it matters.
@@ -251,18 +257,18 @@ fn clip_polygon(axis: u32, sign: f32, limit: f32, plane: u32) {
         if current_distance <= 0.0 {
             if previous_distance > 0.0 {
                 // Entering: the rest of the edge continues on its line.
-                push_clipped(ClipVertex(crossing, feature, previous.line));
+                written = push_clipped(write_at, written,
+                    ClipVertex(crossing, feature, previous.line));
             }
-            push_clipped(current);
+            written = push_clipped(write_at, written, current);
         } else if previous_distance <= 0.0 {
             // Leaving: the polygon runs along the side plane until it re-enters.
-            push_clipped(ClipVertex(crossing, feature, 4u + plane));
+            written = push_clipped(write_at, written, ClipVertex(crossing, feature, 4u + plane));
         }
         previous = current;
         previous_distance = current_distance;
     }
-    polygon = clipped;
-    polygon_count = clipped_count;
+    return written;
 }
 
 // Clips the incident box's face most anti-parallel to the reference face (axis, sign) against
@@ -292,23 +298,22 @@ fn clip_incident_face(
         corner[incident_axis] = incident_sign * half[incident_axis];
         corner[u] = signs_u[index] * half[u];
         corner[v] = signs_v[index] * half[v];
-        polygon[index] = ClipVertex(translation + mat_vec(rotation, corner), index, index);
+        box_polygons[index] = ClipVertex(translation + mat_vec(rotation, corner), index, index);
     }
-    polygon_count = 4u;
 
-    // Side planes +u, -u, +v, -v of the reference face.
+    // Side planes +u, -u, +v, -v of the reference face: from half 0 to 1 and back, twice.
     let side_u = (face_axis + 1u) % 3u;
     let side_v = (face_axis + 2u) % 3u;
-    clip_polygon(side_u, 1.0, reference_half[side_u], 0u);
-    clip_polygon(side_u, -1.0, reference_half[side_u], 1u);
-    clip_polygon(side_v, 1.0, reference_half[side_v], 2u);
-    clip_polygon(side_v, -1.0, reference_half[side_v], 3u);
+    var polygon_count = clip_polygon(0u, 4u, side_u, 1.0, reference_half[side_u], 0u);
+    polygon_count = clip_polygon(1u, polygon_count, side_u, -1.0, reference_half[side_u], 1u);
+    polygon_count = clip_polygon(0u, polygon_count, side_v, 1.0, reference_half[side_v], 2u);
+    polygon_count = clip_polygon(1u, polygon_count, side_v, -1.0, reference_half[side_v], 3u);
 
     let id_base = (face_index(face_axis, face_sign) << 6u)
         | (face_index(incident_axis, incident_sign) << 9u);
     var count = 0u;
     for (var index = 0u; index < polygon_count; index++) {
-        let vertex = polygon[index];
+        let vertex = box_polygons[index];
         let separation = face_sign * vertex.position[face_axis] - reference_half[face_axis];
         if separation < margin {
             candidates[count] = contact_point(
