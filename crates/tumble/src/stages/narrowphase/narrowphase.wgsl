@@ -65,11 +65,7 @@ fn update_contacts(
     for (var point = 0u; point < out.count; point++) {
         out.points[point].anchor = to_local(pose_a, out.points[point].position);
     }
-    var old = PairContact();
-    if old_index[index] != NEW_PAIR {
-        old = old_contacts[old_index[index]];
-    }
-    contacts[index] = carry_impulses(old);
+    store_carrying_impulses(index, old_index[index]);
 }
 
 // Binary search of `skipped`, comparing keys as u64 (high word, the lower body, first).
@@ -188,35 +184,44 @@ fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
     }
 }
 
-// mod.rs `carry_impulses`: `out` with the impulses of `old`'s points, by feature id first,
-// then the nearest unclaimed old anchor within MATCH_DISTANCE (first on ties).
-fn carry_impulses(old: PairContact) -> PairContact {
-    var result = PairContact();
-    result.manifold = out;
-    let old_count = old.manifold.count;
-    var claimed = array<bool, 4>(false, false, false, false);
-    var matched = array<bool, 4>(false, false, false, false);
+// mod.rs `carry_impulses`: `out` into contacts[index], with the impulses of last step's points
+// old_contacts[old] (none for NEW_PAIR), by feature id first, then the nearest unclaimed old
+// anchor within MATCH_DISTANCE (first on ties). Both pair contacts are read and written where
+// they lie, and the claimed and matched points are bit masks: copies of them indexed by loop
+// variables were kept in local memory, 192 bytes each a thread.
+fn store_carrying_impulses(index: u32, old: u32) {
+    contacts[index].manifold = out;
+    for (var i = 0u; i < MAX_MANIFOLD_POINTS; i++) {
+        contacts[index].impulses[i] = PointImpulse();
+    }
+    if old == NEW_PAIR {
+        return;
+    }
+    let previous = &old_contacts[old];
+    let old_count = (*previous).manifold.count;
+    var claimed = 0u;
+    var matched = 0u;
     for (var i = 0u; i < out.count; i++) {
         for (var j = 0u; j < old_count; j++) {
-            if !claimed[j] && old.manifold.points[j].id == out.points[i].id {
-                result.impulses[i] = old.impulses[j];
-                claimed[j] = true;
-                matched[i] = true;
+            if (claimed & (1u << j)) == 0u && (*previous).manifold.points[j].id == out.points[i].id {
+                contacts[index].impulses[i] = (*previous).impulses[j];
+                claimed |= 1u << j;
+                matched |= 1u << i;
                 break;
             }
         }
     }
     for (var i = 0u; i < out.count; i++) {
-        if matched[i] {
+        if (matched & (1u << i)) != 0u {
             continue;
         }
         var nearest = NO_POINT;
         var nearest_distance_squared = 0.0;
         for (var j = 0u; j < old_count; j++) {
-            if claimed[j] {
+            if (claimed & (1u << j)) != 0u {
                 continue;
             }
-            let offset = out.points[i].anchor - old.manifold.points[j].anchor;
+            let offset = out.points[i].anchor - (*previous).manifold.points[j].anchor;
             let distance_squared = dot3(offset, offset);
             if distance_squared < MATCH_DISTANCE * MATCH_DISTANCE
                 && (nearest == NO_POINT || distance_squared < nearest_distance_squared) {
@@ -225,9 +230,8 @@ fn carry_impulses(old: PairContact) -> PairContact {
             }
         }
         if nearest != NO_POINT {
-            result.impulses[i] = old.impulses[nearest];
-            claimed[nearest] = true;
+            contacts[index].impulses[i] = (*previous).impulses[nearest];
+            claimed |= 1u << nearest;
         }
     }
-    return result;
 }
