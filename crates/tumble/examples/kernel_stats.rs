@@ -82,10 +82,13 @@ fn run() -> Result<(), String> {
         println!("{why}: the SPIR-V sizes alone");
     }
     for kernel in &sources {
-        let words = spirv(kernel)?;
+        let (module, info) = module(kernel)?;
+        let words = spirv(kernel, &module, &info)?;
         let stats = match &driver {
             // SAFETY: `words` is valid SPIR-V from naga's validated module.
-            Ok(driver) => unsafe { driver.statistics(&words, &bindings(kernel)?, &kernel.entry)? },
+            Ok(driver) => unsafe {
+                driver.statistics(&words, &bindings(kernel, &module)?, &kernel.entry)?
+            },
             Err(_) => vec![format!("spirv_words={}", words.len())],
         };
         println!("{} / {}: {}", kernel.label, kernel.entry, stats.join(", "));
@@ -107,9 +110,12 @@ fn module(kernel: &KernelSource) -> Result<(naga::Module, naga::valid::ModuleInf
 }
 
 /// SPIR-V of the kernel's entry point, written as wgpu's Vulkan backend writes it.
-fn spirv(kernel: &KernelSource) -> Result<Vec<u32>, String> {
+fn spirv(
+    kernel: &KernelSource,
+    module: &naga::Module,
+    info: &naga::valid::ModuleInfo,
+) -> Result<Vec<u32>, String> {
     use naga::proc::{BoundsCheckPolicies, BoundsCheckPolicy};
-    let (module, info) = module(kernel)?;
     let options = naga::back::spv::Options {
         lang_version: (1, 5),
         bounds_check_policies: BoundsCheckPolicies {
@@ -129,13 +135,15 @@ fn spirv(kernel: &KernelSource) -> Result<Vec<u32>, String> {
         shader_stage: naga::ShaderStage::Compute,
         entry_point: kernel.entry.clone(),
     };
-    naga::back::spv::write_vec(&module, &info, &options, Some(&pipeline))
+    naga::back::spv::write_vec(module, info, &options, Some(&pipeline))
         .map_err(|e| format!("{} / {}: {e}", kernel.label, kernel.entry))
 }
 
 /// The descriptor type of each binding of group 0, by binding number.
-fn bindings(kernel: &KernelSource) -> Result<Vec<(u32, vk::DescriptorType)>, String> {
-    let (module, _) = module(kernel)?;
+fn bindings(
+    kernel: &KernelSource,
+    module: &naga::Module,
+) -> Result<Vec<(u32, vk::DescriptorType)>, String> {
     let mut out = Vec::new();
     for (_, variable) in module.global_variables.iter() {
         let Some(binding) = &variable.binding else {

@@ -181,8 +181,8 @@ pub fn shape_kinds(colliders: &[Collider]) -> u32 {
 /// The most candidate points a pair function of the kernel for `shape_kinds` finds: a hull's
 /// clipped incident face, or else the 8 vertices of a box (box–plane) or of its clipped face
 /// (box–box). The candidates are a private array of each thread, which the drivers keep in
-/// memory rather than registers: with room for 32 in a box world, NVIDIA's kernel took 3136
-/// bytes of local memory a thread, with 8 1600, and the settled 100k pile's contact kernels
+/// memory rather than registers: with room for 32 in a box world, NVIDIA reported 3136 bytes
+/// of local memory for the kernel (its statistic less a flag bit), with 8 1600, and the settled 100k pile's contact kernels
 /// 1.47 ms a step instead of 1.82 (an H100, `kernel_stats` and `scripts/device-check.sh`).
 fn max_candidates(shape_kinds: u32) -> u32 {
     if shape_kinds & 1 << ShapeKind::ConvexHull as u32 != 0 {

@@ -203,7 +203,8 @@ fn store_carrying_impulses(index: u32, old: u32) {
     var matched = 0u;
     for (var i = 0u; i < out.count; i++) {
         for (var j = 0u; j < old_count; j++) {
-            if (claimed & (1u << j)) == 0u && (*previous).manifold.points[j].id == out.points[i].id {
+            let unclaimed = (claimed & (1u << j)) == 0u;
+            if unclaimed && (*previous).manifold.points[j].id == out.points[i].id {
                 contacts[index].impulses[i] = (*previous).impulses[j];
                 claimed |= 1u << j;
                 matched |= 1u << i;
