@@ -33,6 +33,7 @@ use crate::stages::solver::adjacency::{AdjacencyInputs, GpuBodyAdjacency};
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
+use crate::stages::solver::lanes::{Word, lay_out, read_back};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
 /// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
@@ -473,7 +474,8 @@ pub(crate) struct GpuStages {
     prepare_bodies: GpuPrepareBodies,
     /// Stage 8 on the device: the motion in `solver_bodies` into the poses and velocities.
     finalize_bodies: GpuFinalizeBodies,
-    batched_contacts: GpuVec<ContactConstraint>,
+    /// A host solve's contact constraints, in blocks of lanes ([`lanes`](crate::stages::solver::lanes)).
+    batched_contacts: GpuVec<Word>,
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,
     joint_batch_offsets: GpuVec<u32>,
@@ -515,7 +517,8 @@ pub(crate) struct GpuStages {
     collider_data: Vec<ColliderData>,
     downloaded: Vec<PairContact>,
     downloaded_bodies: Vec<SolverBody>,
-    downloaded_constraints: Vec<ContactConstraint>,
+    /// `batched_contacts` on the host, on their way up and down.
+    constraint_words: Vec<Word>,
     downloaded_joints: Vec<JointConstraint>,
 }
 
@@ -600,7 +603,7 @@ impl GpuStages {
             collider_data: Vec::new(),
             downloaded: Vec::new(),
             downloaded_bodies: Vec::new(),
-            downloaded_constraints: Vec::new(),
+            constraint_words: Vec::new(),
             downloaded_joints: Vec::new(),
             context,
         })
@@ -1482,7 +1485,9 @@ impl GpuStages {
             )?;
         }
         self.solver_bodies.upload(context, bodies)?;
-        self.batched_contacts.upload(context, batched.contacts)?;
+        lay_out(batched.contacts, &mut self.constraint_words);
+        self.batched_contacts
+            .upload(context, &self.constraint_words)?;
         self.batch_offsets
             .upload(context, batched.contact_offsets)?;
         self.batched_joints.upload(context, batched.joints)?;
@@ -1579,10 +1584,8 @@ impl GpuStages {
         // Impulses come back for warm starting and, for joints, the host's break test.
         let start = Instant::now();
         self.batched_contacts
-            .download_into(context, &mut self.downloaded_constraints)?;
-        batched
-            .contacts
-            .copy_from_slice(&self.downloaded_constraints);
+            .download_into(context, &mut self.constraint_words)?;
+        read_back(&self.constraint_words, batched.contacts);
         self.batched_joints
             .download_into(context, &mut self.downloaded_joints)?;
         batched.joints.copy_from_slice(&self.downloaded_joints);

@@ -21,6 +21,7 @@ use tumble::stages::pairs::pair_key;
 use tumble::stages::solver::gpu::GpuSolver;
 use tumble::stages::solver::jacobi::{self, JacobiScratch};
 use tumble::stages::solver::jacobi_gpu::GpuJacobi;
+use tumble::stages::solver::lanes;
 use tumble::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings, solve};
 
 fn uniform(random: &mut Random, low: f32, high: f32) -> f32 {
@@ -844,8 +845,9 @@ fn device_layout_sizes_solve_as_host_offsets() {
         for expected in [&all_walked, &all_small_dispatches, &sizes] {
             let mut bodies_on_device =
                 GpuVec::from_slice(&context, "test bodies", &problem.bodies).unwrap();
-            let mut contacts =
-                GpuVec::from_slice(&context, "test contacts", &problem.contacts).unwrap();
+            let mut words = Vec::new();
+            lanes::lay_out(&problem.contacts, &mut words);
+            let mut contacts = GpuVec::from_slice(&context, "test contacts", &words).unwrap();
             let device = DeviceBatched {
                 contacts: &contacts,
                 contact_offsets: &contact_offsets,
@@ -860,7 +862,8 @@ fn device_layout_sizes_solve_as_host_offsets() {
             let what = format!("{pairs} pairs, hub {hub}, expected {:?}", &expected[..12]);
             let device_bodies = bodies_on_device.download(&context).unwrap();
             assert!(device_bodies == host_bodies, "{what}: bodies");
-            let device_contacts = contacts.download(&context).unwrap();
+            let mut device_contacts = vec![ContactConstraint::default(); problem.contacts.len()];
+            lanes::read_back(&contacts.download(&context).unwrap(), &mut device_contacts);
             let bits = |c: &[ContactConstraint]| bytemuck::cast_slice::<_, u32>(c).to_vec();
             assert!(bits(&device_contacts) == bits(&host_contacts), "{what}");
         }

@@ -31,12 +31,10 @@ use crate::stages::constraints::{
     CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
 };
 use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
+use crate::stages::solver::lanes::{Word, with_lanes, word_count};
 
 const WGSL: &str = include_str!("batched.wgsl");
 const GATHER_ROWS_WGSL: &str = include_str!("gather_rows.wgsl");
-/// 16-byte words of a [`ContactConstraint`], a thread each in `gather_rows.wgsl`.
-const CONSTRAINT_WORDS: usize = size_of::<ContactConstraint>() / 16;
-const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
 const PAIR_IMPULSES_WGSL: &str = include_str!("pair_impulses.wgsl");
 /// Counts, batched constraints, the pairs' contacts.
 const PAIR_IMPULSES_BINDINGS: [Binding; 3] = [
@@ -79,7 +77,7 @@ pub struct BatchedJointImpulses {
 const _: () = assert!(size_of::<BatchedJointImpulses>() == 32);
 
 pub fn wgsl() -> Source {
-    Source::new()
+    with_lanes(Source::new())
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
         .snippet("joint_constraint.wgsl", JOINT_CONSTRAINT_WGSL)
         .snippet("batched.wgsl", WGSL)
@@ -87,14 +85,12 @@ pub fn wgsl() -> Source {
 
 /// The gather of the rows into batch order, a word a thread.
 fn gather_rows_wgsl() -> Source {
-    Source::new()
-        .constant_u32("CONSTRAINT_WORDS", CONSTRAINT_WORDS as u32)
-        .snippet("gather_rows.wgsl", GATHER_ROWS_WGSL)
+    with_lanes(Source::new()).snippet("gather_rows.wgsl", GATHER_ROWS_WGSL)
 }
 
 /// The scatter of the contacts' impulses to their pairs, for the layout test.
 pub fn pair_impulses_wgsl() -> Source {
-    Source::new()
+    with_lanes(Source::new())
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("pair_impulses.wgsl", PAIR_IMPULSES_WGSL)
@@ -107,8 +103,9 @@ pub struct GpuBatched {
     /// Two words: the constraint count and the joint count.
     count: GpuVec<u32>,
     order: GpuVec<u32>,
-    /// The constraints in batch order: what the solver sweeps.
-    pub constraints: GpuVec<ContactConstraint>,
+    /// The constraints in batch order, in blocks of lanes ([`lanes`](super::lanes)): what the
+    /// solver sweeps.
+    pub constraints: GpuVec<Word>,
     pub impulses: GpuVec<BatchedImpulses>,
     /// The impulses of the joints in batch order, as the solver left them.
     pub joint_impulses: GpuVec<BatchedJointImpulses>,
@@ -177,7 +174,7 @@ impl GpuBatched {
         let joints = u32::try_from(joint_count).expect("joint count fits in u32");
         self.count.upload(context, &[constraints, joints])?;
         self.order.resize(context, count)?;
-        self.constraints.resize(context, count)?;
+        self.constraints.resize(context, word_count(count))?;
         self.impulses.resize(context, count)?;
         self.joint_impulses.resize(context, joint_count)?;
         Ok(())
@@ -241,7 +238,7 @@ impl GpuBatched {
                 ],
             );
             let groups = workgroups_for(key.1, WORKGROUP_SIZE);
-            let words = workgroups_for(key.1 * CONSTRAINT_WORDS, WORKGROUP_SIZE);
+            let words = workgroups_for(word_count(key.1), WORKGROUP_SIZE);
             let joint_groups = workgroups_for(key.2, WORKGROUP_SIZE);
             let dispatches = [
                 self.gather.dispatch(gather_group, words),

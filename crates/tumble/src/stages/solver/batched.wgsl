@@ -19,7 +19,8 @@ struct BatchedImpulses {
 // the dispatches serve every step).
 @group(0) @binding(0) var<storage, read> count: array<u32>;
 // Bindings 1 and 2, the batch order and the rows, are gather_rows.wgsl's.
-@group(0) @binding(3) var<storage, read_write> batched: array<ContactConstraint>;
+// The contact constraints in batch order, in blocks of lanes (lanes.wgsl).
+@group(0) @binding(3) var<storage, read_write> batched: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read_write> impulses: array<BatchedImpulses>;
 // The joints in batch order, as the solver left them.
 @group(0) @binding(5) var<storage, read> joints: array<JointConstraint>;
@@ -37,13 +38,12 @@ fn read_impulses(
     if index >= count[0] {
         return;
     }
-    // Through a pointer, point by point (a loop-indexed copy would spill, see solver.wgsl).
-    let c = &batched[index];
+    let points = bitcast<u32>(batched[lane_word(index, HEADER_IDS)].w);
     var out = BatchedImpulses(vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0));
-    for (var i = 0u; i < (*c).point_count; i++) {
-        out.normal[i] = (*c).points[i].normal.impulse;
-        out.tangent1[i] = (*c).points[i].tangent[0].impulse;
-        out.tangent2[i] = (*c).points[i].tangent[1].impulse;
+    for (var k = 0u; k < points; k++) {
+        out.normal[k] = batched[point_word(index, k, POINT_NORMAL + 1u)].w;
+        out.tangent1[k] = batched[point_word(index, k, POINT_TANGENT1 + 1u)].w;
+        out.tangent2[k] = batched[point_word(index, k, POINT_TANGENT2 + 1u)].w;
     }
     impulses[index] = out;
 }

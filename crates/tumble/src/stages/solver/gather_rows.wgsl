@@ -1,8 +1,8 @@
-// The rows' contact constraints into batch order (stages/solver/batched.rs), a 16-byte word a
-// thread: `batched[place] = rows[order[place]]`, CONSTRAINT_WORDS words each. A thread per
-// constraint copying its 656 bytes made each warp's loads and stores touch 32 constraints
-// 656 bytes apart; a word a thread, a warp's stores are 512 contiguous bytes and its loads
-// a constraint or two.
+// The rows' contact constraints into batch order (stages/solver/batched.rs), in blocks of lanes
+// (lanes.wgsl), a 16-byte word a thread: word `slot` of batched place `place` is word `slot` of
+// rows[order[place]]. A thread takes the word at its own index of the output, so a warp's
+// stores are 512 contiguous bytes; a thread per constraint copying its 656 bytes made each
+// warp's loads and stores touch 32 constraints 656 bytes apart.
 
 // Word 0: the number of contact constraints.
 @group(0) @binding(0) var<storage, read> count: array<u32>;
@@ -18,10 +18,13 @@ fn gather_words(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let word = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
-    let place = word / CONSTRAINT_WORDS;
+    // The inverse of lane_word: block, word of the constraint, lane.
+    let block = word / (CONSTRAINT_WORDS * CONSTRAINT_LANES);
+    let within = word - block * CONSTRAINT_WORDS * CONSTRAINT_LANES;
+    let slot = within / CONSTRAINT_LANES;
+    let place = block * CONSTRAINT_LANES + within % CONSTRAINT_LANES;
     if place >= count[0] {
         return;
     }
-    let slot = word - place * CONSTRAINT_WORDS;
     batched[word] = rows[order[place] * CONSTRAINT_WORDS + slot];
 }

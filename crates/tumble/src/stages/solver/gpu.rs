@@ -1,6 +1,7 @@
 //! GPU executor of the soft step: the kernels of `solver.wgsl` (contacts) and
-//! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`] and
-//! [`JointConstraint`] arrays the CPU solves, in the CPU's order: a batch's contacts and joints
+//! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`](crate::stages::constraints::ContactConstraint) and
+//! [`JointConstraint`] arrays the CPU solves (the contacts laid out in blocks of lanes,
+//! [`lanes`](super::lanes)), in the CPU's order: a batch's contacts and joints
 //! are one dispatch, its threads taking the contacts, then the joints. Stages without joints
 //! run contact-only kernels, those with joints their `_mixed` twins (`solver.wgsl` says why).
 //!
@@ -33,10 +34,9 @@ use crate::gpu::kernel::{
 };
 use crate::math::Vec3;
 use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
-use crate::stages::constraints::{
-    CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
-};
+use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, JOINT_CONSTRAINT_WGSL, JointConstraint};
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
+use crate::stages::solver::lanes::{Word, lay_out, read_back, with_lanes};
 
 pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
@@ -116,7 +116,7 @@ fn solver_wgsl() -> Source {
 
 /// The solver's WGSL: body and constraint structs, integration helpers, kernels.
 pub fn wgsl() -> Source {
-    Source::new()
+    with_lanes(Source::new())
         .constant_u32("SOLVER_WORKGROUP", SOLVER_WORKGROUP)
         .constant_u32("NO_BATCH", NO_BATCH)
         .constant_u32("LAYOUT_USED_END", USED_END as u32)
@@ -273,7 +273,8 @@ struct Bound {
 /// The batched constraints on the device, as [`GpuSolver::encode`] sweeps them: the arrays of
 /// [`Batched`], and what sizes the dispatches.
 pub struct DeviceBatched<'a> {
-    pub contacts: &'a GpuVec<ContactConstraint>,
+    /// The contact constraints in blocks of lanes ([`lanes`](super::lanes)).
+    pub contacts: &'a GpuVec<Word>,
     pub contact_offsets: &'a GpuVec<u32>,
     pub joints: &'a GpuVec<JointConstraint>,
     pub joint_offsets: &'a GpuVec<u32>,
@@ -314,7 +315,9 @@ pub struct GpuSolver {
 /// step, download.
 pub(crate) struct HostArrays {
     bodies: GpuVec<SolverBody>,
-    contacts: GpuVec<ContactConstraint>,
+    contacts: GpuVec<Word>,
+    /// The host's constraints in blocks of lanes, on their way to and from `contacts`.
+    words: Vec<Word>,
     contact_offsets: GpuVec<u32>,
     joints: GpuVec<JointConstraint>,
     joint_offsets: GpuVec<u32>,
@@ -325,6 +328,7 @@ impl HostArrays {
         Ok(Self {
             bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
             contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
+            words: Vec::new(),
             contact_offsets: GpuVec::with_capacity(context, "solver contact batch offsets", 0)?,
             joints: GpuVec::with_capacity(context, "solver joints", 0)?,
             joint_offsets: GpuVec::with_capacity(context, "solver joint batch offsets", 0)?,
@@ -342,7 +346,8 @@ impl HostArrays {
         encode: impl FnOnce(&mut wgpu::ComputePass<'_>, &GpuVec<SolverBody>, &DeviceBatched, bool),
     ) -> Result<(), GpuError> {
         self.bodies.upload(context, bodies)?;
-        self.contacts.upload(context, batched.contacts)?;
+        lay_out(batched.contacts, &mut self.words);
+        self.contacts.upload(context, &self.words)?;
         self.contact_offsets
             .upload(context, batched.contact_offsets)?;
         self.joints.upload(context, batched.joints)?;
@@ -364,9 +369,8 @@ impl HostArrays {
             encode(pass, &self.bodies, &device, restitution)
         });
         bodies.copy_from_slice(&self.bodies.download(context)?);
-        batched
-            .contacts
-            .copy_from_slice(&self.contacts.download(context)?);
+        self.contacts.download_into(context, &mut self.words)?;
+        read_back(&self.words, batched.contacts);
         batched
             .joints
             .copy_from_slice(&self.joints.download(context)?);

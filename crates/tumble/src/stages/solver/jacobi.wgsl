@@ -55,26 +55,27 @@ fn store_deltas(slot: u32, start: BodyPair, end: BodyPair, omega: f32) {
 
 // Phase 1 for contact `index` (kind: WARM_START, SOLVE or RESTITUTION of solver.wgsl).
 fn jacobi_contact(kind: u32, index: u32) {
-    let c = &contacts[index];
-    let start = BodyPair(load_body((*c).body_a), load_body((*c).body_b));
+    let ids = load_ids(index);
+    let start = BodyPair(load_body(ids.x), load_body(ids.y));
     if kind == WARM_START {
         store_deltas(index, start, warm_start_contact_pair(index, start), 1.0);
         return;
     }
-    let omega = relaxation((*c).body_a, (*c).body_b);
-    // The impulses before the solve, point k in lane k: constant indices into the
-    // constraint (a loop-indexed copy would spill, see solver.wgsl).
-    let old_normal = vec4<f32>((*c).points[0].normal.impulse, (*c).points[1].normal.impulse,
-        (*c).points[2].normal.impulse, (*c).points[3].normal.impulse);
-    let old_tangent1 = vec4<f32>((*c).points[0].tangent[0].impulse,
-        (*c).points[1].tangent[0].impulse, (*c).points[2].tangent[0].impulse,
-        (*c).points[3].tangent[0].impulse);
-    let old_tangent2 = vec4<f32>((*c).points[0].tangent[1].impulse,
-        (*c).points[1].tangent[1].impulse, (*c).points[2].tangent[1].impulse,
-        (*c).points[3].tangent[1].impulse);
-    let old_max = vec4<f32>((*c).points[0].max_normal_impulse,
-        (*c).points[1].max_normal_impulse, (*c).points[2].max_normal_impulse,
-        (*c).points[3].max_normal_impulse);
+    let omega = relaxation(ids.x, ids.y);
+    // The impulses before the solve, point k in lane k.
+    let old_normal = vec4<f32>(row_impulse(index, 0u, POINT_NORMAL),
+        row_impulse(index, 1u, POINT_NORMAL), row_impulse(index, 2u, POINT_NORMAL),
+        row_impulse(index, 3u, POINT_NORMAL));
+    let old_tangent1 = vec4<f32>(row_impulse(index, 0u, POINT_TANGENT1),
+        row_impulse(index, 1u, POINT_TANGENT1), row_impulse(index, 2u, POINT_TANGENT1),
+        row_impulse(index, 3u, POINT_TANGENT1));
+    let old_tangent2 = vec4<f32>(row_impulse(index, 0u, POINT_TANGENT2),
+        row_impulse(index, 1u, POINT_TANGENT2), row_impulse(index, 2u, POINT_TANGENT2),
+        row_impulse(index, 3u, POINT_TANGENT2));
+    let old_max = vec4<f32>(contacts[point_word(index, 0u, POINT_EXTRA)].y,
+        contacts[point_word(index, 1u, POINT_EXTRA)].y,
+        contacts[point_word(index, 2u, POINT_EXTRA)].y,
+        contacts[point_word(index, 3u, POINT_EXTRA)].y);
     var end: BodyPair;
     if kind == SOLVE {
         end = solve_contact_pair(index, start);
@@ -82,18 +83,20 @@ fn jacobi_contact(kind: u32, index: u32) {
         end = restitution_contact_pair(index, start);
     }
     if omega != 1.0 {
-        for (var i = 0u; i < (*c).point_count; i++) {
-            let point = &(*c).points[i];
-            let normal = relax(old_normal[i], (*point).normal.impulse, omega);
-            (*point).normal.impulse = normal;
-            (*point).tangent[0].impulse = relax(old_tangent1[i], (*point).tangent[0].impulse,
-                omega);
-            (*point).tangent[1].impulse = relax(old_tangent2[i], (*point).tangent[1].impulse,
-                omega);
-            (*point).max_normal_impulse = max(old_max[i], normal);
+        for (var k = 0u; k < ids.w; k++) {
+            let normal = relax(old_normal[k], row_impulse(index, k, POINT_NORMAL), omega);
+            store_impulses(index, k, normal,
+                relax(old_tangent1[k], row_impulse(index, k, POINT_TANGENT1), omega),
+                relax(old_tangent2[k], row_impulse(index, k, POINT_TANGENT2), omega),
+                max(old_max[k], normal));
         }
     }
     store_deltas(index, start, end, omega);
+}
+
+// The accumulated impulse of row `row` (POINT_NORMAL, ...) of point `k` of contact `index`.
+fn row_impulse(index: u32, k: u32, row: u32) -> f32 {
+    return contacts[point_word(index, k, row + 1u)].w;
 }
 
 // Phase 1 for joint `index` (WARM_START or SOLVE).

@@ -6,7 +6,8 @@
 
 // Word 0: the number of contact constraints.
 @group(0) @binding(0) var<storage, read> count: array<u32>;
-@group(0) @binding(1) var<storage, read> batched: array<ContactConstraint>;
+// The contact constraints in batch order, in blocks of lanes (lanes.wgsl).
+@group(0) @binding(1) var<storage, read> batched: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> contacts: array<PairContact>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -19,12 +20,12 @@ fn scatter_pair_impulses(
     if index >= count[0] {
         return;
     }
-    // Through pointers, field by field (a loop-indexed copy would spill, see solver.wgsl).
-    let c = &batched[index];
-    let contact = &contacts[(*c).pair];
-    for (var i = 0u; i < (*c).point_count; i++) {
-        (*contact).impulses[i].normal = (*c).points[i].normal.impulse;
-        (*contact).impulses[i].tangent[0] = (*c).points[i].tangent[0].impulse;
-        (*contact).impulses[i].tangent[1] = (*c).points[i].tangent[1].impulse;
+    let ids = bitcast<vec4<u32>>(batched[lane_word(index, HEADER_IDS)]);
+    // Through a pointer, field by field (a loop-indexed copy would spill, see solver.wgsl).
+    let contact = &contacts[ids.z];
+    for (var k = 0u; k < ids.w; k++) {
+        (*contact).impulses[k].normal = batched[point_word(index, k, POINT_NORMAL + 1u)].w;
+        (*contact).impulses[k].tangent[0] = batched[point_word(index, k, POINT_TANGENT1 + 1u)].w;
+        (*contact).impulses[k].tangent[1] = batched[point_word(index, k, POINT_TANGENT2 + 1u)].w;
     }
 }

@@ -2,8 +2,8 @@
 // twins of the contact functions here, joint.rs those of solver_joint.wgsl, in the same order
 // of operations).
 //
-// Constraints lie batch after batch: batch b is contacts[offsets[b] .. offsets[b + 1]] and
-// joints[joint_offsets[b] .. joint_offsets[b + 1]]. A dispatch covers the batches
+// Constraints lie batch after batch: batch b is contact constraints offsets[b] .. offsets[b + 1]
+// (in lanes.wgsl's layout) and joints[joint_offsets[b] .. joint_offsets[b + 1]]. A dispatch covers the batches
 // first_batch .. end_batch:
 //   - parallel (sequential == 0): one batch, one thread per constraint (its contacts, then
 //     its joints). The batch's constraints share no dynamic body, so no two threads touch the
@@ -39,7 +39,8 @@ struct SolverParams {
 
 @group(0) @binding(0) var<uniform> params: SolverParams;
 @group(0) @binding(1) var<storage, read_write> bodies: array<SolverBody>;
-@group(0) @binding(2) var<storage, read_write> contacts: array<ContactConstraint>;
+// The contact constraints in blocks of lanes (lanes.wgsl), a vec4 a word.
+@group(0) @binding(2) var<storage, read_write> contacts: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
 @group(0) @binding(4) var<storage, read_write> joints: array<JointConstraint>;
 @group(0) @binding(5) var<storage, read> joint_offsets: array<u32>;
@@ -111,14 +112,36 @@ fn no_point() -> PointRows {
     return PointRows(row, row, row, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, 0.0);
 }
 
+// Body A, body B, the pair slot and the point count of constraint `index`.
+fn load_ids(index: u32) -> vec4<u32> {
+    return bitcast<vec4<u32>>(contacts[lane_word(index, HEADER_IDS)]);
+}
+
+// Row `row` (POINT_NORMAL, POINT_TANGENT1 or POINT_TANGENT2) of point `k` of constraint `index`.
+fn load_row(index: u32, k: u32, row: u32) -> Row {
+    let a = contacts[point_word(index, k, row)];
+    let b = contacts[point_word(index, k, row + 1u)];
+    return Row(a.xyz, a.w, b.xyz, b.w);
+}
+
 // Point `k` of constraint `index`, or no point past its count (then never used).
 fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     if k >= count {
         return no_point();
     }
-    let p = &contacts[index].points[k];
-    return PointRows((*p).normal, (*p).tangent[0], (*p).tangent[1], (*p).anchor_a,
-        (*p).adjusted_separation, (*p).anchor_b, (*p).separation, (*p).max_normal_impulse);
+    let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)];
+    let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)];
+    return PointRows(load_row(index, k, POINT_NORMAL), load_row(index, k, POINT_TANGENT1),
+        load_row(index, k, POINT_TANGENT2), anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w,
+        contacts[point_word(index, k, POINT_EXTRA)].y);
+}
+
+// Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal one.
+fn store_impulses(index: u32, k: u32, normal: f32, tangent1: f32, tangent2: f32, max_normal: f32) {
+    contacts[point_word(index, k, POINT_NORMAL + 1u)].w = normal;
+    contacts[point_word(index, k, POINT_EXTRA)].y = max_normal;
+    contacts[point_word(index, k, POINT_TANGENT1 + 1u)].w = tangent1;
+    contacts[point_word(index, k, POINT_TANGENT2 + 1u)].w = tangent2;
 }
 
 // Stores what a solve sweep changed of point `k`: its separation (when recomputed) and impulses.
@@ -126,14 +149,11 @@ fn store_point(index: u32, k: u32, count: u32, point: PointRows) {
     if k >= count {
         return;
     }
-    let p = &contacts[index].points[k];
     if params.moved != 0u {
-        (*p).separation = point.separation;
+        contacts[point_word(index, k, POINT_ANCHOR_B)].w = point.separation;
     }
-    (*p).normal.impulse = point.normal.impulse;
-    (*p).max_normal_impulse = point.max_normal_impulse;
-    (*p).tangent[0].impulse = point.tangent1.impulse;
-    (*p).tangent[1].impulse = point.tangent2.impulse;
+    store_impulses(index, k, point.normal.impulse, point.tangent1.impulse,
+        point.tangent2.impulse, point.max_normal_impulse);
 }
 
 // The manifold-wide data of a constraint.
@@ -144,21 +164,24 @@ struct ConstraintHeader {
     mass_a: f32,
     mass_b: f32,
     friction: f32,
+    restitution: f32,
     softness: Softness,
 }
 
 fn load_header(index: u32) -> ConstraintHeader {
-    let c = &contacts[index];
-    return ConstraintHeader((*c).normal, (*c).tangent1, (*c).tangent2, (*c).inverse_mass_a,
-        (*c).inverse_mass_b, (*c).friction, (*c).softness);
+    let normal = contacts[lane_word(index, HEADER_NORMAL)];
+    let tangent1 = contacts[lane_word(index, HEADER_TANGENT1)];
+    let tangent2 = contacts[lane_word(index, HEADER_TANGENT2)];
+    let masses = contacts[lane_word(index, HEADER_MASSES)];
+    return ConstraintHeader(normal.xyz, tangent1.xyz, tangent2.xyz, tangent2.w, masses.x,
+        normal.w, tangent1.w, Softness(masses.y, masses.z, masses.w));
 }
 
 fn warm_start_contact(index: u32) {
-    let c = &contacts[index];
-    let pair = warm_start_contact_pair(index,
-        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    let ids = load_ids(index);
+    let pair = warm_start_contact_pair(index, BodyPair(load_body(ids.x), load_body(ids.y)));
+    store_body(ids.x, pair[0]);
+    store_body(ids.y, pair[1]);
 }
 
 fn warm_start_point(h: ConstraintHeader, point: PointRows, pair: BodyPair) -> BodyPair {
@@ -170,7 +193,7 @@ fn warm_start_point(h: ConstraintHeader, point: PointRows, pair: BodyPair) -> Bo
 // The row functions take the two bodies and return them moved, wherever they come from: the
 // PGS sweeps load and store them in `bodies`, the Jacobi sweeps (jacobi.wgsl) keep copies.
 fn warm_start_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let count = contacts[index].point_count;
+    let count = load_ids(index).w;
     let h = load_header(index);
     let p0 = load_point(index, 0u, count);
     let p1 = load_point(index, 1u, count);
@@ -205,11 +228,10 @@ fn bias_terms(error: f32, softness: Softness) -> vec3<f32> {
 }
 
 fn solve_contact(index: u32) {
-    let c = &contacts[index];
-    let pair = solve_contact_pair(index,
-        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    let ids = load_ids(index);
+    let pair = solve_contact_pair(index, BodyPair(load_body(ids.x), load_body(ids.y)));
+    store_body(ids.x, pair[0]);
+    store_body(ids.y, pair[1]);
 }
 
 // The bodies with one point's non-penetration row solved; `point` gets its new separation and
@@ -261,7 +283,7 @@ fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Bo
 }
 
 fn solve_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let count = contacts[index].point_count;
+    let count = load_ids(index).w;
     let h = load_header(index);
     var p0 = load_point(index, 0u, count);
     var p1 = load_point(index, 1u, count);
@@ -300,40 +322,38 @@ fn solve_contact_pair(index: u32, start: BodyPair) -> BodyPair {
 }
 
 fn restitution_contact(index: u32) {
-    let c = &contacts[index];
-    if (*c).restitution == 0.0 {
+    // The restitution, alone (most constraints have none).
+    if contacts[lane_word(index, HEADER_TANGENT1)].w == 0.0 {
         return;
     }
-    let pair = restitution_contact_pair(index,
-        BodyPair(load_body((*c).body_a), load_body((*c).body_b)));
-    store_body((*c).body_a, pair[0]);
-    store_body((*c).body_b, pair[1]);
+    let ids = load_ids(index);
+    let pair = restitution_contact_pair(index, BodyPair(load_body(ids.x), load_body(ids.y)));
+    store_body(ids.x, pair[0]);
+    store_body(ids.y, pair[1]);
 }
 
 fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let c = &contacts[index];
-    let restitution = (*c).restitution;
-    if restitution == 0.0 {
+    let h = load_header(index);
+    if h.restitution == 0.0 {
         return start;
     }
-    let n = (*c).normal;
-    let mass_a = (*c).inverse_mass_a;
-    let mass_b = (*c).inverse_mass_b;
     var pair = start;
-    for (var i = 0u; i < (*c).point_count; i++) {
-        let point = &(*c).points[i];
-        let approach = (*point).approach_velocity;
-        let max_impulse = (*point).max_normal_impulse;
+    for (var k = 0u; k < load_ids(index).w; k++) {
+        let extra = contacts[point_word(index, k, POINT_EXTRA)];
+        let approach = extra.x;
+        let max_impulse = extra.y;
         if approach > -params.restitution_threshold || max_impulse == 0.0 {
             continue;
         }
-        let row = (*point).normal;
-        let velocity = row_velocity(n, (*point).anchor_a, (*point).anchor_b, pair);
-        let total = max(row.impulse - (velocity + restitution * approach) * row.mass, 0.0);
+        let row = load_row(index, k, POINT_NORMAL);
+        let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)].xyz;
+        let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)].xyz;
+        let velocity = row_velocity(h.normal, anchor_a, anchor_b, pair);
+        let total = max(row.impulse - (velocity + h.restitution * approach) * row.mass, 0.0);
         let delta = total - row.impulse;
-        (*point).normal.impulse = total;
-        (*point).max_normal_impulse = max(max_impulse, total);
-        pair = apply(row, n, delta, mass_a, mass_b, pair);
+        contacts[point_word(index, k, POINT_NORMAL + 1u)].w = total;
+        contacts[point_word(index, k, POINT_EXTRA)].y = max(max_impulse, total);
+        pair = apply(row, h.normal, delta, h.mass_a, h.mass_b, pair);
     }
     return pair;
 }

@@ -33,7 +33,7 @@ fn warm_start_side(h: ConstraintHeader, point: PointRows, side: u32, body: Solve
 
 // Constraint `index`'s warm start on its side `side`, the body of that side.
 fn warm_start_contact_side(index: u32, side: u32, body: SolverBody) -> SolverBody {
-    let count = contacts[index].point_count;
+    let count = load_ids(index).w;
     let h = load_header(index);
     let p0 = load_point(index, 0u, count);
     let p1 = load_point(index, 1u, count);

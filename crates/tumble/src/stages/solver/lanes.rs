@@ -1,0 +1,132 @@
+//! The layout the GPU solver keeps its contact constraints in: blocks of [`LANES`]
+//! constraints, word by word. Word `w` of constraint `c` is
+//!
+//! ```text
+//!   words[(c / LANES · WORDS + w) · LANES + c % LANES]
+//! ```
+//!
+//! so the threads of a warp, a constraint each, read each 16-byte word of their constraints
+//! from 512 contiguous bytes. Laid out as an array of [`ContactConstraint`]s, the same load
+//! touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache traffic 8
+//! times over, on the loads that bound the sweeps.
+//!
+//! The arrays the CPU solves stay arrays of [`ContactConstraint`]: [`lay_out`] and
+//! [`read_back`] convert the host's, `gather_rows.wgsl` writes the device's in this layout
+//! directly, and `lanes.wgsl` gives the kernels the same index.
+
+use crate::gpu::kernel::Source;
+use crate::stages::constraints::{ConstraintPoint, ContactConstraint};
+
+const WGSL: &str = include_str!("lanes.wgsl");
+
+/// Constraints a block: a warp of NVIDIA's, half a wave of AMD's, four of lavapipe's subgroups.
+pub const LANES: usize = 32;
+/// 16-byte words of a [`ContactConstraint`].
+pub const WORDS: usize = size_of::<ContactConstraint>() / 16;
+const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
+const _: () = assert!(size_of::<ConstraintPoint>().is_multiple_of(16));
+const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multiple_of(16));
+
+/// 16 bytes of a constraint.
+pub type Word = [u32; 4];
+
+/// Words that hold `constraints` constraints: whole blocks.
+pub fn word_count(constraints: usize) -> usize {
+    constraints.div_ceil(LANES) * LANES * WORDS
+}
+
+/// Where word `word` of constraint `constraint` lies.
+pub fn word_index(constraint: usize, word: usize) -> usize {
+    (constraint / LANES * WORDS + word) * LANES + constraint % LANES
+}
+
+/// `constraints` into `words`, laid out in blocks (the lanes past the last constraint zero).
+pub fn lay_out(constraints: &[ContactConstraint], words: &mut Vec<Word>) {
+    words.clear();
+    words.resize(word_count(constraints.len()), [0; 4]);
+    for (index, constraint) in constraints.iter().enumerate() {
+        let source: &[Word] = bytemuck::cast_slice(std::slice::from_ref(constraint));
+        for (word, value) in source.iter().enumerate() {
+            words[word_index(index, word)] = *value;
+        }
+    }
+}
+
+/// The constraints `words` holds back into `constraints` (as many as it has).
+pub fn read_back(words: &[Word], constraints: &mut [ContactConstraint]) {
+    for (index, constraint) in constraints.iter_mut().enumerate() {
+        let target: &mut [Word] = bytemuck::cast_slice_mut(std::slice::from_mut(constraint));
+        for (word, value) in target.iter_mut().enumerate() {
+            *value = words[word_index(index, word)];
+        }
+    }
+}
+
+/// `source` with the layout's constants and `lanes.wgsl`'s index functions.
+pub fn with_lanes(source: Source) -> Source {
+    source
+        .constant_u32("CONSTRAINT_LANES", LANES as u32)
+        .constant_u32("CONSTRAINT_WORDS", WORDS as u32)
+        .constant_u32(
+            "HEADER_WORDS",
+            (std::mem::offset_of!(ContactConstraint, points) / 16) as u32,
+        )
+        .constant_u32("POINT_WORDS", (size_of::<ConstraintPoint>() / 16) as u32)
+        .snippet("lanes.wgsl", WGSL)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Constraint `index` with every byte telling which constraint and byte it is.
+    fn numbered(index: usize) -> ContactConstraint {
+        let mut constraint = ContactConstraint::default();
+        let bytes: &mut [u8] = bytemuck::bytes_of_mut(&mut constraint);
+        for (byte, value) in bytes.iter_mut().enumerate() {
+            *value = (index * 7 + byte) as u8;
+        }
+        constraint
+    }
+
+    #[test]
+    fn every_word_has_its_own_place() {
+        for count in [1, 31, 32, 33, 100] {
+            let mut seen = vec![false; word_count(count)];
+            for constraint in 0..count {
+                for word in 0..WORDS {
+                    let place = word_index(constraint, word);
+                    assert!(
+                        !seen[place],
+                        "{count} constraints: word {word} of {constraint}"
+                    );
+                    seen[place] = true;
+                }
+            }
+            // Only the lanes past the last constraint stay free.
+            let free = seen.iter().filter(|taken| !**taken).count();
+            assert_eq!(free, (count.div_ceil(LANES) * LANES - count) * WORDS);
+        }
+    }
+
+    #[test]
+    fn a_warp_reads_a_word_from_contiguous_bytes() {
+        let places: Vec<usize> = (32..64).map(|c| word_index(c, 7)).collect();
+        assert!(places.windows(2).all(|w| w[1] == w[0] + 1), "{places:?}");
+    }
+
+    #[test]
+    fn constraints_come_back_as_they_went() {
+        for count in [0, 1, 2, 31, 32, 33, 65, 1000] {
+            let constraints: Vec<_> = (0..count).map(numbered).collect();
+            let mut words = Vec::new();
+            lay_out(&constraints, &mut words);
+            assert_eq!(words.len(), word_count(count));
+            let mut back = vec![ContactConstraint::default(); count];
+            read_back(&words, &mut back);
+            // Bytes, not floats: the numbering makes some of them NaN.
+            let bytes = |c: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(c).to_vec();
+            assert!(bytes(&back) == bytes(&constraints), "{count} constraints");
+        }
+    }
+}
