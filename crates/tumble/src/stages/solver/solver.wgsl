@@ -52,9 +52,13 @@ fn load_body(index: u32) -> SolverBody {
     return bodies[index];
 }
 
+// The velocities of `body` into body `index`: a sweep changes nothing else of a body (its
+// delta position and rotation are the integrator's), and the sweeps are bound by their memory
+// traffic, of which writing whole bodies was about a fifth of a constraint's bytes.
 fn store_body(index: u32, body: SolverBody) {
     if index != STATIC_BODY {
-        bodies[index] = body;
+        bodies[index].linear_velocity = body.linear_velocity;
+        bodies[index].angular_velocity = body.angular_velocity;
     }
 }
 
