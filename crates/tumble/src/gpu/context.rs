@@ -104,6 +104,7 @@ impl GpuContext {
     pub fn device_descriptor(adapter: &wgpu::Adapter) -> wgpu::DeviceDescriptor<'static> {
         let optional = wgpu::Features::TIMESTAMP_QUERY
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
+            | wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES
             | wgpu::Features::SUBGROUP;
         wgpu::DeviceDescriptor {
             label: Some("tumble"),
@@ -170,6 +171,14 @@ impl GpuContext {
         self.device
             .features()
             .contains(wgpu::Features::TIMESTAMP_QUERY)
+    }
+
+    /// Whether timestamps can be written between the dispatches of a pass (the profiler's
+    /// dispatch timer).
+    pub fn has_pass_timestamps(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY_INSIDE_PASSES)
     }
 
     pub fn has_subgroups(&self) -> bool {

@@ -12,12 +12,14 @@
 //! A stage's GPU work is a list of [`Dispatch`]es built once (pipelines, bind groups and
 //! parameter blocks included) and re-encoded every step, so a step allocates nothing.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::hash::{DefaultHasher, Hash, Hasher};
+use std::sync::{Mutex, OnceLock};
 
 use wgpu::util::DeviceExt;
 
 use crate::gpu::context::GpuContext;
+use crate::gpu::profiler::DispatchTimer;
 
 /// Threads per workgroup of every baseline kernel. 256 is the most WebGPU guarantees
 /// (`max_compute_invocations_per_workgroup`), and radix sort needs one thread per digit value.
@@ -82,6 +84,25 @@ pub enum Binding {
 pub struct Kernel {
     pub pipeline: wgpu::ComputePipeline,
     pub layout: wgpu::BindGroupLayout,
+    /// "label / entry" (or the label alone when they are the same): its dispatches' line in a
+    /// profile that times each dispatch ([`DispatchTimer`]).
+    pub name: &'static str,
+}
+
+/// `name` as a `&'static str`, each distinct name leaked once: a process compiles a bounded
+/// set of kernels, and the profile's lines are named by `&'static str`.
+fn intern(name: String) -> &'static str {
+    static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
+    let mut names = NAMES
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some(known) = names.get(name.as_str()) {
+        return known;
+    }
+    let leaked: &'static str = Box::leak(name.into_boxed_str());
+    names.insert(leaked);
+    leaked
 }
 
 /// Compiled kernels of a context, keyed by a hash of (source, entry point, bindings).
@@ -187,7 +208,16 @@ impl Kernel {
             compilation_options: Default::default(),
             cache: None,
         });
-        Self { pipeline, layout }
+        let name = if label == entry {
+            label.to_owned()
+        } else {
+            format!("{label} / {entry}")
+        };
+        Self {
+            pipeline,
+            layout,
+            name: intern(name),
+        }
     }
 
     /// A bind group for this kernel: one buffer binding per entry of its layout, in order.
@@ -221,6 +251,7 @@ impl Kernel {
             pipeline: self.pipeline.clone(),
             bind_group,
             groups: [x, y, 1],
+            name: self.name,
         }
     }
 }
@@ -231,16 +262,23 @@ pub struct Dispatch {
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
     groups: [u32; 3],
+    name: &'static str,
 }
 
 impl Dispatch {
+    /// Encodes the dispatch, between two timestamps when the pass is timed dispatch by
+    /// dispatch ([`DispatchTimer`]).
     pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {
         if self.groups.contains(&0) {
             return;
         }
+        let timed = DispatchTimer::begin(pass, self.name);
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.dispatch_workgroups(self.groups[0], self.groups[1], self.groups[2]);
+        if let Some(timed) = timed {
+            timed.end(pass);
+        }
     }
 }
 

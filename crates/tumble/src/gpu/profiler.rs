@@ -9,6 +9,15 @@
 //!
 //! Without timestamp queries (llvmpipe on GL) every call is a no-op and passes get no
 //! timestamp writes: the report then simply has no GPU lines.
+//!
+//! With `TUMBLE_PROFILE_DISPATCHES=1` in the environment, and an adapter that writes timestamps
+//! inside passes, each dispatch of the passes encoded through [`GpuProfiler::timing_dispatches`]
+//! is timed too ([`DispatchTimer`]): the report gets a line `dispatches`, the kernels' time
+//! dispatch by dispatch, with a line per kernel (its time per frame and dispatches per frame).
+//! The timestamps between dispatches cost time of their own, so the stage lines of such a
+//! profile read a little high; it is a tool for finding which kernel takes the time.
+
+use std::cell::RefCell;
 
 use crate::gpu::buffer::read_mapped;
 use crate::gpu::context::{GpuContext, GpuError};
@@ -20,6 +29,8 @@ pub type SpanPath = &'static [&'static str];
 #[derive(Debug)]
 pub struct GpuProfiler {
     queries: Option<Queries>,
+    /// Each dispatch's timestamps, when they are asked for (see the module docs).
+    dispatches: Option<DispatchTimer>,
     /// Spans begun this frame, in query order (span k uses queries 2k and 2k + 1).
     spans: Vec<SpanPath>,
     /// Resolved timestamps of the last collected frame, reused.
@@ -70,11 +81,40 @@ impl GpuProfiler {
                 period_ns: f64::from(context.queue.get_timestamp_period()),
             }
         });
-        Self {
+        let mut profiler = Self {
             queries,
+            dispatches: None,
             spans: Vec::with_capacity(max_spans),
             ticks: Vec::with_capacity(2 * max_spans),
+        };
+        if std::env::var("TUMBLE_PROFILE_DISPATCHES").is_ok_and(|value| value == "1") {
+            profiler.time_each_dispatch(context);
         }
+        profiler
+    }
+
+    /// From now on, time each dispatch encoded through [`Self::timing_dispatches`] (see the
+    /// module docs). False, and nothing changes, when the adapter cannot write timestamps
+    /// inside a pass.
+    pub fn time_each_dispatch(&mut self, context: &GpuContext) -> bool {
+        if !context.has_pass_timestamps() {
+            return false;
+        }
+        self.dispatches
+            .get_or_insert_with(|| DispatchTimer::new(context));
+        true
+    }
+
+    /// Runs `encode`, which encodes dispatches into a pass, with each dispatch timed when
+    /// dispatches are timed (see the module docs).
+    pub fn timing_dispatches<R>(&mut self, encode: impl FnOnce() -> R) -> R {
+        let Some(timer) = self.dispatches.take() else {
+            return encode();
+        };
+        ACTIVE.with_borrow_mut(|active| *active = Some(timer));
+        let result = encode();
+        self.dispatches = ACTIVE.with_borrow_mut(Option::take);
+        result
     }
 
     /// Whether spans are measured (the adapter has timestamp queries).
@@ -103,6 +143,9 @@ impl GpuProfiler {
 
     /// Resolves this frame's queries; encode after the measured passes.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        if let Some(timer) = &self.dispatches {
+            timer.resolve(encoder);
+        }
         let Some(queries) = &self.queries else {
             return;
         };
@@ -127,6 +170,9 @@ impl GpuProfiler {
         context: &GpuContext,
         profiler: &mut Profiler,
     ) -> Result<(), GpuError> {
+        if let Some(timer) = &mut self.dispatches {
+            timer.collect(context, profiler)?;
+        }
         let Some(queries) = &self.queries else {
             return Ok(());
         };
@@ -152,4 +198,124 @@ impl GpuProfiler {
 /// its wait) at `path`.
 pub fn record_copy(profiler: &mut Profiler, path: SpanPath, ms: f64) {
     profiler.record(path, SpanKind::Copy, ms);
+}
+
+thread_local! {
+    /// The dispatch timer of the pass being encoded on this thread
+    /// ([`GpuProfiler::timing_dispatches`]), where [`Dispatch::encode`](super::kernel::Dispatch::encode)
+    /// finds it.
+    static ACTIVE: RefCell<Option<DispatchTimer>> = const { RefCell::new(None) };
+}
+
+/// Dispatches timed between two collections at most; the ones past it go untimed.
+const MAX_TIMED_DISPATCHES: u32 = 2048;
+
+/// Timestamps around each dispatch (see the module docs): a query set written inside the
+/// passes, and the kernel of each pair of queries.
+#[derive(Debug)]
+pub struct DispatchTimer {
+    set: wgpu::QuerySet,
+    resolved: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    /// The kernel of each dispatch timed since the last collection, in query order.
+    names: Vec<&'static str>,
+    ticks: Vec<u64>,
+    period_ns: f64,
+}
+
+/// A dispatch between its two timestamps: [`Self::end`] writes the second.
+pub struct TimedDispatch {
+    set: wgpu::QuerySet,
+    index: u32,
+}
+
+impl TimedDispatch {
+    pub fn end(self, pass: &mut wgpu::ComputePass<'_>) {
+        pass.write_timestamp(&self.set, self.index + 1);
+    }
+}
+
+impl DispatchTimer {
+    fn new(context: &GpuContext) -> Self {
+        let bytes = u64::from(2 * MAX_TIMED_DISPATCHES) * 8;
+        let buffer = |label, usage| {
+            context.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            set: context.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("dispatch timer"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * MAX_TIMED_DISPATCHES,
+            }),
+            resolved: buffer(
+                "dispatch timestamps resolved",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "dispatch timestamps readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            names: Vec::new(),
+            ticks: Vec::new(),
+            period_ns: f64::from(context.queue.get_timestamp_period()),
+        }
+    }
+
+    /// Writes the first timestamp of a dispatch of kernel `name` when this thread is encoding
+    /// a timed pass and queries are left; the caller ends it after the dispatch.
+    pub fn begin(pass: &mut wgpu::ComputePass<'_>, name: &'static str) -> Option<TimedDispatch> {
+        ACTIVE.with_borrow_mut(|active| {
+            let timer = active.as_mut()?;
+            if timer.names.len() >= MAX_TIMED_DISPATCHES as usize {
+                return None;
+            }
+            let index = 2 * timer.names.len() as u32;
+            timer.names.push(name);
+            pass.write_timestamp(&timer.set, index);
+            Some(TimedDispatch {
+                set: timer.set.clone(),
+                index,
+            })
+        })
+    }
+
+    fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        if self.names.is_empty() {
+            return;
+        }
+        let count = 2 * self.names.len() as u32;
+        encoder.resolve_query_set(&self.set, 0..count, &self.resolved, 0);
+        encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, u64::from(count) * 8);
+    }
+
+    /// Records the dispatches' times at `dispatches` and `dispatches` / kernel.
+    fn collect(&mut self, context: &GpuContext, profiler: &mut Profiler) -> Result<(), GpuError> {
+        if self.names.is_empty() {
+            return Ok(());
+        }
+        let bytes = 16 * self.names.len() as u64;
+        let ticks = &mut self.ticks;
+        ticks.clear();
+        read_mapped(
+            context,
+            &self.readback,
+            bytes,
+            "dispatch timestamps",
+            |data| {
+                ticks.extend_from_slice(bytemuck::cast_slice(data));
+            },
+        )?;
+        for (name, pair) in self.names.iter().zip(self.ticks.chunks_exact(2)) {
+            let ms = pair[1].saturating_sub(pair[0]) as f64 * self.period_ns * 1e-6;
+            profiler.record(&["dispatches"], SpanKind::Gpu, ms);
+            profiler.record(&["dispatches", name], SpanKind::Gpu, ms);
+        }
+        self.names.clear();
+        Ok(())
+    }
 }

@@ -2002,7 +2002,7 @@ fn encode_pass(
         label: Some(kernel[0]),
         timestamp_writes: gpu_profiler.pass_timestamps(kernel),
     });
-    encode(&mut pass)
+    gpu_profiler.timing_dispatches(|| encode(&mut pass))
 }
 
 /// [`run_pass`] for a stage whose kernels are timed on several lines: `encode` encodes its

@@ -65,3 +65,78 @@ fn timestamps_and_copies_are_recorded_as_their_own_lines() {
         assert_eq!(lines, [("download", SpanKind::Copy)]);
     }
 }
+
+#[test]
+fn each_dispatch_is_timed_under_its_kernel_when_asked() {
+    let context = context();
+    let input = Random::new(2).u32s(100_000);
+    let source = GpuVec::from_slice(&context, "scan input", &input).expect("upload");
+    let mut destination = GpuVec::with_capacity(&context, "scan output", 0).expect("alloc");
+    let mut scan = Scan::new();
+    let mut gpu_profiler = GpuProfiler::new(&context, 4);
+    if !gpu_profiler.time_each_dispatch(&context) {
+        // No timestamps inside passes on this adapter (llvmpipe on GL): nothing to time.
+        return;
+    }
+    let mut profiler = Profiler::new("frame");
+    profiler.begin_frame();
+    let mut encoder = context.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("scan"),
+            timestamp_writes: gpu_profiler.pass_timestamps(&["scan"]),
+        });
+        gpu_profiler.timing_dispatches(|| {
+            scan.encode(
+                &context,
+                &mut pass,
+                &source,
+                &mut destination,
+                ScanKind::Exclusive,
+            )
+            .expect("encode")
+        });
+    }
+    // A pass encoded outside `timing_dispatches` is not timed dispatch by dispatch.
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        scan.encode(
+            &context,
+            &mut pass,
+            &source,
+            &mut destination,
+            ScanKind::Inclusive,
+        )
+        .expect("encode");
+    }
+    gpu_profiler.resolve(&mut encoder);
+    context.queue.submit([encoder.finish()]);
+    gpu_profiler
+        .collect(&context, &mut profiler)
+        .expect("collect");
+    profiler.end_frame();
+    let report = profiler.report();
+    let dispatches = report
+        .root
+        .children
+        .iter()
+        .find(|line| line.name == "dispatches")
+        .expect("a line for the dispatches");
+    assert_eq!(dispatches.kind, SpanKind::Gpu);
+    // A scan of 100 000 values is more than one dispatch; each is under its kernel's line.
+    assert!(dispatches.calls_per_frame >= 2.0, "{report}");
+    let kernels: f64 = dispatches.children.iter().map(|k| k.calls_per_frame).sum();
+    assert_eq!(kernels, dispatches.calls_per_frame, "{report}");
+    let kernel_ms: f64 = dispatches.children.iter().map(|k| k.ms_per_frame).sum();
+    assert!(
+        (kernel_ms - dispatches.ms_per_frame).abs() < 1e-9,
+        "{report}"
+    );
+    assert!(
+        dispatches
+            .children
+            .iter()
+            .all(|k| k.kind == SpanKind::Gpu && !k.name.is_empty()),
+        "{report}"
+    );
+}
