@@ -5,7 +5,8 @@
 # pile (scripts/pile-on-device.sh), whose results must agree bit for bit between builds that
 # change no arithmetic, and last the lib tests (the kernels' parity tests against the host,
 # which lavapipe cannot fully stand in for: its subgroups are 8 wide and its workgroups run on
-# a thread pool), when their binary was carried.
+# a thread pool), when their binary was carried. The newest build (the last of BINS) also runs
+# 3k and the pile with each dispatch timed (falling-3k-dispatches.txt, pile-dispatches.txt).
 #
 # Here, first: `scripts/build-devbin.sh NAME` for each build (tumble-NAME.gz and
 # kernel_stats-NAME.gz in .devbin, 10 MB a build), and optionally the lib tests:
@@ -41,6 +42,8 @@ for bin in $bins; do
   ".devbin/$bin" run falling-boxes --device gpu --steps 300 --profile \
     > "$out/falling-3k-profile-$bin.txt" 2>&1
 done
+TUMBLE_PROFILE_DISPATCHES=1 ".devbin/${bins##* }" run falling-boxes --device gpu --steps 300 \
+  --profile > "$out/falling-3k-dispatches.txt" 2>&1
 echo "== the settled 100k pile"
 BINS="$bins" bash "$(dirname "$0")/pile-on-device.sh" 33.3 1500 120 2>&1 |
   grep -E "===|ms_per_step" | cut -c1-200

@@ -6,7 +6,8 @@
 # about step 1500 (kinetic energy 22 J), at 500k (166.1) the last boxes land near step 750 at
 # about 120 m/s and the pile comes to rest by about step 2400 (3.3 J; 17 MJ at step 900). This
 # settles the pile with the last of BINS, dumps it, then runs each binary from the same dump:
-# the profile, then the median step without the profiler (`--json`).
+# the profile, then the median step without the profiler (`--json`), and last the newest
+# build's profile with each dispatch timed (pile-dispatches.txt).
 #
 #   bash scripts/pile-on-device.sh [SCALE [SETTLE_STEPS [STEPS]]]    # defaults 33.3 900 120
 #
@@ -51,4 +52,8 @@ for bin in $bins; do
   ".devbin/$bin" run "$dump" --device gpu --steps "$steps" --json 2>&1 | tail -1 | tee -a "$report" |
     grep -oE '"ms_per_step":[0-9.]+' || true
 done
+# Each dispatch timed (gpu/profiler.rs), with the newest build: which kernel takes the time.
+echo "=== ${bins##* }: each dispatch timed" >> "$report"
+TUMBLE_PROFILE_DISPATCHES=1 "$settler" run "$dump" --device gpu --steps "$steps" --profile \
+  > "$out/pile-dispatches.txt" 2>&1 || true
 rm -f "$dump"
