@@ -20,6 +20,7 @@ use crate::stages::batching::{Batcher, Coloring, MAX_ROUNDS};
 use crate::stages::broadphase::gpu::GpuBroadphase;
 use crate::stages::constraints::gpu::{GpuRowInputs, GpuRows};
 use crate::stages::constraints::joint_gpu::{GpuJointInputs, GpuJointRows};
+use crate::stages::constraints::lanes::{Word, lay_out, read_back};
 use crate::stages::constraints::tally::{GpuRowTally, PairTally};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, RowInputs};
 use crate::stages::integrate::gpu::{GpuFinalizeBodies, GpuPrepareBodies};
@@ -33,7 +34,6 @@ use crate::stages::solver::adjacency::{AdjacencyInputs, GpuBodyAdjacency};
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
 use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
-use crate::stages::solver::lanes::{Word, lay_out, read_back};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
 /// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
@@ -474,7 +474,7 @@ pub(crate) struct GpuStages {
     prepare_bodies: GpuPrepareBodies,
     /// Stage 8 on the device: the motion in `solver_bodies` into the poses and velocities.
     finalize_bodies: GpuFinalizeBodies,
-    /// A host solve's contact constraints, in blocks of lanes ([`lanes`](crate::stages::solver::lanes)).
+    /// A host solve's contact constraints, in blocks of lanes ([`lanes`](crate::stages::constraints::lanes)).
     batched_contacts: GpuVec<Word>,
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,

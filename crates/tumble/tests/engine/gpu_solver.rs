@@ -11,6 +11,7 @@ use tumble::math::{Quat, Vec3, tangent_basis};
 use tumble::pipeline::config::Softness;
 use tumble::shape::Shape;
 use tumble::stages::batching::{Batcher, Coloring, color_constraints, group_by_batch};
+use tumble::stages::constraints::lanes;
 use tumble::stages::constraints::{
     ContactConstraint, Drag, JointConstraint, RowInputs, build_constraints,
     build_joint_constraints, drag_constraint, world_inverse_inertia,
@@ -21,7 +22,6 @@ use tumble::stages::pairs::pair_key;
 use tumble::stages::solver::gpu::GpuSolver;
 use tumble::stages::solver::jacobi::{self, JacobiScratch};
 use tumble::stages::solver::jacobi_gpu::GpuJacobi;
-use tumble::stages::solver::lanes;
 use tumble::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings, solve};
 
 fn uniform(random: &mut Random, low: f32, high: f32) -> f32 {

@@ -1,7 +1,7 @@
 //! GPU executor of the contact rows: [`build_constraints`](super::build_constraints)'s contract
 //! for contacts (the joint rows have theirs, [`joint_gpu`](super::joint_gpu)), with the kernels
 //! of `rows.wgsl`: flag the slots that get a constraint, scan the flags into places (the CPU's
-//! order), build each constraint at its place. Three dispatch groups; the constraint count
+//! order), build each constraint at its place, in blocks of lanes ([`lanes`](super::lanes)). Three dispatch groups; the constraint count
 //! stays on the device (the scan's last entry) until a caller reads it. The threads cover the
 //! slots' buffers, the live slots counted in a word on the device: the dispatches are built
 //! again only when a buffer grows, not each step the pair count changes (that took 0.1–0.2 ms
@@ -9,6 +9,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use super::lanes::{self, Word, with_lanes, word_count};
 use super::{CONTACT_CONSTRAINT_WGSL, ContactConstraint};
 use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity, ColliderData};
 use crate::gpu::buffer::GpuVec;
@@ -59,7 +60,7 @@ fn softness_vec(softness: Softness) -> [f32; 4] {
 }
 
 pub fn wgsl() -> Source {
-    Source::new()
+    with_lanes(Source::new())
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
@@ -87,8 +88,9 @@ pub struct GpuRows {
     flags: GpuVec<u32>,
     /// Exclusive scan of the flags: each constraint's place; entry `slots` is the count.
     places: GpuVec<u32>,
-    /// One per slot at most; the first `count` are the constraints.
-    pub constraints: GpuVec<ContactConstraint>,
+    /// One per slot at most; the first `count` are the constraints, in blocks of lanes
+    /// ([`lanes`](super::lanes)).
+    pub constraints: GpuVec<Word>,
     /// Each constraint's bodies (A, B; [`STATIC_BODY`](super::STATIC_BODY) for a side with no
     /// mass), at the constraint's place: what a batching on the device colors.
     pub bodies: GpuVec<[u32; 2]>,
@@ -97,6 +99,8 @@ pub struct GpuRows {
     live: GpuVec<u32>,
     cached: Option<(RowKey, [Dispatch; 2])>,
     host_places: Vec<u32>,
+    /// The constraints' words on their way back ([`Self::read_back`]).
+    host_words: Vec<Word>,
 }
 
 impl GpuRows {
@@ -110,6 +114,7 @@ impl GpuRows {
             live: GpuVec::from_slice(context, "live row slots", &[0])?,
             cached: None,
             host_places: Vec::new(),
+            host_words: Vec::new(),
         })
     }
 
@@ -131,7 +136,7 @@ impl GpuRows {
         let slots = inputs.keys.capacity().min(inputs.contacts.capacity());
         self.flags.resize(context, slots + 1)?;
         self.places.resize(context, slots + 1)?;
-        self.constraints.resize(context, rows)?;
+        self.constraints.resize(context, word_count(rows))?;
         self.bodies.resize(context, rows)?;
         let buffers = [
             inputs.keys.buffer().clone(),
@@ -230,11 +235,17 @@ impl GpuRows {
     ) -> Result<(), GpuError> {
         self.places.download_into(context, &mut self.host_places)?;
         let count = self.host_places.last().copied().unwrap_or(0) as usize;
-        let slots = self.constraints.len();
-        // The vector's length becomes the count, so only the constraints come back.
-        self.constraints.resize(context, count)?;
-        let result = self.constraints.download_into(context, out);
-        self.constraints.resize(context, slots)?;
-        result
+        let words = self.constraints.len();
+        // The vector's length becomes the count's blocks, so only the constraints come back.
+        self.constraints.resize(context, word_count(count))?;
+        let result = self
+            .constraints
+            .download_into(context, &mut self.host_words);
+        self.constraints.resize(context, words)?;
+        result?;
+        out.clear();
+        out.resize(count, ContactConstraint::default());
+        lanes::read_back(&self.host_words, out);
+        Ok(())
     }
 }

@@ -6,6 +6,7 @@ pub mod contact;
 pub mod gpu;
 pub mod joint;
 pub mod joint_gpu;
+pub mod lanes;
 pub mod tally;
 
 pub use contact::{

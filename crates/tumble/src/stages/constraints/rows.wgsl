@@ -1,7 +1,7 @@
 // Contact rows on the GPU: the twin of build_constraints in contact.rs (read its docs for the
 // formulas). One thread per manifold slot (pairs, then children): `flag` marks the slots
 // that get a constraint, an exclusive scan of the flags gives each one its place (the CPU's
-// order), and `build` writes it there. The threads cover the slots' buffers (`slots`), which
+// order), and `build` writes it there, in blocks of lanes (lanes.wgsl). The threads cover the slots' buffers (`slots`), which
 // change size only when they grow, and the live slots are counted on the device (`count`): the
 // dispatches stay the same from step to step while the pairs come and go.
 
@@ -28,7 +28,8 @@ struct RowParams {
 @group(0) @binding(5) var<storage, read> poses: array<BodyPose>;
 @group(0) @binding(6) var<storage, read> velocities: array<BodyVelocity>;
 @group(0) @binding(7) var<storage, read> colliders: array<ColliderData>;
-@group(0) @binding(8) var<storage, read_write> constraints: array<ContactConstraint>;
+// The constraints in blocks of lanes (lanes.wgsl), a vec4 a word.
+@group(0) @binding(8) var<storage, read_write> constraints: array<vec4<f32>>;
 // Per constraint: its bodies as the constraint has them, for a batching on the device.
 @group(0) @binding(9) var<storage, read_write> row_bodies: array<vec2<u32>>;
 // Word 0: the live slots.
@@ -91,6 +92,12 @@ fn make_row(
     return row;
 }
 
+// Row `row` (its first word: POINT_NORMAL, ...) of point `k` of the constraint at `place`.
+fn store_row(place: u32, k: u32, first: u32, row: Row) {
+    constraints[point_word(place, k, first)] = vec4<f32>(row.angular_a, row.mass);
+    constraints[point_word(place, k, first + 1u)] = vec4<f32>(row.angular_b, row.impulse);
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn build(
     @builtin(local_invocation_id) id: vec3<u32>,
@@ -104,55 +111,62 @@ fn build(
     let bodies = slot_bodies(slot);
     let a = bodies.x;
     let b = bodies.y;
-    // Through pointers, a point at a time: a copy of the whole contact or constraint indexed by
-    // the loop variable would be spilled to local memory at every index (see solver.wgsl).
+    // Through pointers, a point at a time: a copy of the whole contact indexed by the loop
+    // variable would be spilled to local memory at every index (see solver.wgsl).
     let contact = &contacts[slot];
     let mass_a = masses[a].inverse_mass;
     let mass_b = masses[b].inverse_mass;
     let normal = (*contact).manifold.normal;
     let tangents = tangent_basis(normal);
-    var c: ContactConstraint;
-    c.body_a = select(STATIC_BODY, a, mass_a > 0.0);
-    c.body_b = select(STATIC_BODY, b, mass_b > 0.0);
-    c.pair = slot;
-    c.point_count = (*contact).manifold.count;
-    c.normal = normal;
-    c.friction = sqrt(colliders[a].friction * colliders[b].friction);
-    c.tangent1 = tangents[0];
-    c.restitution = max(colliders[a].restitution, colliders[b].restitution);
-    c.tangent2 = tangents[1];
-    c.inverse_mass_a = mass_a;
-    c.inverse_mass_b = mass_b;
+    let body_a = select(STATIC_BODY, a, mass_a > 0.0);
+    let body_b = select(STATIC_BODY, b, mass_b > 0.0);
+    let point_count = (*contact).manifold.count;
     var softness = params.softness;
     if mass_a == 0.0 || mass_b == 0.0 {
         softness = params.static_softness;
     }
-    c.softness = Softness(softness.x, softness.y, softness.z);
+    // The header, word by word (ContactConstraint's fields in order, see lanes.wgsl).
+    let place = places[slot];
+    row_bodies[place] = vec2<u32>(body_a, body_b);
+    constraints[lane_word(place, HEADER_IDS)] =
+        bitcast<vec4<f32>>(vec4<u32>(body_a, body_b, slot, point_count));
+    constraints[lane_word(place, HEADER_NORMAL)] =
+        vec4<f32>(normal, sqrt(colliders[a].friction * colliders[b].friction));
+    constraints[lane_word(place, HEADER_TANGENT1)] =
+        vec4<f32>(tangents[0], max(colliders[a].restitution, colliders[b].restitution));
+    constraints[lane_word(place, HEADER_TANGENT2)] = vec4<f32>(tangents[1], mass_a);
+    constraints[lane_word(place, HEADER_MASSES)] = vec4<f32>(mass_b, softness.xyz);
     let center_a = poses[a].position;
     let center_b = poses[b].position;
     let inertia_a = world_inverse_inertia(a);
     let inertia_b = world_inverse_inertia(b);
     let va = velocities[a];
     let vb = velocities[b];
-    // The header with zeroed points, then the points in place.
-    let out = &constraints[places[slot]];
-    *out = c;
-    row_bodies[places[slot]] = vec2<u32>(c.body_a, c.body_b);
-    for (var i = 0u; i < c.point_count; i++) {
+    // Every point slot, those past the count zero (as the CPU's constraint has them).
+    for (var i = 0u; i < MAX_MANIFOLD_POINTS; i++) {
+        if i >= point_count {
+            for (var word = 0u; word < POINT_WORDS; word++) {
+                constraints[point_word(place, i, word)] = vec4<f32>(0.0);
+            }
+            continue;
+        }
         let point = (*contact).manifold.points[i];
         let warm = (*contact).impulses[i];
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
-        var p: ConstraintPoint;
-        p.normal = make_row(normal, r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.normal);
-        p.tangent[0] = make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.tangent[0]);
-        p.tangent[1] = make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, mass_a + mass_b, warm.tangent[1]);
-        p.anchor_a = r_a;
-        p.anchor_b = r_b;
-        p.adjusted_separation = point.separation - dot3(normal, r_a - r_b);
-        p.separation = point.separation;
-        p.approach_velocity = dot3(normal, va.linear - vb.linear)
+        let masses_ab = mass_a + mass_b;
+        store_row(place, i, POINT_NORMAL,
+            make_row(normal, r_a, r_b, inertia_a, inertia_b, masses_ab, warm.normal));
+        store_row(place, i, POINT_TANGENT1,
+            make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[0]));
+        store_row(place, i, POINT_TANGENT2,
+            make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[1]));
+        let adjusted_separation = point.separation - dot3(normal, r_a - r_b);
+        constraints[point_word(place, i, POINT_ANCHOR_A)] = vec4<f32>(r_a, adjusted_separation);
+        constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
+        let approach = dot3(normal, va.linear - vb.linear)
             + dot3(cross(r_a, normal), va.angular) - dot3(cross(r_b, normal), vb.angular);
-        (*out).points[i] = p;
+        // The approach velocity and the largest normal impulse so far (none), then padding.
+        constraints[point_word(place, i, POINT_EXTRA)] = vec4<f32>(approach, 0.0, 0.0, 0.0);
     }
 }

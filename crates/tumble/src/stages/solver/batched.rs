@@ -27,11 +27,9 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
-use crate::stages::constraints::{
-    CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint,
-};
+use crate::stages::constraints::lanes::{Word, with_lanes, word_count};
+use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, JOINT_CONSTRAINT_WGSL, JointConstraint};
 use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
-use crate::stages::solver::lanes::{Word, with_lanes, word_count};
 
 const WGSL: &str = include_str!("batched.wgsl");
 const GATHER_ROWS_WGSL: &str = include_str!("gather_rows.wgsl");
@@ -103,7 +101,7 @@ pub struct GpuBatched {
     /// Two words: the constraint count and the joint count.
     count: GpuVec<u32>,
     order: GpuVec<u32>,
-    /// The constraints in batch order, in blocks of lanes ([`lanes`](super::lanes)): what the
+    /// The constraints in batch order, in blocks of lanes ([`lanes`](crate::stages::constraints::lanes)): what the
     /// solver sweeps.
     pub constraints: GpuVec<Word>,
     pub impulses: GpuVec<BatchedImpulses>,
@@ -192,7 +190,7 @@ impl GpuBatched {
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        rows: &GpuVec<ContactConstraint>,
+        rows: &GpuVec<Word>,
         joints: &GpuVec<JointConstraint>,
         slot_impulses: &GpuVec<BatchedJointImpulses>,
     ) {

@@ -1,8 +1,7 @@
-// The rows' contact constraints into batch order (stages/solver/batched.rs), in blocks of lanes
-// (lanes.wgsl), a 16-byte word a thread: word `slot` of batched place `place` is word `slot` of
-// rows[order[place]]. A thread takes the word at its own index of the output, so a warp's
-// stores are 512 contiguous bytes; a thread per constraint copying its 656 bytes made each
-// warp's loads and stores touch 32 constraints 656 bytes apart.
+// The rows' contact constraints into batch order (stages/solver/batched.rs), both in blocks of
+// lanes (lanes.wgsl), a 16-byte word a thread: word `slot` of batched place `place` is word
+// `slot` of row order[place]. A thread takes the word at its own index of the output, so a
+// warp's stores are 512 contiguous bytes (its loads are those of 32 rows in any order).
 
 // Word 0: the number of contact constraints.
 @group(0) @binding(0) var<storage, read> count: array<u32>;
@@ -26,5 +25,5 @@ fn gather_words(
     if place >= count[0] {
         return;
     }
-    batched[word] = rows[order[place] * CONSTRAINT_WORDS + slot];
+    batched[word] = rows[lane_word(order[place], slot)];
 }

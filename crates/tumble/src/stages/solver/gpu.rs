@@ -1,7 +1,7 @@
 //! GPU executor of the soft step: the kernels of `solver.wgsl` (contacts) and
 //! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`](crate::stages::constraints::ContactConstraint) and
 //! [`JointConstraint`] arrays the CPU solves (the contacts laid out in blocks of lanes,
-//! [`lanes`](super::lanes)), in the CPU's order: a batch's contacts and joints
+//! [`lanes`](crate::stages::constraints::lanes)), in the CPU's order: a batch's contacts and joints
 //! are one dispatch, its threads taking the contacts, then the joints. Stages without joints
 //! run contact-only kernels, those with joints their `_mixed` twins (`solver.wgsl` says why).
 //!
@@ -34,9 +34,9 @@ use crate::gpu::kernel::{
 };
 use crate::math::Vec3;
 use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
+use crate::stages::constraints::lanes::{Word, lay_out, read_back, with_lanes};
 use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, JOINT_CONSTRAINT_WGSL, JointConstraint};
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
-use crate::stages::solver::lanes::{Word, lay_out, read_back, with_lanes};
 
 pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
@@ -273,7 +273,7 @@ struct Bound {
 /// The batched constraints on the device, as [`GpuSolver::encode`] sweeps them: the arrays of
 /// [`Batched`], and what sizes the dispatches.
 pub struct DeviceBatched<'a> {
-    /// The contact constraints in blocks of lanes ([`lanes`](super::lanes)).
+    /// The contact constraints in blocks of lanes ([`lanes`](crate::stages::constraints::lanes)).
     pub contacts: &'a GpuVec<Word>,
     pub contact_offsets: &'a GpuVec<u32>,
     pub joints: &'a GpuVec<JointConstraint>,

@@ -36,7 +36,6 @@ pub mod gpu;
 pub mod jacobi;
 pub mod jacobi_gpu;
 mod joint;
-pub mod lanes;
 
 use crate::math::{Quat, Vec3};
 use crate::stages::constraints::{ContactConstraint, JointConstraint, STATIC_BODY};

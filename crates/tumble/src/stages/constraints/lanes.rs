@@ -1,18 +1,20 @@
-//! The layout the GPU solver keeps its contact constraints in: blocks of [`LANES`]
-//! constraints, word by word. Word `w` of constraint `c` is
+//! The layout the GPU keeps contact constraints in: blocks of [`LANES`] constraints, word by
+//! word. Word `w` of constraint `c` is
 //!
 //! ```text
 //!   words[(c / LANES · WORDS + w) · LANES + c % LANES]
 //! ```
 //!
-//! so the threads of a warp, a constraint each, read each 16-byte word of their constraints
-//! from 512 contiguous bytes. Laid out as an array of [`ContactConstraint`]s, the same load
-//! touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache traffic 8
-//! times over, on the loads that bound the sweeps.
+//! so the threads of a warp, a constraint each, read or write each 16-byte word of their
+//! constraints in 512 contiguous bytes. Laid out as an array of [`ContactConstraint`]s, the
+//! same access touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache
+//! traffic 8 times over, on the loads that bound the solver's sweeps and the stores that bound
+//! the rows' build.
 //!
-//! The arrays the CPU solves stay arrays of [`ContactConstraint`]: [`lay_out`] and
-//! [`read_back`] convert the host's, `gather_rows.wgsl` writes the device's in this layout
-//! directly, and `lanes.wgsl` gives the kernels the same index.
+//! The arrays the CPU builds and solves stay arrays of [`ContactConstraint`]: [`lay_out`] and
+//! [`read_back`] convert them on their way to and from the device. There, the rows are built
+//! in this layout (`rows.wgsl`), gathered into batch order in it (`gather_rows.wgsl`) and
+//! swept in it (`solver.wgsl`), all through `lanes.wgsl`'s index.
 
 use crate::gpu::kernel::Source;
 use crate::stages::constraints::{ConstraintPoint, ContactConstraint};

@@ -1,6 +1,7 @@
-// The GPU solver's contact constraints in blocks of CONSTRAINT_LANES, word by word
-// (stages/solver/lanes.rs): a thread per constraint, a warp reads each word from contiguous
-// memory. The words of a constraint are those of ContactConstraint (contact_constraint.wgsl):
+// Contact constraints on the GPU in blocks of CONSTRAINT_LANES, word by word
+// (stages/constraints/lanes.rs): a thread per constraint, a warp reads or writes each word in
+// contiguous memory. The words of a constraint are those of ContactConstraint
+// (contact_constraint.wgsl):
 //   header word 0   body_a, body_b, pair, point_count (u32)
 //               1   normal, friction
 //               2   tangent1, restitution
