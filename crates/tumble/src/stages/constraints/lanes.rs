@@ -6,7 +6,9 @@
 //! ```
 //!
 //! so the threads of a warp, a constraint each, read or write each 16-byte word of their
-//! constraints in 512 contiguous bytes. Laid out as an array of [`ContactConstraint`]s, the
+//! constraints in 512 contiguous bytes. A constraint's words hold its fields as `lanes.wgsl`
+//! lists them: the header's in order, a point's arranged so that the four impulses a sweep
+//! writes share one word (one store instead of four). Laid out as an array of [`ContactConstraint`]s, the
 //! same access touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache
 //! traffic 8 times over, on the loads that bound the solver's sweeps and the stores that bound
 //! the rows' build.
@@ -17,7 +19,8 @@
 //! swept in it (`solver.wgsl`), all through `lanes.wgsl`'s index.
 
 use crate::gpu::kernel::Source;
-use crate::stages::constraints::{ConstraintPoint, ContactConstraint};
+use crate::math::Vec3;
+use crate::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
 
 const WGSL: &str = include_str!("lanes.wgsl");
 
@@ -28,6 +31,10 @@ pub const WORDS: usize = size_of::<ContactConstraint>() / 16;
 const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
 const _: () = assert!(size_of::<ConstraintPoint>().is_multiple_of(16));
 const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multiple_of(16));
+/// Words of the header, which come in the struct's order.
+const HEADER_WORDS: usize = std::mem::offset_of!(ContactConstraint, points) / 16;
+/// Words of a point.
+const POINT_WORDS: usize = size_of::<ConstraintPoint>() / 16;
 
 /// 16 bytes of a constraint.
 pub type Word = [u32; 4];
@@ -47,21 +54,91 @@ pub fn lay_out(constraints: &[ContactConstraint], words: &mut Vec<Word>) {
     words.clear();
     words.resize(word_count(constraints.len()), [0; 4]);
     for (index, constraint) in constraints.iter().enumerate() {
-        let source: &[Word] = bytemuck::cast_slice(std::slice::from_ref(constraint));
-        for (word, value) in source.iter().enumerate() {
+        for (word, value) in constraint_words(constraint).iter().enumerate() {
             words[word_index(index, word)] = *value;
         }
     }
 }
 
-/// The constraints `words` holds back into `constraints` (as many as it has).
+/// The constraints `words` holds back into `constraints` (as many as it has; the points'
+/// padding comes back zero).
 pub fn read_back(words: &[Word], constraints: &mut [ContactConstraint]) {
     for (index, constraint) in constraints.iter_mut().enumerate() {
-        let target: &mut [Word] = bytemuck::cast_slice_mut(std::slice::from_mut(constraint));
-        for (word, value) in target.iter_mut().enumerate() {
+        let mut own = [[0; 4]; WORDS];
+        for (word, value) in own.iter_mut().enumerate() {
             *value = words[word_index(index, word)];
         }
+        *constraint = from_words(&own);
     }
+}
+
+/// `xyz` and `w` as a word.
+fn word(xyz: Vec3, w: f32) -> Word {
+    [xyz.x, xyz.y, xyz.z, w].map(f32::to_bits)
+}
+
+fn xyz(word: Word) -> Vec3 {
+    Vec3::new(
+        f32::from_bits(word[0]),
+        f32::from_bits(word[1]),
+        f32::from_bits(word[2]),
+    )
+}
+
+fn lane(word: Word, lane: usize) -> f32 {
+    f32::from_bits(word[lane])
+}
+
+/// A constraint's words, as `lanes.wgsl` lists them.
+fn constraint_words(constraint: &ContactConstraint) -> [Word; WORDS] {
+    let mut words = [[0; 4]; WORDS];
+    let bytes: &[Word] = bytemuck::cast_slice(std::slice::from_ref(constraint));
+    words[..HEADER_WORDS].copy_from_slice(&bytes[..HEADER_WORDS]);
+    for (k, p) in constraint.points.iter().enumerate() {
+        let [normal, tangent1, tangent2] = [p.normal, p.tangent[0], p.tangent[1]];
+        let point = &mut words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
+        point[0] = word(normal.angular_a, normal.mass);
+        point[1] = word(normal.angular_b, tangent1.mass);
+        point[2] = word(tangent1.angular_a, tangent2.mass);
+        point[3] = word(tangent1.angular_b, p.approach_velocity);
+        point[4] = word(tangent2.angular_a, 0.0);
+        point[5] = word(tangent2.angular_b, 0.0);
+        point[6] = word(p.anchor_a, p.adjusted_separation);
+        point[7] = word(p.anchor_b, p.separation);
+        point[8] = [
+            normal.impulse,
+            tangent1.impulse,
+            tangent2.impulse,
+            p.max_normal_impulse,
+        ]
+        .map(f32::to_bits);
+    }
+    words
+}
+
+/// [`constraint_words`] undone.
+fn from_words(words: &[Word; WORDS]) -> ContactConstraint {
+    let mut constraint = ContactConstraint::default();
+    let bytes: &mut [Word] = bytemuck::cast_slice_mut(std::slice::from_mut(&mut constraint));
+    bytes[..HEADER_WORDS].copy_from_slice(&words[..HEADER_WORDS]);
+    for (k, p) in constraint.points.iter_mut().enumerate() {
+        let point = &words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
+        let row = |r: usize| Row {
+            angular_a: xyz(point[2 * r]),
+            mass: lane(point[r], 3),
+            angular_b: xyz(point[2 * r + 1]),
+            impulse: lane(point[8], r),
+        };
+        p.normal = row(0);
+        p.tangent = [row(1), row(2)];
+        p.approach_velocity = lane(point[3], 3);
+        p.anchor_a = xyz(point[6]);
+        p.adjusted_separation = lane(point[6], 3);
+        p.anchor_b = xyz(point[7]);
+        p.separation = lane(point[7], 3);
+        p.max_normal_impulse = lane(point[8], 3);
+    }
+    constraint
 }
 
 /// `source` with the layout's constants and `lanes.wgsl`'s index functions.
@@ -69,11 +146,8 @@ pub fn with_lanes(source: Source) -> Source {
     source
         .constant_u32("CONSTRAINT_LANES", LANES as u32)
         .constant_u32("CONSTRAINT_WORDS", WORDS as u32)
-        .constant_u32(
-            "HEADER_WORDS",
-            (std::mem::offset_of!(ContactConstraint, points) / 16) as u32,
-        )
-        .constant_u32("POINT_WORDS", (size_of::<ConstraintPoint>() / 16) as u32)
+        .constant_u32("HEADER_WORDS", HEADER_WORDS as u32)
+        .constant_u32("POINT_WORDS", POINT_WORDS as u32)
         .snippet("lanes.wgsl", WGSL)
 }
 
@@ -81,12 +155,16 @@ pub fn with_lanes(source: Source) -> Source {
 mod tests {
     use super::*;
 
-    /// Constraint `index` with every byte telling which constraint and byte it is.
+    /// Constraint `index` with every byte telling which constraint and byte it is, but the
+    /// points' padding (which does not travel).
     fn numbered(index: usize) -> ContactConstraint {
         let mut constraint = ContactConstraint::default();
         let bytes: &mut [u8] = bytemuck::bytes_of_mut(&mut constraint);
         for (byte, value) in bytes.iter_mut().enumerate() {
             *value = (index * 7 + byte) as u8;
+        }
+        for point in &mut constraint.points {
+            point._pad = [0.0; 2];
         }
         constraint
     }

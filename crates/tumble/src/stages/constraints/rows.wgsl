@@ -92,12 +92,6 @@ fn make_row(
     return row;
 }
 
-// Row `row` (its first word: POINT_NORMAL, ...) of point `k` of the constraint at `place`.
-fn store_row(place: u32, k: u32, first: u32, row: Row) {
-    constraints[point_word(place, k, first)] = vec4<f32>(row.angular_a, row.mass);
-    constraints[point_word(place, k, first + 1u)] = vec4<f32>(row.angular_b, row.impulse);
-}
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn build(
     @builtin(local_invocation_id) id: vec3<u32>,
@@ -155,18 +149,22 @@ fn build(
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
         let masses_ab = mass_a + mass_b;
-        store_row(place, i, POINT_NORMAL,
-            make_row(normal, r_a, r_b, inertia_a, inertia_b, masses_ab, warm.normal));
-        store_row(place, i, POINT_TANGENT1,
-            make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[0]));
-        store_row(place, i, POINT_TANGENT2,
-            make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[1]));
-        let adjusted_separation = point.separation - dot3(normal, r_a - r_b);
-        constraints[point_word(place, i, POINT_ANCHOR_A)] = vec4<f32>(r_a, adjusted_separation);
-        constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
+        let n = make_row(normal, r_a, r_b, inertia_a, inertia_b, masses_ab, warm.normal);
+        let t1 = make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[0]);
+        let t2 = make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[1]);
         let approach = dot3(normal, va.linear - vb.linear)
             + dot3(cross(r_a, normal), va.angular) - dot3(cross(r_b, normal), vb.angular);
-        // The approach velocity and the largest normal impulse so far (none), then padding.
-        constraints[point_word(place, i, POINT_EXTRA)] = vec4<f32>(approach, 0.0, 0.0, 0.0);
+        let adjusted_separation = point.separation - dot3(normal, r_a - r_b);
+        // The point's words (lanes.wgsl); the largest normal impulse so far is none.
+        constraints[point_word(place, i, 0u)] = vec4<f32>(n.angular_a, n.mass);
+        constraints[point_word(place, i, 1u)] = vec4<f32>(n.angular_b, t1.mass);
+        constraints[point_word(place, i, 2u)] = vec4<f32>(t1.angular_a, t2.mass);
+        constraints[point_word(place, i, 3u)] = vec4<f32>(t1.angular_b, approach);
+        constraints[point_word(place, i, 4u)] = vec4<f32>(t2.angular_a, 0.0);
+        constraints[point_word(place, i, 5u)] = vec4<f32>(t2.angular_b, 0.0);
+        constraints[point_word(place, i, POINT_ANCHOR_A)] = vec4<f32>(r_a, adjusted_separation);
+        constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
+        constraints[point_word(place, i, POINT_IMPULSES)] =
+            vec4<f32>(n.impulse, t1.impulse, t2.impulse, 0.0);
     }
 }

@@ -41,9 +41,10 @@ fn read_impulses(
     let points = bitcast<u32>(batched[lane_word(index, HEADER_IDS)].w);
     var out = BatchedImpulses(vec4<f32>(0.0), vec4<f32>(0.0), vec4<f32>(0.0));
     for (var k = 0u; k < points; k++) {
-        out.normal[k] = batched[point_word(index, k, POINT_NORMAL + 1u)].w;
-        out.tangent1[k] = batched[point_word(index, k, POINT_TANGENT1 + 1u)].w;
-        out.tangent2[k] = batched[point_word(index, k, POINT_TANGENT2 + 1u)].w;
+        let impulses = batched[point_word(index, k, POINT_IMPULSES)];
+        out.normal[k] = impulses.x;
+        out.tangent1[k] = impulses.y;
+        out.tangent2[k] = impulses.z;
     }
     impulses[index] = out;
 }

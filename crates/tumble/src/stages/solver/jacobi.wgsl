@@ -62,20 +62,14 @@ fn jacobi_contact(kind: u32, index: u32) {
         return;
     }
     let omega = relaxation(ids.x, ids.y);
-    // The impulses before the solve, point k in lane k.
-    let old_normal = vec4<f32>(row_impulse(index, 0u, POINT_NORMAL),
-        row_impulse(index, 1u, POINT_NORMAL), row_impulse(index, 2u, POINT_NORMAL),
-        row_impulse(index, 3u, POINT_NORMAL));
-    let old_tangent1 = vec4<f32>(row_impulse(index, 0u, POINT_TANGENT1),
-        row_impulse(index, 1u, POINT_TANGENT1), row_impulse(index, 2u, POINT_TANGENT1),
-        row_impulse(index, 3u, POINT_TANGENT1));
-    let old_tangent2 = vec4<f32>(row_impulse(index, 0u, POINT_TANGENT2),
-        row_impulse(index, 1u, POINT_TANGENT2), row_impulse(index, 2u, POINT_TANGENT2),
-        row_impulse(index, 3u, POINT_TANGENT2));
-    let old_max = vec4<f32>(contacts[point_word(index, 0u, POINT_EXTRA)].y,
-        contacts[point_word(index, 1u, POINT_EXTRA)].y,
-        contacts[point_word(index, 2u, POINT_EXTRA)].y,
-        contacts[point_word(index, 3u, POINT_EXTRA)].y);
+    // The impulses before the solve (a word a point: normal, tangents, largest normal), point
+    // k in lane k.
+    let before = array<vec4<f32>, 4>(impulses_of(index, 0u), impulses_of(index, 1u),
+        impulses_of(index, 2u), impulses_of(index, 3u));
+    let old_normal = vec4<f32>(before[0].x, before[1].x, before[2].x, before[3].x);
+    let old_tangent1 = vec4<f32>(before[0].y, before[1].y, before[2].y, before[3].y);
+    let old_tangent2 = vec4<f32>(before[0].z, before[1].z, before[2].z, before[3].z);
+    let old_max = vec4<f32>(before[0].w, before[1].w, before[2].w, before[3].w);
     var end: BodyPair;
     if kind == SOLVE {
         end = solve_contact_pair(index, start);
@@ -84,19 +78,18 @@ fn jacobi_contact(kind: u32, index: u32) {
     }
     if omega != 1.0 {
         for (var k = 0u; k < ids.w; k++) {
-            let normal = relax(old_normal[k], row_impulse(index, k, POINT_NORMAL), omega);
-            store_impulses(index, k, normal,
-                relax(old_tangent1[k], row_impulse(index, k, POINT_TANGENT1), omega),
-                relax(old_tangent2[k], row_impulse(index, k, POINT_TANGENT2), omega),
-                max(old_max[k], normal));
+            let solved = impulses_of(index, k);
+            let normal = relax(old_normal[k], solved.x, omega);
+            store_impulses(index, k, normal, relax(old_tangent1[k], solved.y, omega),
+                relax(old_tangent2[k], solved.z, omega), max(old_max[k], normal));
         }
     }
     store_deltas(index, start, end, omega);
 }
 
-// The accumulated impulse of row `row` (POINT_NORMAL, ...) of point `k` of contact `index`.
-fn row_impulse(index: u32, k: u32, row: u32) -> f32 {
-    return contacts[point_word(index, k, row + 1u)].w;
+// The impulses of point `k` of contact `index`: normal, tangents, largest normal.
+fn impulses_of(index: u32, k: u32) -> vec4<f32> {
+    return contacts[point_word(index, k, POINT_IMPULSES)];
 }
 
 // Phase 1 for joint `index` (WARM_START or SOLVE).

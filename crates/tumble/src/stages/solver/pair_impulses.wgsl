@@ -24,8 +24,9 @@ fn scatter_pair_impulses(
     // Through a pointer, field by field (a loop-indexed copy would spill, see solver.wgsl).
     let contact = &contacts[ids.z];
     for (var k = 0u; k < ids.w; k++) {
-        (*contact).impulses[k].normal = batched[point_word(index, k, POINT_NORMAL + 1u)].w;
-        (*contact).impulses[k].tangent[0] = batched[point_word(index, k, POINT_TANGENT1 + 1u)].w;
-        (*contact).impulses[k].tangent[1] = batched[point_word(index, k, POINT_TANGENT2 + 1u)].w;
+        let impulses = batched[point_word(index, k, POINT_IMPULSES)];
+        (*contact).impulses[k].normal = impulses.x;
+        (*contact).impulses[k].tangent[0] = impulses.y;
+        (*contact).impulses[k].tangent[1] = impulses.z;
     }
 }

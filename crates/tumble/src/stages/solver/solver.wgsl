@@ -121,11 +121,18 @@ fn load_ids(index: u32) -> vec4<u32> {
     return bitcast<vec4<u32>>(contacts[lane_word(index, HEADER_IDS)]);
 }
 
-// Row `row` (POINT_NORMAL, POINT_TANGENT1 or POINT_TANGENT2) of point `k` of constraint `index`.
-fn load_row(index: u32, k: u32, row: u32) -> Row {
-    let a = contacts[point_word(index, k, row)];
-    let b = contacts[point_word(index, k, row + 1u)];
-    return Row(a.xyz, a.w, b.xyz, b.w);
+// Row `row` (0: normal, 1, 2: the tangents) of point `k` of constraint `index`, from its
+// words (lanes.wgsl): angular_a, angular_b, the row's mass, and the point's impulses.
+fn point_row(index: u32, k: u32, row: u32, masses: vec4<f32>, impulses: vec4<f32>) -> Row {
+    let a = contacts[point_word(index, k, 2u * row)];
+    let b = contacts[point_word(index, k, 2u * row + 1u)];
+    return Row(a.xyz, masses[row], b.xyz, impulses[row]);
+}
+
+// The masses of point `k`'s rows, lanes 0..2 (the w of its first three words).
+fn point_masses(index: u32, k: u32) -> vec4<f32> {
+    return vec4<f32>(contacts[point_word(index, k, 0u)].w, contacts[point_word(index, k, 1u)].w,
+        contacts[point_word(index, k, 2u)].w, 0.0);
 }
 
 // Point `k` of constraint `index`, or no point past its count (then never used).
@@ -133,19 +140,20 @@ fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     if k >= count {
         return no_point();
     }
+    let masses = point_masses(index, k);
+    let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
     let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)];
     let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)];
-    return PointRows(load_row(index, k, POINT_NORMAL), load_row(index, k, POINT_TANGENT1),
-        load_row(index, k, POINT_TANGENT2), anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w,
-        contacts[point_word(index, k, POINT_EXTRA)].y);
+    return PointRows(point_row(index, k, 0u, masses, impulses),
+        point_row(index, k, 1u, masses, impulses), point_row(index, k, 2u, masses, impulses),
+        anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, impulses.w);
 }
 
-// Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal one.
+// Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal
+// one, in one word.
 fn store_impulses(index: u32, k: u32, normal: f32, tangent1: f32, tangent2: f32, max_normal: f32) {
-    contacts[point_word(index, k, POINT_NORMAL + 1u)].w = normal;
-    contacts[point_word(index, k, POINT_EXTRA)].y = max_normal;
-    contacts[point_word(index, k, POINT_TANGENT1 + 1u)].w = tangent1;
-    contacts[point_word(index, k, POINT_TANGENT2 + 1u)].w = tangent2;
+    contacts[point_word(index, k, POINT_IMPULSES)] =
+        vec4<f32>(normal, tangent1, tangent2, max_normal);
 }
 
 // Stores what a solve sweep changed of point `k`: its separation (when recomputed) and impulses.
@@ -343,20 +351,19 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     }
     var pair = start;
     for (var k = 0u; k < load_ids(index).w; k++) {
-        let extra = contacts[point_word(index, k, POINT_EXTRA)];
-        let approach = extra.x;
-        let max_impulse = extra.y;
+        let approach = contacts[point_word(index, k, POINT_APPROACH)].w;
+        let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
+        let max_impulse = impulses.w;
         if approach > -params.restitution_threshold || max_impulse == 0.0 {
             continue;
         }
-        let row = load_row(index, k, POINT_NORMAL);
+        let row = point_row(index, k, 0u, point_masses(index, k), impulses);
         let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)].xyz;
         let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)].xyz;
         let velocity = row_velocity(h.normal, anchor_a, anchor_b, pair);
         let total = max(row.impulse - (velocity + h.restitution * approach) * row.mass, 0.0);
         let delta = total - row.impulse;
-        contacts[point_word(index, k, POINT_NORMAL + 1u)].w = total;
-        contacts[point_word(index, k, POINT_EXTRA)].y = max(max_impulse, total);
+        store_impulses(index, k, total, impulses.y, impulses.z, max(max_impulse, total));
         pair = apply(row, h.normal, delta, h.mass_a, h.mass_b, pair);
     }
     return pair;
