@@ -445,9 +445,7 @@ fn collision_front_half_parameter_blocks_match_rust() {
 #[test]
 fn contact_constraint_structs_match_rust() {
     use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::{
-        CONTACT_CONSTRAINT_WGSL, ConstraintPoint, ContactConstraint, Row,
-    };
+    use tumble::stages::constraints::{CONTACT_CONSTRAINT_WGSL, Row};
     check(
         Source::new().snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL),
         vec![
@@ -462,32 +460,6 @@ fn contact_constraint_structs_match_rust() {
                 angular_b,
                 impulse
             }),
-            rust_layout!(ConstraintPoint {
-                normal,
-                tangent,
-                anchor_a,
-                adjusted_separation,
-                anchor_b,
-                separation,
-                approach_velocity,
-                max_normal_impulse,
-                _pad
-            }),
-            rust_layout!(ContactConstraint {
-                body_a,
-                body_b,
-                pair,
-                point_count,
-                normal,
-                friction,
-                tangent1,
-                restitution,
-                tangent2,
-                inverse_mass_a,
-                inverse_mass_b,
-                softness,
-                points
-            }),
         ],
     );
 }
@@ -497,7 +469,7 @@ fn solver_structs_match_rust() {
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::pipeline::config::Softness;
     use tumble::stages::constraints::{
-        ConstraintPoint, ContactConstraint, JointConstraint, JointFrame, JointSlot, Row,
+        JointConstraint, JointFrame, JointSlot, Row,
     };
     use tumble::stages::solver::SolverBody;
     use tumble::stages::solver::batched::BatchedJointImpulses;
@@ -539,32 +511,6 @@ fn solver_structs_match_rust() {
                 mass,
                 angular_b,
                 impulse
-            }),
-            rust_layout!(ConstraintPoint {
-                normal,
-                tangent,
-                anchor_a,
-                adjusted_separation,
-                anchor_b,
-                separation,
-                approach_velocity,
-                max_normal_impulse,
-                _pad
-            }),
-            rust_layout!(ContactConstraint {
-                body_a,
-                body_b,
-                pair,
-                point_count,
-                normal,
-                friction,
-                tangent1,
-                restitution,
-                tangent2,
-                inverse_mass_a,
-                inverse_mass_b,
-                softness,
-                points
             }),
             rust_layout!(SolverBody {
                 linear_velocity,
@@ -663,8 +609,6 @@ fn batched_impulses_match_rust() {
         &[
             "Softness",
             "Row",
-            "ConstraintPoint",
-            "ContactConstraint",
             "JointFrame",
             "JointConstraint",
             "JointSlot",
@@ -696,7 +640,7 @@ fn pair_impulses_structs_match_rust() {
             rust_layout!(PointImpulse { normal, tangent }),
             rust_layout!(PairContact { manifold, impulses }),
         ],
-        &["Softness", "Row", "ConstraintPoint", "ContactConstraint"],
+        &["Softness", "Row"],
     );
 }
 
@@ -721,8 +665,6 @@ fn body_kernel_parameters_match_rust() {
                 "ColliderData",
                 "Softness",
                 "Row",
-                "ConstraintPoint",
-                "ContactConstraint",
                 "SolverBody",
             ],
         );
@@ -750,8 +692,6 @@ fn joint_row_parameters_match_rust() {
             "ColliderData",
             "Softness",
             "Row",
-            "ConstraintPoint",
-            "ContactConstraint",
             "JointFrame",
             "JointConstraint",
             "JointSlot",
@@ -787,8 +727,6 @@ fn row_and_batching_parameters_match_rust() {
             "PairContact",
             "Softness",
             "Row",
-            "ConstraintPoint",
-            "ContactConstraint",
         ],
     );
     // Tally is three u32 words on the host ([u32; 3]: batched, count, rounds).

@@ -1,7 +1,7 @@
 // Contact constraints on the GPU in blocks of CONSTRAINT_LANES, word by word
 // (stages/constraints/lanes.rs): a thread per constraint, a warp reads or writes each word in
-// contiguous memory. The fields are ContactConstraint's (contact_constraint.wgsl), the header
-// in its order, a point's arranged so that what a sweep writes shares a word:
+// contiguous memory. The fields are ContactConstraint's (stages/constraints/contact.rs), the
+// header's in their order, a point's arranged so that what a sweep writes shares a word:
 //   header word 0   body_a, body_b, pair, point_count (u32)
 //               1   normal, friction
 //               2   tangent1, restitution
