@@ -468,9 +468,7 @@ fn contact_constraint_structs_match_rust() {
 fn solver_structs_match_rust() {
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::{
-        JointConstraint, JointFrame, JointSlot, Row,
-    };
+    use tumble::stages::constraints::{JointConstraint, JointFrame, JointSlot, Row};
     use tumble::stages::solver::SolverBody;
     use tumble::stages::solver::batched::BatchedJointImpulses;
     use tumble::stages::solver::gpu::{SolverParams, wgsl};
