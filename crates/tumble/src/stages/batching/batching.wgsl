@@ -82,12 +82,17 @@ fn start(
     }
 }
 
-// Round `round`'s claim by constraint `i`: its priority into its dynamic bodies' locks.
+// Round `round`'s claim by constraint `i`, which also counts the round if `i` is 0.
 fn claim_one(i: u32, round: u32) {
     // Commits happen after every claim of the round: no claim changes what another sees here.
     if i == 0u && !all_batched() {
         tally.rounds = round + 1u;
     }
+    claim_constraint(i, round);
+}
+
+// Round `round`'s claim by constraint `i`: its priority into its dynamic bodies' locks.
+fn claim_constraint(i: u32, round: u32) {
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
@@ -176,13 +181,73 @@ fn commit(
 }
 
 var<workgroup> rest_done: u32;
+// The constraints still unbatched when `rest_rounds` starts, if no more than REST_LIST.
+const REST_LIST: u32 = 1024u;
+var<workgroup> rest_list: array<u32, REST_LIST>;
+var<workgroup> rest_count: atomic<u32>;
+var<workgroup> rest_listed: u32;
 
 // Rounds params.round to MAX_ROUNDS − 1 in one workgroup, a barrier between each claim and
 // commit: the same rounds as their dispatches, for the few constraints a step's encoded
 // rounds left unbatched (usually none: it returns at once). One dispatch whatever is left,
-// so no host has to read back whether anything was.
+// so no host has to read back whether anything was. The constraints left are listed first
+// (one pass over all of them), so that each round goes over those alone: going over all of
+// them in each round (a claim pass and a commit pass), this dispatch took 0.17 ms a step on
+// average on an H100 (a settled pile of 100k boxes, 250k constraints). More than REST_LIST
+// left, each round goes over all of them.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn rest_rounds(@builtin(local_invocation_index) local: u32) {
+    if local == 0u {
+        rest_done = u32(all_batched());
+        atomicStore(&rest_count, 0u);
+    }
+    if workgroupUniformLoad(&rest_done) != 0u {
+        return;
+    }
+    for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+        if colors[i] == UNBATCHED {
+            let slot = atomicAdd(&rest_count, 1u);
+            if slot < REST_LIST {
+                rest_list[slot] = i;
+            }
+        }
+    }
+    workgroupBarrier();
+    if local == 0u {
+        rest_listed = atomicLoad(&rest_count);
+    }
+    let listed = workgroupUniformLoad(&rest_listed);
+    if listed > REST_LIST {
+        rest_rounds_over_all(local);
+        return;
+    }
+    // Which constraint a thread takes changes no color: a round's claims are minima, and its
+    // winners share no body.
+    for (var round = params.round; round < MAX_ROUNDS; round++) {
+        if local == 0u {
+            rest_done = u32(all_batched());
+            // The count of the rounds, which claim_one leaves to constraint 0 (not listed
+            // once batched).
+            if rest_done == 0u {
+                tally.rounds = round + 1u;
+            }
+        }
+        if workgroupUniformLoad(&rest_done) != 0u {
+            break;
+        }
+        for (var j = local; j < listed; j += WORKGROUP_SIZE) {
+            claim_constraint(rest_list[j], round);
+        }
+        storageBarrier();
+        for (var j = local; j < listed; j += WORKGROUP_SIZE) {
+            commit_one(rest_list[j], round);
+        }
+        storageBarrier();
+    }
+}
+
+// `rest_rounds` over every constraint, round by round.
+fn rest_rounds_over_all(local: u32) {
     for (var round = params.round; round < MAX_ROUNDS; round++) {
         if local == 0u {
             rest_done = u32(all_batched());
