@@ -49,7 +49,10 @@ BINS="$bins" bash "$(dirname "$0")/pile-on-device.sh" 33.3 1500 120 2>&1 |
   grep -E "===|ms_per_step" | cut -c1-200
 grep -E "^=== |kernels|solver \(|collision \(" "$out/pile.txt" | cut -c1-120
 echo "== the pile's ten slowest kernels, each dispatch timed (${bins##* })"
-grep -E "^   2\.[0-9]+ -- " "$out/pile-dispatches.txt" | sort -t: -k3 -rn | head -10 | cut -c1-120
+# The lines under the profile's `dispatches` line (N -- dispatches: its kernels are N.1, N.2...).
+line=$(grep -oE "^[0-9]+ -- dispatches" "$out/pile-dispatches.txt" | cut -d' ' -f1)
+grep -E "^   ${line:-none}\.[0-9]+ -- " "$out/pile-dispatches.txt" | sort -t: -k3 -rn | head -10 |
+  cut -c1-120
 if [ -x .devbin/libtest/tumble-lib ]; then
   echo "== lib tests"
   timeout 240 .devbin/libtest/tumble-lib --test-threads 1 > "$out/libtests.txt" 2>&1

@@ -202,8 +202,8 @@ pub fn record_copy(profiler: &mut Profiler, path: SpanPath, ms: f64) {
 
 thread_local! {
     /// The dispatch timer of the pass being encoded on this thread
-    /// ([`GpuProfiler::timing_dispatches`]), where [`Dispatch::encode`](super::kernel::Dispatch::encode)
-    /// finds it.
+    /// ([`GpuProfiler::timing_dispatches`]), where
+    /// [`Dispatch::encode`](super::kernel::Dispatch::encode) finds it.
     static ACTIVE: RefCell<Option<DispatchTimer>> = const { RefCell::new(None) };
 }
 
@@ -219,6 +219,8 @@ pub struct DispatchTimer {
     readback: wgpu::Buffer,
     /// The kernel of each dispatch timed since the last collection, in query order.
     names: Vec<&'static str>,
+    /// Dispatches past [`MAX_TIMED_DISPATCHES`] since the last collection, left untimed.
+    untimed: usize,
     ticks: Vec<u64>,
     period_ns: f64,
 }
@@ -261,6 +263,7 @@ impl DispatchTimer {
                 wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             ),
             names: Vec::new(),
+            untimed: 0,
             ticks: Vec::new(),
             period_ns: f64::from(context.queue.get_timestamp_period()),
         }
@@ -272,6 +275,7 @@ impl DispatchTimer {
         ACTIVE.with_borrow_mut(|active| {
             let timer = active.as_mut()?;
             if timer.names.len() >= MAX_TIMED_DISPATCHES as usize {
+                timer.untimed += 1;
                 return None;
             }
             let index = 2 * timer.names.len() as u32;
@@ -293,15 +297,23 @@ impl DispatchTimer {
         encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, u64::from(count) * 8);
     }
 
-    /// Records the dispatches' times at `dispatches` and `dispatches` / kernel.
+    /// Records the dispatches' times at `dispatches` and `dispatches` / kernel, and those left
+    /// untimed, as many calls of a line of their own.
     fn collect(&mut self, context: &GpuContext, profiler: &mut Profiler) -> Result<(), GpuError> {
+        for _ in 0..std::mem::take(&mut self.untimed) {
+            profiler.record(
+                &["dispatches", "untimed (too many to time)"],
+                SpanKind::Gpu,
+                0.0,
+            );
+        }
         if self.names.is_empty() {
             return Ok(());
         }
         let bytes = 16 * self.names.len() as u64;
         let ticks = &mut self.ticks;
         ticks.clear();
-        read_mapped(
+        let read = read_mapped(
             context,
             &self.readback,
             bytes,
@@ -309,7 +321,12 @@ impl DispatchTimer {
             |data| {
                 ticks.extend_from_slice(bytemuck::cast_slice(data));
             },
-        )?;
+        );
+        if read.is_err() {
+            // The timer starts again with the next frame's dispatches.
+            self.names.clear();
+        }
+        read?;
         for (name, pair) in self.names.iter().zip(self.ticks.chunks_exact(2)) {
             let ms = pair[1].saturating_sub(pair[0]) as f64 * self.period_ns * 1e-6;
             profiler.record(&["dispatches"], SpanKind::Gpu, ms);

@@ -474,7 +474,8 @@ pub(crate) struct GpuStages {
     prepare_bodies: GpuPrepareBodies,
     /// Stage 8 on the device: the motion in `solver_bodies` into the poses and velocities.
     finalize_bodies: GpuFinalizeBodies,
-    /// A host solve's contact constraints, in blocks of lanes ([`lanes`](crate::stages::constraints::lanes)).
+    /// A host solve's contact constraints, in blocks of lanes
+    /// ([`lanes`](crate::stages::constraints::lanes)).
     batched_contacts: GpuVec<Word>,
     batch_offsets: GpuVec<u32>,
     batched_joints: GpuVec<JointConstraint>,

@@ -34,10 +34,11 @@ use crate::stages::constraints::STATIC_BODY;
 use crate::stages::narrowphase::{ChildCache, PairContact};
 use crate::stages::pairs::pair_bodies;
 
-// Layout: the structs below are repr(C) + Pod with WGSL twins in `contact_constraint.wgsl`
-// (checked by tests/engine/gpu_layout.rs), so both executors solve the same array. WGSL aligns a
-// vec3 to 16 bytes, so each vec3 shares its 16 bytes with a scalar (`angular_a` + `mass`, ...)
-// instead of padding wherever a scalar can fill the slot.
+// Layout: the structs below are repr(C) + Pod, the arrays both executors build and solve. On the
+// device they lie in blocks of lanes, 16-byte words of these fields (`lanes.rs`), converted
+// where they cross; `Row` and `Softness` have WGSL twins (`contact_constraint.wgsl`, checked by
+// tests/engine/gpu_layout.rs). Each vec3 shares its 16 bytes with a scalar (`angular_a` +
+// `mass`, ...) instead of padding wherever a scalar can fill the slot.
 
 /// One scalar constraint direction `d` at one contact point. 32 bytes.
 #[repr(C)]
@@ -122,7 +123,7 @@ impl ContactConstraint {
     }
 }
 
-/// WGSL twins of [`Row`], [`ConstraintPoint`], [`ContactConstraint`] and [`Softness`].
+/// WGSL twins of [`Row`] and [`Softness`], and [`STATIC_BODY`].
 pub const CONTACT_CONSTRAINT_WGSL: &str = include_str!("contact_constraint.wgsl");
 
 /// Per-step inputs the constraint rows need besides the manifolds.

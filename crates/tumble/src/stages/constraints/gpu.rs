@@ -1,8 +1,9 @@
 //! GPU executor of the contact rows: [`build_constraints`](super::build_constraints)'s contract
 //! for contacts (the joint rows have theirs, [`joint_gpu`](super::joint_gpu)), with the kernels
 //! of `rows.wgsl`: flag the slots that get a constraint, scan the flags into places (the CPU's
-//! order), build each constraint at its place, in blocks of lanes ([`lanes`](super::lanes)). Three dispatch groups; the constraint count
-//! stays on the device (the scan's last entry) until a caller reads it. The threads cover the
+//! order), build each constraint at its place, in blocks of lanes ([`lanes`]).
+//! Three dispatch groups; the constraint count stays on the device (the scan's last entry)
+//! until a caller reads it. The threads cover the
 //! slots' buffers, the live slots counted in a word on the device: the dispatches are built
 //! again only when a buffer grows, not each step the pair count changes (that took 0.1–0.2 ms
 //! a step of a 20k pile on the development machine).
@@ -89,7 +90,7 @@ pub struct GpuRows {
     /// Exclusive scan of the flags: each constraint's place; entry `slots` is the count.
     places: GpuVec<u32>,
     /// One per slot at most; the first `count` are the constraints, in blocks of lanes
-    /// ([`lanes`](super::lanes)).
+    /// ([`lanes`]).
     pub constraints: GpuVec<Word>,
     /// Each constraint's bodies (A, B; [`STATIC_BODY`](super::STATIC_BODY) for a side with no
     /// mass), at the constraint's place: what a batching on the device colors.

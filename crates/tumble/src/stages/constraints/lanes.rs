@@ -8,8 +8,8 @@
 //! so the threads of a warp, a constraint each, read or write each 16-byte word of their
 //! constraints in 512 contiguous bytes. A constraint's words hold its fields as `lanes.wgsl`
 //! lists them: the header's in order, a point's arranged so that the four impulses a sweep
-//! writes share one word (one store instead of four). Laid out as an array of [`ContactConstraint`]s, the
-//! same access touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache
+//! writes share one word (one store instead of four). Laid out as an array of
+//! [`ContactConstraint`]s, the same access touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache
 //! traffic 8 times over, on the loads that bound the solver's sweeps and the stores that bound
 //! the rows' build.
 //!
@@ -35,6 +35,9 @@ const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multipl
 const HEADER_WORDS: usize = std::mem::offset_of!(ContactConstraint, points) / 16;
 /// Words of a point.
 const POINT_WORDS: usize = size_of::<ConstraintPoint>() / 16;
+// `lanes.wgsl` names the header's five words and a point's nine (and `constraint_words` below
+// fills them): a field added to either struct must be placed in both.
+const _: () = assert!(HEADER_WORDS == 5 && POINT_WORDS == 9);
 
 /// 16 bytes of a constraint.
 pub type Word = [u32; 4];

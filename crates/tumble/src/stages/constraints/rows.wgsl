@@ -1,9 +1,10 @@
 // Contact rows on the GPU: the twin of build_constraints in contact.rs (read its docs for the
 // formulas). One thread per manifold slot (pairs, then children): `flag` marks the slots
 // that get a constraint, an exclusive scan of the flags gives each one its place (the CPU's
-// order), and `build` writes it there, in blocks of lanes (lanes.wgsl). The threads cover the slots' buffers (`slots`), which
-// change size only when they grow, and the live slots are counted on the device (`count`): the
-// dispatches stay the same from step to step while the pairs come and go.
+// order), and `build` writes it there, in blocks of lanes (lanes.wgsl). The threads cover the
+// slots' buffers (`slots`), which change size only when they grow, and the live slots are
+// counted on the device (`count`): the dispatches stay the same from step to step while the
+// pairs come and go.
 
 // Softness as (bias_rate, mass_scale, impulse_scale, unused): a struct member of a uniform
 // block would be padded to 16 bytes anyway.

@@ -1,7 +1,8 @@
 //! The batches kept on the device when the rows, the batching and the solver all run on the GPU
 //! (`batched.wgsl`): the rows' constraints are gathered into batch order there, and after the
 //! solve only their accumulated impulses come back ([`BatchedImpulses`], 48 bytes a
-//! constraint), not the constraints (1 KB each, twice: down for the layout, up for the solve).
+//! constraint), not the constraints (656 bytes each, twice: down for the layout, up for the
+//! solve).
 //!
 //! The host still sends the order (a counting sort of the colors it read back, the same
 //! [`group_by_batch`](crate::stages::batching::group_by_batch) the CPU step uses), so both
@@ -101,8 +102,8 @@ pub struct GpuBatched {
     /// Two words: the constraint count and the joint count.
     count: GpuVec<u32>,
     order: GpuVec<u32>,
-    /// The constraints in batch order, in blocks of lanes ([`lanes`](crate::stages::constraints::lanes)): what the
-    /// solver sweeps.
+    /// The constraints in batch order, in blocks of lanes
+    /// ([`lanes`](crate::stages::constraints::lanes)): what the solver sweeps.
     pub constraints: GpuVec<Word>,
     pub impulses: GpuVec<BatchedImpulses>,
     /// The impulses of the joints in batch order, as the solver left them.

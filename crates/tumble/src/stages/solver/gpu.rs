@@ -1,9 +1,12 @@
 //! GPU executor of the soft step: the kernels of `solver.wgsl` (contacts) and
-//! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`](crate::stages::constraints::ContactConstraint) and
+//! `solver_joint.wgsl` (joints) over the same [`SolverBody`], [`ContactConstraint`] and
 //! [`JointConstraint`] arrays the CPU solves (the contacts laid out in blocks of lanes,
-//! [`lanes`](crate::stages::constraints::lanes)), in the CPU's order: a batch's contacts and joints
-//! are one dispatch, its threads taking the contacts, then the joints. Stages without joints
-//! run contact-only kernels, those with joints their `_mixed` twins (`solver.wgsl` says why).
+//! [`lanes`]), in the CPU's order: a batch's contacts and joints are one dispatch, its threads
+//! taking the contacts, then the joints. Stages without joints run contact-only kernels, those
+//! with joints their `_mixed` twins (`solver.wgsl` says why).
+//!
+//! [`ContactConstraint`]: crate::stages::constraints::ContactConstraint
+//! [`lanes`]: crate::stages::constraints::lanes
 //!
 //! One dispatch per batch and sweep (a dispatch is the GPU's barrier between batches), except
 //! that each run of consecutive batches smaller than [`SMALL_BATCH`] is one dispatch of one

@@ -3,8 +3,8 @@
 // of operations).
 //
 // Constraints lie batch after batch: batch b is contact constraints offsets[b] .. offsets[b + 1]
-// (in lanes.wgsl's layout) and joints[joint_offsets[b] .. joint_offsets[b + 1]]. A dispatch covers the batches
-// first_batch .. end_batch:
+// (in lanes.wgsl's layout) and joints[joint_offsets[b] .. joint_offsets[b + 1]]. A dispatch
+// covers the batches first_batch .. end_batch:
 //   - parallel (sequential == 0): one batch, one thread per constraint (its contacts, then
 //     its joints). The batch's constraints share no dynamic body, so no two threads touch the
 //     same body.
@@ -345,12 +345,13 @@ fn restitution_contact(index: u32) {
 }
 
 fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    let h = load_header(index);
-    if h.restitution == 0.0 {
+    if contacts[lane_word(index, HEADER_TANGENT1)].w == 0.0 {
         return start;
     }
+    let h = load_header(index);
     var pair = start;
-    for (var k = 0u; k < load_ids(index).w; k++) {
+    let count = load_ids(index).w;
+    for (var k = 0u; k < count; k++) {
         let approach = contacts[point_word(index, k, POINT_APPROACH)].w;
         let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
         let max_impulse = impulses.w;
