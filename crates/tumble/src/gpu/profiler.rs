@@ -33,59 +33,107 @@ pub struct GpuProfiler {
     dispatches: Option<DispatchTimer>,
     /// Spans begun this frame, in query order (span k uses queries 2k and 2k + 1).
     spans: Vec<SpanPath>,
-    /// Resolved timestamps of the last collected frame, reused.
-    ticks: Vec<u64>,
 }
 
 #[derive(Debug)]
 struct Queries {
+    timestamps: Timestamps,
+    /// Spans that fit in the query set.
+    capacity: usize,
+}
+
+/// A timestamp query set read in pairs (a span's beginning and end), with the buffers that
+/// bring it back: the pass profiler's and the dispatch timer's.
+#[derive(Debug)]
+struct Timestamps {
     set: wgpu::QuerySet,
     resolved: wgpu::Buffer,
     readback: wgpu::Buffer,
-    /// Spans that fit in the query set.
-    capacity: usize,
     /// Nanoseconds per tick.
     period_ns: f64,
+    /// The last read's ticks, then its durations, reused.
+    ticks: Vec<u64>,
+    ms: Vec<f64>,
+}
+
+impl Timestamps {
+    /// Room for `pairs` spans; `label` names the query set and its buffers.
+    fn new(context: &GpuContext, label: &str, pairs: u32) -> Self {
+        let bytes = u64::from(2 * pairs) * 8;
+        let buffer = |what: &str, usage| {
+            context.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(&format!("{label} {what}")),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Self {
+            set: context.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some(label),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * pairs,
+            }),
+            resolved: buffer(
+                "resolved",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            readback: buffer(
+                "readback",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            period_ns: f64::from(context.queue.get_timestamp_period()),
+            ticks: Vec::new(),
+            ms: Vec::new(),
+        }
+    }
+
+    /// Encodes the resolve and copy of the first `pairs` spans (none: nothing).
+    fn resolve(&self, encoder: &mut wgpu::CommandEncoder, pairs: usize) {
+        if pairs == 0 {
+            return;
+        }
+        let count = 2 * pairs as u32;
+        encoder.resolve_query_set(&self.set, 0..count, &self.resolved, 0);
+        encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, u64::from(count) * 8);
+    }
+
+    /// Reads the first `pairs` spans back (waits for the GPU): their durations (ms).
+    fn read(&mut self, context: &GpuContext, pairs: usize) -> Result<&[f64], GpuError> {
+        let ticks = &mut self.ticks;
+        ticks.clear();
+        read_mapped(
+            context,
+            &self.readback,
+            16 * pairs as u64,
+            "timestamps",
+            |data| {
+                ticks.extend_from_slice(bytemuck::cast_slice(data));
+            },
+        )?;
+        let period_ns = self.period_ns;
+        self.ms.clear();
+        self.ms.extend(
+            self.ticks
+                .chunks_exact(2)
+                .map(|pair| pair[1].saturating_sub(pair[0]) as f64 * period_ns * 1e-6),
+        );
+        Ok(&self.ms)
+    }
 }
 
 impl GpuProfiler {
     /// A profiler for up to `max_spans` measured passes per frame; a no-op when the adapter
     /// has no timestamp queries.
     pub fn new(context: &GpuContext, max_spans: usize) -> Self {
-        let queries = context.has_timestamps().then(|| {
-            let count = (2 * max_spans.max(1)) as u32;
-            let bytes = u64::from(count) * 8;
-            let buffer = |label, usage| {
-                context.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(label),
-                    size: bytes,
-                    usage,
-                    mapped_at_creation: false,
-                })
-            };
-            Queries {
-                set: context.device.create_query_set(&wgpu::QuerySetDescriptor {
-                    label: Some("gpu profiler"),
-                    ty: wgpu::QueryType::Timestamp,
-                    count,
-                }),
-                resolved: buffer(
-                    "timestamps resolved",
-                    wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                ),
-                readback: buffer(
-                    "timestamps readback",
-                    wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                ),
-                capacity: max_spans.max(1),
-                period_ns: f64::from(context.queue.get_timestamp_period()),
-            }
+        let queries = context.has_timestamps().then(|| Queries {
+            timestamps: Timestamps::new(context, "gpu profiler", max_spans.max(1) as u32),
+            capacity: max_spans.max(1),
         });
         let mut profiler = Self {
             queries,
             dispatches: None,
             spans: Vec::with_capacity(max_spans),
-            ticks: Vec::with_capacity(2 * max_spans),
         };
         if std::env::var("TUMBLE_PROFILE_DISPATCHES").is_ok_and(|value| value == "1") {
             profiler.time_each_dispatch(context);
@@ -135,7 +183,7 @@ impl GpuProfiler {
         let first = 2 * self.spans.len() as u32;
         self.spans.push(path);
         Some(wgpu::ComputePassTimestampWrites {
-            query_set: &queries.set,
+            query_set: &queries.timestamps.set,
             beginning_of_pass_write_index: Some(first),
             end_of_pass_write_index: Some(first + 1),
         })
@@ -146,21 +194,9 @@ impl GpuProfiler {
         if let Some(timer) = &self.dispatches {
             timer.resolve(encoder);
         }
-        let Some(queries) = &self.queries else {
-            return;
-        };
-        if self.spans.is_empty() {
-            return;
+        if let Some(queries) = &self.queries {
+            queries.timestamps.resolve(encoder, self.spans.len());
         }
-        let count = 2 * self.spans.len() as u32;
-        encoder.resolve_query_set(&queries.set, 0..count, &queries.resolved, 0);
-        encoder.copy_buffer_to_buffer(
-            &queries.resolved,
-            0,
-            &queries.readback,
-            0,
-            u64::from(count) * 8,
-        );
     }
 
     /// Reads the resolved timestamps (waits for the GPU) and records each span into
@@ -173,22 +209,21 @@ impl GpuProfiler {
         if let Some(timer) = &mut self.dispatches {
             timer.collect(context, profiler)?;
         }
-        let Some(queries) = &self.queries else {
+        let Some(queries) = &mut self.queries else {
             return Ok(());
         };
         if self.spans.is_empty() {
             return Ok(());
         }
-        let bytes = 16 * self.spans.len() as u64;
-        let ticks = &mut self.ticks;
-        ticks.clear();
-        read_mapped(context, &queries.readback, bytes, "timestamps", |data| {
-            ticks.extend_from_slice(bytemuck::cast_slice(data));
-        })?;
-        for (span, pair) in self.spans.iter().zip(self.ticks.chunks_exact(2)) {
-            let ms = pair[1].saturating_sub(pair[0]) as f64 * queries.period_ns * 1e-6;
-            profiler.record(span, SpanKind::Gpu, ms);
+        // Taken first, so that a failed read leaves the profiler ready for the next frame.
+        let spans = std::mem::take(&mut self.spans);
+        for (span, ms) in spans
+            .iter()
+            .zip(queries.timestamps.read(context, spans.len())?)
+        {
+            profiler.record(span, SpanKind::Gpu, *ms);
         }
+        self.spans = spans;
         self.spans.clear();
         Ok(())
     }
@@ -214,15 +249,11 @@ const MAX_TIMED_DISPATCHES: u32 = 2048;
 /// passes, and the kernel of each pair of queries.
 #[derive(Debug)]
 pub struct DispatchTimer {
-    set: wgpu::QuerySet,
-    resolved: wgpu::Buffer,
-    readback: wgpu::Buffer,
+    timestamps: Timestamps,
     /// The kernel of each dispatch timed since the last collection, in query order.
     names: Vec<&'static str>,
     /// Dispatches past [`MAX_TIMED_DISPATCHES`] since the last collection, left untimed.
     untimed: usize,
-    ticks: Vec<u64>,
-    period_ns: f64,
 }
 
 /// A dispatch between its two timestamps: [`Self::end`] writes the second.
@@ -239,33 +270,10 @@ impl TimedDispatch {
 
 impl DispatchTimer {
     fn new(context: &GpuContext) -> Self {
-        let bytes = u64::from(2 * MAX_TIMED_DISPATCHES) * 8;
-        let buffer = |label, usage| {
-            context.device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes,
-                usage,
-                mapped_at_creation: false,
-            })
-        };
         Self {
-            set: context.device.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("dispatch timer"),
-                ty: wgpu::QueryType::Timestamp,
-                count: 2 * MAX_TIMED_DISPATCHES,
-            }),
-            resolved: buffer(
-                "dispatch timestamps resolved",
-                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            ),
-            readback: buffer(
-                "dispatch timestamps readback",
-                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            ),
+            timestamps: Timestamps::new(context, "dispatch timer", MAX_TIMED_DISPATCHES),
             names: Vec::new(),
             untimed: 0,
-            ticks: Vec::new(),
-            period_ns: f64::from(context.queue.get_timestamp_period()),
         }
     }
 
@@ -280,21 +288,16 @@ impl DispatchTimer {
             }
             let index = 2 * timer.names.len() as u32;
             timer.names.push(name);
-            pass.write_timestamp(&timer.set, index);
+            pass.write_timestamp(&timer.timestamps.set, index);
             Some(TimedDispatch {
-                set: timer.set.clone(),
+                set: timer.timestamps.set.clone(),
                 index,
             })
         })
     }
 
     fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
-        if self.names.is_empty() {
-            return;
-        }
-        let count = 2 * self.names.len() as u32;
-        encoder.resolve_query_set(&self.set, 0..count, &self.resolved, 0);
-        encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.readback, 0, u64::from(count) * 8);
+        self.timestamps.resolve(encoder, self.names.len());
     }
 
     /// Records the dispatches' times at `dispatches` and `dispatches` / kernel, and those left
@@ -310,28 +313,16 @@ impl DispatchTimer {
         if self.names.is_empty() {
             return Ok(());
         }
-        let bytes = 16 * self.names.len() as u64;
-        let ticks = &mut self.ticks;
-        ticks.clear();
-        let read = read_mapped(
-            context,
-            &self.readback,
-            bytes,
-            "dispatch timestamps",
-            |data| {
-                ticks.extend_from_slice(bytemuck::cast_slice(data));
-            },
-        );
-        if read.is_err() {
-            // The timer starts again with the next frame's dispatches.
-            self.names.clear();
+        // Taken first, so that a failed read leaves the timer ready for the next frame.
+        let names = std::mem::take(&mut self.names);
+        for (name, ms) in names
+            .iter()
+            .zip(self.timestamps.read(context, names.len())?)
+        {
+            profiler.record(&["dispatches"], SpanKind::Gpu, *ms);
+            profiler.record(&["dispatches", name], SpanKind::Gpu, *ms);
         }
-        read?;
-        for (name, pair) in self.names.iter().zip(self.ticks.chunks_exact(2)) {
-            let ms = pair[1].saturating_sub(pair[0]) as f64 * self.period_ns * 1e-6;
-            profiler.record(&["dispatches"], SpanKind::Gpu, ms);
-            profiler.record(&["dispatches", name], SpanKind::Gpu, ms);
-        }
+        self.names = names;
         self.names.clear();
         Ok(())
     }

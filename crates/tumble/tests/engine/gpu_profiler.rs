@@ -2,19 +2,49 @@
 
 use crate::gpu_common;
 
-use gpu_common::{Random, context};
-use tumble::gpu::GpuVec;
+use gpu_common::{Gpu, Random, context};
 use tumble::gpu::prims::scan::{Scan, ScanKind};
 use tumble::gpu::profiler::{GpuProfiler, record_copy};
+use tumble::gpu::{GpuContext, GpuVec};
 use tumble::profile::{Profiler, SpanKind};
+
+/// A scan of 100 000 random values: several dispatches to profile.
+struct ScanCase {
+    /// The shared context and this test's turn on it.
+    context: Gpu,
+    source: GpuVec<u32>,
+    destination: GpuVec<u32>,
+    scan: Scan,
+}
+
+impl ScanCase {
+    fn new(seed: u64) -> Self {
+        let context = context();
+        let input = Random::new(seed).u32s(100_000);
+        Self {
+            source: GpuVec::from_slice(&context, "scan input", &input).expect("upload"),
+            destination: GpuVec::with_capacity(&context, "scan output", 0).expect("alloc"),
+            scan: Scan::new(),
+            context,
+        }
+    }
+
+    fn encode(&mut self, pass: &mut wgpu::ComputePass<'_>, kind: ScanKind) {
+        let Self {
+            context,
+            source,
+            destination,
+            scan,
+        } = self;
+        scan.encode(context, pass, source, destination, kind)
+            .expect("encode");
+    }
+}
 
 #[test]
 fn timestamps_and_copies_are_recorded_as_their_own_lines() {
-    let context = context();
-    let input = Random::new(1).u32s(100_000);
-    let source = GpuVec::from_slice(&context, "scan input", &input).expect("upload");
-    let mut destination = GpuVec::with_capacity(&context, "scan output", 0).expect("alloc");
-    let mut scan = Scan::new();
+    let mut case = ScanCase::new(1);
+    let context: GpuContext = (*case.context).clone();
     let mut gpu_profiler = GpuProfiler::new(&context, 4);
     let mut profiler = Profiler::new("frame");
     profiler.begin_frame();
@@ -24,14 +54,7 @@ fn timestamps_and_copies_are_recorded_as_their_own_lines() {
             label: Some("scan"),
             timestamp_writes: gpu_profiler.pass_timestamps(&["scan"]),
         });
-        scan.encode(
-            &context,
-            &mut pass,
-            &source,
-            &mut destination,
-            ScanKind::Exclusive,
-        )
-        .expect("encode");
+        case.encode(&mut pass, ScanKind::Exclusive);
     }
     gpu_profiler.resolve(&mut encoder);
     context.queue.submit([encoder.finish()]);
@@ -39,7 +62,7 @@ fn timestamps_and_copies_are_recorded_as_their_own_lines() {
         .collect(&context, &mut profiler)
         .expect("collect");
     let start = std::time::Instant::now();
-    let _ = destination.download(&context).expect("download");
+    let _ = case.destination.download(&context).expect("download");
     record_copy(
         &mut profiler,
         &["download"],
@@ -68,11 +91,8 @@ fn timestamps_and_copies_are_recorded_as_their_own_lines() {
 
 #[test]
 fn each_dispatch_is_timed_under_its_kernel_when_asked() {
-    let context = context();
-    let input = Random::new(2).u32s(100_000);
-    let source = GpuVec::from_slice(&context, "scan input", &input).expect("upload");
-    let mut destination = GpuVec::with_capacity(&context, "scan output", 0).expect("alloc");
-    let mut scan = Scan::new();
+    let mut case = ScanCase::new(2);
+    let context: GpuContext = (*case.context).clone();
     let mut gpu_profiler = GpuProfiler::new(&context, 4);
     if !gpu_profiler.time_each_dispatch(&context) {
         // No timestamps inside passes on this adapter (llvmpipe on GL): nothing to time.
@@ -86,28 +106,12 @@ fn each_dispatch_is_timed_under_its_kernel_when_asked() {
             label: Some("scan"),
             timestamp_writes: gpu_profiler.pass_timestamps(&["scan"]),
         });
-        gpu_profiler.timing_dispatches(|| {
-            scan.encode(
-                &context,
-                &mut pass,
-                &source,
-                &mut destination,
-                ScanKind::Exclusive,
-            )
-            .expect("encode")
-        });
+        gpu_profiler.timing_dispatches(|| case.encode(&mut pass, ScanKind::Exclusive));
     }
     // A pass encoded outside `timing_dispatches` is not timed dispatch by dispatch.
     {
         let mut pass = encoder.begin_compute_pass(&Default::default());
-        scan.encode(
-            &context,
-            &mut pass,
-            &source,
-            &mut destination,
-            ScanKind::Inclusive,
-        )
-        .expect("encode");
+        case.encode(&mut pass, ScanKind::Inclusive);
     }
     gpu_profiler.resolve(&mut encoder);
     context.queue.submit([encoder.finish()]);
