@@ -42,7 +42,7 @@ use crate::shape::Shape;
 use crate::stages::broadphase::Broadphase;
 use crate::stages::constraints::Drag;
 use crate::stages::narrowphase::summary::PairSummary;
-use crate::stages::narrowphase::{ChildCache, PairContact, gpu_shape};
+use crate::stages::narrowphase::{ChildCache, ManifoldCache, PairContact, gpu_shape};
 use crate::stages::pairs::PairCache;
 use std::sync::Arc;
 use std::sync::OnceLock;
@@ -1126,6 +1126,8 @@ impl World {
             for point in &mut contact.manifold.points[..count] {
                 point.anchor = to.inverse_transform_point(from.transform_point(point.anchor));
             }
+            // The cache is of the other order: the next step computes the points.
+            contact.cache = ManifoldCache::default();
         }
         Ok((key, contact))
     }

@@ -13,7 +13,7 @@ use crate::math::{Quat, Transform, Vec3};
 use crate::pipeline::config::StepConfig;
 use crate::pipeline::world::World;
 use crate::shape::{CompoundChild, CompoundError, Shape, TriMesh};
-use crate::stages::narrowphase::{PairContact, PointImpulse};
+use crate::stages::narrowphase::{ManifoldCache, PairContact, PointImpulse};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -277,6 +277,26 @@ pub struct ContactFile {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub child: Option<u32>,
     pub points: Vec<ContactPointFile>,
+    /// Where the narrowphase computed the points, which lets it move them with the bodies
+    /// instead of computing them again; without it, the next step computes them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cache: Option<ContactCacheFile>,
+}
+
+/// A contact's [`ManifoldCache`](crate::stages::narrowphase::ManifoldCache): the second body's
+/// pose in the first's frame when the points were computed, the margin they were computed
+/// for, the normal in the first body's frame and each point's separation then.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContactCacheFile {
+    pub position: [f32; 3],
+    /// [x, y, z, w], unit.
+    pub rotation: [f32; 4],
+    /// Unit.
+    pub normal: [f32; 3],
+    pub margin: f32,
+    /// One per point of the contact.
+    pub separations: Vec<f32>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -512,6 +532,10 @@ impl Scene {
                     normal: point.normal_impulse,
                     tangent: point.tangent_impulse,
                 };
+            }
+            if let Some(cache) = &contact.cache {
+                pair.cache = manifold_cache(cache, contact.points.len())
+                    .map_err(|message| invalid(format!("contacts[{i}].cache"), message))?;
             }
             match contact.child {
                 Some(child) => child_contacts.push((a, b, child, pair)),
@@ -838,10 +862,53 @@ fn compound(children: &[CompoundChildFile]) -> Result<Shape, (String, String)> {
     })
 }
 
+/// The cache of a contact file's `points` points, checked.
+fn manifold_cache(file: &ContactCacheFile, points: usize) -> Result<ManifoldCache, String> {
+    let numbers = (file.position.iter())
+        .chain(&file.rotation)
+        .chain(&file.normal)
+        .chain(&file.separations)
+        .chain([&file.margin]);
+    if !numbers.into_iter().all(|v| v.is_finite()) {
+        return Err("every number must be finite".into());
+    }
+    if file.separations.len() != points {
+        return Err(format!(
+            "{} separations for {points} points: one per point",
+            file.separations.len()
+        ));
+    }
+    let rotation = Quat::from_array(file.rotation);
+    let normal = Vec3::from_array(file.normal);
+    // The narrowphase turns points by the rotation and measures along the normal.
+    if (rotation.length() - 1.0).abs() > 1.0e-3 || (normal.length() - 1.0).abs() > 1.0e-3 {
+        return Err("rotation and normal must be unit".into());
+    }
+    let mut separations = [0.0; crate::collision::manifold::MAX_MANIFOLD_POINTS];
+    separations[..points].copy_from_slice(&file.separations);
+    Ok(ManifoldCache {
+        position: Vec3::from_array(file.position),
+        margin: file.margin,
+        rotation,
+        normal,
+        valid: 1,
+        separations,
+    })
+}
+
 fn contact_file(bodies: [usize; 2], child: Option<u32>, contact: &PairContact) -> ContactFile {
+    let cache = &contact.cache;
+    let count = contact.manifold.count as usize;
     ContactFile {
         bodies,
         child,
+        cache: (cache.valid != 0).then(|| ContactCacheFile {
+            position: cache.position.to_array(),
+            rotation: cache.rotation.to_array(),
+            normal: cache.normal.to_array(),
+            margin: cache.margin,
+            separations: cache.separations[..count].to_vec(),
+        }),
         points: contact
             .manifold
             .points()

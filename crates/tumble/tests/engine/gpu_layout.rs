@@ -269,7 +269,9 @@ fn body_structs_match_rust() {
 #[test]
 fn pair_contact_structs_match_rust() {
     use tumble::collision::manifold::{ContactPoint, Manifold};
-    use tumble::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact, PointImpulse};
+    use tumble::stages::narrowphase::{
+        ManifoldCache, PAIR_CONTACT_WGSL, PairContact, PointImpulse,
+    };
     check(
         Source::new().snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL),
         vec![
@@ -285,7 +287,19 @@ fn pair_contact_structs_match_rust() {
                 points
             }),
             rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(PairContact { manifold, impulses }),
+            rust_layout!(ManifoldCache {
+                position,
+                margin,
+                rotation,
+                normal,
+                valid,
+                separations
+            }),
+            rust_layout!(PairContact {
+                manifold,
+                impulses,
+                cache
+            }),
         ],
     );
 }
@@ -295,7 +309,9 @@ fn narrowphase_structs_match_rust() {
     use tumble::collision::manifold::{ContactPoint, Manifold};
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::stages::narrowphase::gpu::wgsl;
-    use tumble::stages::narrowphase::{NarrowphaseParams, PairContact, PointImpulse};
+    use tumble::stages::narrowphase::{
+        ManifoldCache, NarrowphaseParams, PairContact, PointImpulse,
+    };
     check_with_gpu_only(
         wgsl(u32::MAX),
         vec![
@@ -339,7 +355,19 @@ fn narrowphase_structs_match_rust() {
                 points
             }),
             rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(PairContact { manifold, impulses }),
+            rust_layout!(ManifoldCache {
+                position,
+                margin,
+                rotation,
+                normal,
+                valid,
+                separations
+            }),
+            rust_layout!(PairContact {
+                manifold,
+                impulses,
+                cache
+            }),
         ],
         // Box–box's polygon vertex and the hull pairs' views of the packed hulls, frames,
         // queries, polygon vertices and round cores' features live in one thread's private
@@ -619,7 +647,7 @@ fn batched_impulses_match_rust() {
 #[test]
 fn pair_impulses_structs_match_rust() {
     use tumble::collision::manifold::{ContactPoint, Manifold};
-    use tumble::stages::narrowphase::{PairContact, PointImpulse};
+    use tumble::stages::narrowphase::{ManifoldCache, PairContact, PointImpulse};
     use tumble::stages::solver::batched::pair_impulses_wgsl;
     check_with_gpu_only(
         pair_impulses_wgsl(),
@@ -636,7 +664,19 @@ fn pair_impulses_structs_match_rust() {
                 points
             }),
             rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(PairContact { manifold, impulses }),
+            rust_layout!(ManifoldCache {
+                position,
+                margin,
+                rotation,
+                normal,
+                valid,
+                separations
+            }),
+            rust_layout!(PairContact {
+                manifold,
+                impulses,
+                cache
+            }),
         ],
         &["Softness", "Row"],
     );
@@ -722,6 +762,7 @@ fn row_and_batching_parameters_match_rust() {
             "ContactPoint",
             "Manifold",
             "PointImpulse",
+            "ManifoldCache",
             "PairContact",
             "Softness",
             "Row",

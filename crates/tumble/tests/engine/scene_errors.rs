@@ -14,6 +14,19 @@ fn scene_with_body(body: &str) -> String {
     )
 }
 
+/// A box on the ground with one contact point whose narrowphase cache has `fields` after its
+/// position, normal and margin (all good).
+fn contact_with_cache(fields: &str) -> String {
+    let body = r#"{ "shape": { "box": { "half_extents": [0.5, 0.5, 0.5] } } }"#;
+    let contact = format!(
+        r#""contacts": [ {{ "bodies": [0, 1], "points": [ {{ "id": 3, "anchor": [0.5, 0, 0.5],
+        "normal_impulse": 1, "tangent_impulse": [0, 0] }} ], "cache": {{ "position": [0, 0.5, 0],
+        "normal": [0, 1, 0], "margin": 0.02, {fields} }} }} ]"#
+    );
+    let scene = scene_with_body(body);
+    format!("{}, {contact} }}", scene.trim_end().trim_end_matches('}'))
+}
+
 #[test]
 fn each_bad_input_names_its_field() {
     let cases = [
@@ -116,6 +129,18 @@ fn each_bad_input_names_its_field() {
             "contacts[0].bodies",
         ),
         ("not json".to_string(), "scene: not valid JSON"),
+        (
+            contact_with_cache(r#""rotation": [0, 0, 0, 2], "separations": [-0.001]"#),
+            "contacts[0].cache: rotation and normal must be unit",
+        ),
+        (
+            contact_with_cache(r#""rotation": [0, 0, 0, 1], "separations": []"#),
+            "contacts[0].cache: 0 separations for 1 points: one per point",
+        ),
+        (
+            contact_with_cache(r#""rotation": [0, 0, 0, 1], "separations": [-0.001], "age": 3"#),
+            "unknown field `age`",
+        ),
     ];
     for (json, expected) in cases {
         let message = error_of(&json);

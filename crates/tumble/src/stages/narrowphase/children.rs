@@ -205,7 +205,12 @@ fn carry_from_children(
             claimed[slot] = true;
         }
     }
-    PairContact { manifold, impulses }
+    // Child manifolds are computed afresh each step: they keep no cache.
+    PairContact {
+        manifold,
+        impulses,
+        ..PairContact::default()
+    }
 }
 
 /// Merges the manifolds of `found` (sorted by triangle) whose normals agree within

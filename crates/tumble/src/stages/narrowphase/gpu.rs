@@ -56,7 +56,8 @@ use std::collections::HashMap;
 use bytemuck::{Pod, Zeroable};
 
 use super::{
-    MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, NarrowphaseInputs, PAIR_CONTACT_WGSL, PairContact,
+    CACHE_TOLERANCE, MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, NarrowphaseInputs, PAIR_CONTACT_WGSL,
+    PairContact,
 };
 use crate::collision::contact::hull::{self, BoxPolyhedron, Polyhedron};
 use crate::collision::contact::wgsl_constants;
@@ -65,7 +66,7 @@ use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, Collider, Collide
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
+    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
 use crate::shape::{Cuboid, Shape, ShapeKind};
@@ -73,7 +74,9 @@ use crate::shape::{Cuboid, Shape, ShapeKind};
 /// `old_index` of a pair that did not exist last step: it starts with no impulses.
 pub const NEW_PAIR: u32 = u32::MAX;
 
-const BINDINGS: [Binding; 10] = [
+/// Parameters, keys, old index, old contacts, poses, velocities, colliders, skipped, hulls,
+/// contacts, the list of pairs left to the pair functions.
+const BINDINGS: [Binding; 11] = [
     Binding::Uniform,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -83,6 +86,7 @@ const BINDINGS: [Binding; 10] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
+    Binding::StorageReadWrite,
     Binding::StorageReadWrite,
 ];
 
@@ -198,6 +202,7 @@ pub fn wgsl(shape_kinds: u32) -> Source {
     wgsl_constants(Source::new())
         .constant_u32("SHAPE_KINDS", shape_kinds)
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
+        .constant_f32("CACHE_TOLERANCE", CACHE_TOLERANCE)
         .constant_f32("REDUCE_TIE_RELATIVE", REDUCE_TIE_RELATIVE)
         .constant_u32("HULL_HEADER_WORDS", HULL_HEADER_WORDS)
         .constant_u32("HULL_FACE_WORDS", HULL_FACE_WORDS)
@@ -238,9 +243,20 @@ pub struct GpuNarrowphaseInputs<'a> {
     pub shape_kinds: u32,
 }
 
-/// What a recorded dispatch was built for: the buffers it binds, its parameters and the shape
-/// kinds of its kernel.
-type DispatchKey = ([wgpu::Buffer; 9], NarrowphaseParams, u32);
+/// What the recorded dispatches were built for: the buffers they bind, their parameters and
+/// the shape kinds of their kernels.
+type DispatchKey = ([wgpu::Buffer; 10], NarrowphaseParams, u32);
+
+/// The stage's three kernels (`narrowphase.wgsl` says what each does).
+struct Kernels {
+    clear_misses: Kernel,
+    move_cached: Kernel,
+    update_contacts: Kernel,
+}
+
+/// The stage's recorded dispatches, in order, and the uniform slots their bind groups point
+/// into.
+type Recorded = (DispatchKey, [Dispatch; 3], UniformSlots);
 
 /// Host copies of [`GpuNarrowphase::update_contacts`]'s inputs, kept between calls.
 struct HostBuffers {
@@ -264,10 +280,12 @@ struct HostBuffers {
 /// The GPU narrowphase: its kernel, the dispatch recorded for the current buffers, and the
 /// buffers of [`update_contacts`](Self::update_contacts).
 pub struct GpuNarrowphase {
-    /// The kernel for the shape kinds it was built for, built again when they change.
-    kernel: Option<(u32, Kernel)>,
-    /// The uniform slots live as long as the dispatch whose bind group points into them.
-    cached: Option<(DispatchKey, Dispatch, UniformSlots)>,
+    /// The kernels for the shape kinds they were built for, built again when they change.
+    kernels: Option<(u32, Kernels)>,
+    /// The uniform slots live as long as the dispatches whose bind groups point into them.
+    cached: Option<Recorded>,
+    /// The pairs left to the pair functions: a count, then pair indices.
+    misses: Option<GpuVec<u32>>,
     host: Option<HostBuffers>,
 }
 
@@ -281,8 +299,9 @@ impl GpuNarrowphase {
     /// The stage with no kernel yet: the first encode builds the one for its shape kinds.
     pub fn new() -> Self {
         Self {
-            kernel: None,
+            kernels: None,
             cached: None,
+            misses: None,
             host: None,
         }
     }
@@ -296,8 +315,16 @@ impl GpuNarrowphase {
         inputs: &GpuNarrowphaseInputs,
         contacts: &mut GpuVec<PairContact>,
     ) -> Result<(), GpuError> {
-        let kernel = kernel_for(&mut self.kernel, context, inputs.shape_kinds);
-        encode_with(&mut self.cached, kernel, context, pass, inputs, contacts)
+        let kernels = kernels_for(&mut self.kernels, context, inputs.shape_kinds);
+        let misses = misses_buffer(&mut self.misses, context)?;
+        encode_with(
+            &mut self.cached,
+            kernels,
+            context,
+            pass,
+            inputs,
+            (contacts, misses),
+        )
     }
 
     /// [`update_contacts`](super::update_contacts) on the GPU: uploads the inputs (`contacts`
@@ -370,14 +397,15 @@ impl GpuNarrowphase {
                 dt: inputs.dt,
                 shape_kinds: shape_kinds(inputs.colliders),
             };
-            let kernel = kernel_for(&mut self.kernel, context, device_inputs.shape_kinds);
+            let kernels = kernels_for(&mut self.kernels, context, device_inputs.shape_kinds);
+            let misses = misses_buffer(&mut self.misses, context)?;
             encode_with(
                 &mut self.cached,
-                kernel,
+                kernels,
                 context,
                 &mut pass,
                 &device_inputs,
-                &mut host.contacts,
+                (&mut host.contacts, misses),
             )?;
         }
         context.queue.submit([encoder.finish()]);
@@ -387,41 +415,54 @@ impl GpuNarrowphase {
     }
 }
 
-/// The kernel in `slot` when it was built for `shape_kinds`, else a new one there: a world
-/// that gains a kind of shape compiles another.
-fn kernel_for<'a>(
-    slot: &'a mut Option<(u32, Kernel)>,
+/// The kernels in `slot` when they were built for `shape_kinds`, else new ones there: a world
+/// that gains a kind of shape compiles others.
+fn kernels_for<'a>(
+    slot: &'a mut Option<(u32, Kernels)>,
     context: &GpuContext,
     shape_kinds: u32,
-) -> &'a Kernel {
+) -> &'a Kernels {
     if slot.as_ref().is_none_or(|(kinds, _)| *kinds != shape_kinds) {
         let source = wgsl(shape_kinds);
-        let kernel = Kernel::new(
-            context,
-            "narrowphase",
-            &source,
-            "update_contacts",
-            &BINDINGS,
-        );
-        *slot = Some((shape_kinds, kernel));
+        let kernel = |entry| Kernel::new(context, "narrowphase", &source, entry, &BINDINGS);
+        let kernels = Kernels {
+            clear_misses: kernel("clear_misses"),
+            move_cached: kernel("move_cached"),
+            update_contacts: kernel("update_contacts"),
+        };
+        *slot = Some((shape_kinds, kernels));
     }
-    let Some((_, kernel)) = slot else {
+    let Some((_, kernels)) = slot else {
         unreachable!("built above")
     };
-    kernel
+    kernels
 }
 
-/// [`GpuNarrowphase::encode`] on its parts, so that `update_contacts` can lend its own buffers.
+/// The list of missed pairs, made on first use (its size follows the pair count).
+fn misses_buffer<'a>(
+    slot: &'a mut Option<GpuVec<u32>>,
+    context: &GpuContext,
+) -> Result<&'a mut GpuVec<u32>, GpuError> {
+    if slot.is_none() {
+        *slot = Some(GpuVec::with_capacity(context, "narrowphase misses", 1)?);
+    }
+    Ok(slot.as_mut().expect("made above"))
+}
+
+/// [`GpuNarrowphase::encode`] on its parts, so that `update_contacts` can lend its own buffers:
+/// `outputs` are the contacts and the list of missed pairs.
 fn encode_with(
-    cached_dispatch: &mut Option<(DispatchKey, Dispatch, UniformSlots)>,
-    kernel: &Kernel,
+    cached_dispatches: &mut Option<Recorded>,
+    kernels: &Kernels,
     context: &GpuContext,
     pass: &mut wgpu::ComputePass<'_>,
     inputs: &GpuNarrowphaseInputs,
-    contacts: &mut GpuVec<PairContact>,
+    (contacts, misses): (&mut GpuVec<PairContact>, &mut GpuVec<u32>),
 ) -> Result<(), GpuError> {
     debug_assert_eq!(inputs.keys.len(), inputs.old_index.len());
     contacts.resize(context, inputs.keys.len())?;
+    // A count, then room for every pair.
+    misses.resize(context, inputs.keys.len() + 1)?;
     let params = NarrowphaseParams {
         pair_count: u32::try_from(inputs.keys.len()).expect("pair count fits in u32"),
         skipped_count: u32::try_from(inputs.skipped.len()).expect("skipped count fits"),
@@ -439,35 +480,40 @@ fn encode_with(
             inputs.hulls.buffer().clone(),
             inputs.skipped.buffer().clone(),
             contacts.buffer().clone(),
+            misses.buffer().clone(),
         ],
         params,
         inputs.shape_kinds,
     );
-    let dispatch = match cached_dispatch {
-        Some((cached_key, dispatch, _)) if *cached_key == key => dispatch,
+    let dispatches = match cached_dispatches {
+        Some((cached_key, dispatches, _)) if *cached_key == key => dispatches,
         cached => {
             let slots = UniformSlots::new(context, "narrowphase params", &[params]);
-            let bind_group = kernel.bind(
-                context,
-                &[
-                    slots.binding(0),
-                    inputs.keys.whole(),
-                    inputs.old_index.whole(),
-                    inputs.old_contacts.whole(),
-                    inputs.poses.whole(),
-                    inputs.velocities.whole(),
-                    inputs.colliders.whole(),
-                    inputs.skipped.whole(),
-                    inputs.hulls.whole(),
-                    contacts.whole(),
-                ],
-            );
+            let buffers = [
+                slots.binding(0),
+                inputs.keys.whole(),
+                inputs.old_index.whole(),
+                inputs.old_contacts.whole(),
+                inputs.poses.whole(),
+                inputs.velocities.whole(),
+                inputs.colliders.whole(),
+                inputs.skipped.whole(),
+                inputs.hulls.whole(),
+                contacts.whole(),
+                misses.whole(),
+            ];
             let groups = workgroups_for(inputs.keys.len(), WORKGROUP_SIZE);
-            &mut cached
-                .insert((key, kernel.dispatch(bind_group, groups), slots))
-                .1
+            let dispatch =
+                |kernel: &Kernel, groups| kernel.dispatch(kernel.bind(context, &buffers), groups);
+            let dispatches = [
+                dispatch(&kernels.clear_misses, 1),
+                dispatch(&kernels.move_cached, groups),
+                // As many threads as pairs: those past the list's count return at once.
+                dispatch(&kernels.update_contacts, groups),
+            ];
+            &mut cached.insert((key, dispatches, slots)).1
         }
     };
-    dispatch.encode(pass);
+    encode_all(pass, dispatches);
     Ok(())
 }

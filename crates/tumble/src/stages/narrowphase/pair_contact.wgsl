@@ -1,6 +1,6 @@
 // What a pair keeps from one step to the next, as the GPU stages read and write it: the twins
-// of ContactPoint, Manifold (collision/manifold.rs), PointImpulse and PairContact
-// (stages/narrowphase/mod.rs). tests/engine/gpu_layout.rs checks that the layouts agree.
+// of ContactPoint, Manifold (collision/manifold.rs), PointImpulse, ManifoldCache and
+// PairContact (stages/narrowphase/mod.rs). tests/engine/gpu_layout.rs checks that the layouts agree.
 
 const MAX_MANIFOLD_POINTS: u32 = 4u;
 
@@ -26,7 +26,19 @@ struct PointImpulse {
     tangent: array<f32, 2>,
 }
 
+// The relative pose the manifold was computed at (body B in body A's frame), the margin it
+// was given, its normal in A's frame and its points' separations then; valid 0 when none.
+struct ManifoldCache {
+    position: vec3<f32>,
+    margin: f32,
+    rotation: vec4<f32>,
+    normal: vec3<f32>,
+    valid: u32,
+    separations: vec4<f32>,
+}
+
 struct PairContact {
     manifold: Manifold,
     impulses: array<PointImpulse, 4>,
+    cache: ManifoldCache,
 }
