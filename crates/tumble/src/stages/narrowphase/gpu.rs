@@ -55,13 +55,17 @@ use std::collections::HashMap;
 
 use bytemuck::{Pod, Zeroable};
 
+use std::mem::offset_of;
+
 use super::{
-    CACHE_TOLERANCE, MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, NarrowphaseInputs, PAIR_CONTACT_WGSL,
-    PairContact,
+    CACHE_TOLERANCE, MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, ManifoldCache, NarrowphaseInputs,
+    PAIR_CONTACT_WGSL, PairContact,
 };
 use crate::collision::contact::hull::{self, BoxPolyhedron, Polyhedron};
 use crate::collision::contact::wgsl_constants;
-use crate::collision::manifold::REDUCE_TIE_RELATIVE;
+use crate::collision::manifold::{
+    ContactPoint, MAX_MANIFOLD_POINTS, Manifold, REDUCE_TIE_RELATIVE,
+};
 use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, Collider, ColliderData};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
@@ -196,8 +200,46 @@ fn max_candidates(shape_kinds: u32) -> u32 {
     }
 }
 
-/// The kernel's source for a world of the shape kinds `shape_kinds` ([`shape_kinds`]): body
-/// and contact structs, the pair functions, the stage.
+/// The 16-byte word of [`PairContact`] at which `offset` (bytes) starts.
+const fn contact_word(offset: usize) -> u32 {
+    assert!(offset % 16 == 0, "a field of the word view starts a word");
+    (offset / 16) as u32
+}
+const CONTACT_WORDS: u32 = contact_word(size_of::<PairContact>());
+const POINTS_WORD: u32 =
+    contact_word(offset_of!(PairContact, manifold) + offset_of!(Manifold, points));
+const IMPULSES_WORD: u32 = contact_word(offset_of!(PairContact, impulses));
+const CACHE_WORD: u32 = contact_word(offset_of!(PairContact, cache));
+// `move.wgsl` reads the rest of the layout within the words: the normal and count, a point's
+// two words, the cache's four.
+const _: () = {
+    assert!(offset_of!(Manifold, normal) == 0 && offset_of!(Manifold, count) == 12);
+    assert!(size_of::<ContactPoint>() == 32 && offset_of!(ContactPoint, separation) == 12);
+    assert!(offset_of!(ContactPoint, anchor) == 16 && offset_of!(ContactPoint, id) == 28);
+    assert!(IMPULSES_WORD == POINTS_WORD + 2 * MAX_MANIFOLD_POINTS as u32);
+    assert!(offset_of!(ManifoldCache, margin) == 12 && offset_of!(ManifoldCache, rotation) == 16);
+    assert!(offset_of!(ManifoldCache, normal) == 32 && offset_of!(ManifoldCache, valid) == 44);
+    assert!(offset_of!(ManifoldCache, separations) == 48);
+    assert!(CACHE_WORD + 4 == CONTACT_WORDS);
+};
+
+/// The source of the kernels that clear the list and move the cached manifolds (`move.wgsl`):
+/// body and contact structs and the stage's bindings, without the pair functions.
+pub fn move_wgsl() -> Source {
+    Source::new()
+        .constant_f32("CACHE_TOLERANCE", CACHE_TOLERANCE)
+        .constant_u32("CONTACT_WORDS", CONTACT_WORDS)
+        .constant_u32("POINTS_WORD", POINTS_WORD)
+        .constant_u32("IMPULSES_WORD", IMPULSES_WORD)
+        .constant_u32("CACHE_WORD", CACHE_WORD)
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
+        .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
+        .snippet("move.wgsl", include_str!("move.wgsl"))
+}
+
+/// The source of the pair functions' kernel for a world of the shape kinds `shape_kinds`
+/// ([`shape_kinds`]): body and contact structs, the stage's bindings, the pair functions.
 pub fn wgsl(shape_kinds: u32) -> Source {
     wgsl_constants(Source::new())
         .constant_u32("SHAPE_KINDS", shape_kinds)
@@ -218,6 +260,7 @@ pub fn wgsl(shape_kinds: u32) -> Source {
         .snippet("contact_box_box.wgsl", include_str!("contact_box_box.wgsl"))
         .snippet("contact_hull.wgsl", include_str!("contact_hull.wgsl"))
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
+        .snippet("collide.wgsl", include_str!("collide.wgsl"))
 }
 
 /// The stage's device-resident inputs.
@@ -423,12 +466,12 @@ fn kernels_for<'a>(
     shape_kinds: u32,
 ) -> &'a Kernels {
     if slot.as_ref().is_none_or(|(kinds, _)| *kinds != shape_kinds) {
-        let source = wgsl(shape_kinds);
-        let kernel = |entry| Kernel::new(context, "narrowphase", &source, entry, &BINDINGS);
+        let kernel = |source, entry| Kernel::new(context, "narrowphase", source, entry, &BINDINGS);
+        let moving = move_wgsl();
         let kernels = Kernels {
-            clear_misses: kernel("clear_misses"),
-            move_cached: kernel("move_cached"),
-            update_contacts: kernel("update_contacts"),
+            clear_misses: kernel(&moving, "clear_misses"),
+            move_cached: kernel(&moving, "move_cached"),
+            update_contacts: kernel(&wgsl(shape_kinds), "update_contacts"),
         };
         *slot = Some((shape_kinds, kernels));
     }
