@@ -202,7 +202,10 @@ fn max_candidates(shape_kinds: u32) -> u32 {
 
 /// The 16-byte word of [`PairContact`] at which `offset` (bytes) starts.
 const fn contact_word(offset: usize) -> u32 {
-    assert!(offset.is_multiple_of(16), "a field of the word view starts a word");
+    assert!(
+        offset.is_multiple_of(16),
+        "a field of the word view starts a word"
+    );
     (offset / 16) as u32
 }
 const CONTACT_WORDS: u32 = contact_word(size_of::<PairContact>());
