@@ -4,6 +4,9 @@
 
 @group(0) @binding(3) var<storage, read> old_contacts: array<PairContact>;
 @group(0) @binding(9) var<storage, read_write> contacts: array<PairContact>;
+// Read without atomics (the list was made by an earlier dispatch): every thread reads the
+// count, and atomic loads of one word would wait on each other.
+@group(0) @binding(10) var<storage, read_write> misses: array<u32>;
 
 // Whether the world holds shapes of each kind (SHAPE_KINDS, from the host, has bit k for kind
 // k). The pair functions of absent kinds are behind constant-false branches, which the driver's
@@ -25,10 +28,10 @@ fn update_contacts(
     @builtin(local_invocation_index) local: u32,
 ) {
     let slot = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
-    if slot >= atomicLoad(&misses[0]) {
+    if slot >= misses[0] {
         return;
     }
-    let index = atomicLoad(&misses[1u + slot]);
+    let index = misses[1u + slot];
     let key = keys[index];
     let a = key.y;
     let b = key.x;

@@ -8,6 +8,7 @@
 
 @group(0) @binding(3) var<storage, read> old_contacts: array<vec4<u32>>;
 @group(0) @binding(9) var<storage, read_write> contacts: array<vec4<u32>>;
+@group(0) @binding(10) var<storage, read_write> misses: array<atomic<u32>>;
 
 // Words of a PairContact (CONTACT_WORDS, from gpu.rs, which checks the layout): the manifold's
 // normal and count, two a point from POINTS_WORD (position and separation, anchor and id), the

@@ -33,8 +33,8 @@ struct NarrowphaseParams {
 @group(0) @binding(7) var<storage, read> skipped: array<vec2<u32>>;
 // The colliders' polyhedra: `pack_hulls` in gpu.rs.
 @group(0) @binding(8) var<storage, read> hulls: array<u32>;
-// The pairs left to the pair functions: their count, then their indices.
-@group(0) @binding(10) var<storage, read_write> misses: array<atomic<u32>>;
+// Binding 10, the pairs left to the pair functions (their count, then their indices): atomic
+// in move.wgsl, which makes the list, plain in collide.wgsl, which reads it.
 
 const NEW_PAIR: u32 = 0xffffffffu;
 
