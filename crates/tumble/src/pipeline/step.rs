@@ -1058,7 +1058,8 @@ impl World {
         // 3. Pair cache: added / removed / kept; kept pairs keep their manifold.
         profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
 
-        // 4. Narrowphase: fresh manifolds, impulses carried over from matching points.
+        // 4. Narrowphase: fresh manifolds, impulses carried over from matching points; pairs of
+        //    polyhedra that barely moved move their old manifolds instead.
         profiler.begin("narrowphase");
         let (keys, contacts) = self.pairs.keys_and_values_mut();
         let inputs = narrowphase::NarrowphaseInputs {

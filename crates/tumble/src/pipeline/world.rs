@@ -385,6 +385,18 @@ impl World {
     /// Removes a body; its contacts go with it at the next step, its joints at once.
     pub fn remove_body(&mut self, handle: BodyHandle) -> Result<(), BodyError> {
         let i = self.check(handle)?;
+        // The body's pairs stay in the pair cache until the next step drops them, and a body
+        // added before then takes this slot and their keys: none of their manifolds may be
+        // moved as this body's (their caches go; the host holds the contacts from here).
+        self.sync_contacts()
+            .map_err(|error| BodyError::ContactsReadback(error.to_string()))?;
+        let (keys, contacts) = self.pairs.keys_and_values_mut();
+        for (&key, contact) in keys.iter().zip(contacts) {
+            let (a, b) = crate::stages::pairs::pair_bodies(key);
+            if a == handle.index || b == handle.index {
+                contact.cache = ManifoldCache::default();
+            }
+        }
         // Whatever rests on the body, or sleeps with it, must feel it go.
         let touching: Vec<u32> = self
             .pairs
@@ -1080,7 +1092,8 @@ impl World {
     }
 
     /// Seeds the warm-start impulses of a pair (used when loading a dumped scene, so the run
-    /// continues bitwise). The manifold is recomputed at the next step; points keep these
+    /// continues bitwise). With a valid cache ([`ManifoldCache`]) the next step may move these
+    /// points with the bodies; otherwise it computes the manifold, and points keep these
     /// impulses where their feature ids match.
     pub fn restore_contact(
         &mut self,

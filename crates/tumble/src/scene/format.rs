@@ -534,8 +534,16 @@ impl Scene {
                 };
             }
             if let Some(cache) = &contact.cache {
+                let at = format!("contacts[{i}].cache");
+                if contact.child.is_some() {
+                    // A mesh's child manifolds are computed afresh each step.
+                    return Err(invalid(
+                        at,
+                        "a contact with a mesh triangle keeps no cache".into(),
+                    ));
+                }
                 pair.cache = manifold_cache(cache, contact.points.len())
-                    .map_err(|message| invalid(format!("contacts[{i}].cache"), message))?;
+                    .map_err(|message| invalid(at, message))?;
             }
             match contact.child {
                 Some(child) => child_contacts.push((a, b, child, pair)),
@@ -880,8 +888,9 @@ fn manifold_cache(file: &ContactCacheFile, points: usize) -> Result<ManifoldCach
     }
     let rotation = Quat::from_array(file.rotation);
     let normal = Vec3::from_array(file.normal);
-    // The narrowphase turns points by the rotation and measures along the normal.
-    if (rotation.length() - 1.0).abs() > 1.0e-3 || (normal.length() - 1.0).abs() > 1.0e-3 {
+    // The narrowphase turns points by the rotation and measures along the normal, unnormalized:
+    // 1e-5 off unit moves a point 1 m away by 0.01 mm, a hundredth of the cache's tolerance.
+    if (rotation.length() - 1.0).abs() > 1.0e-5 || (normal.length() - 1.0).abs() > 1.0e-5 {
         return Err("rotation and normal must be unit".into());
     }
     let mut separations = [0.0; crate::collision::manifold::MAX_MANIFOLD_POINTS];

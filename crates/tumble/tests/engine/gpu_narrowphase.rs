@@ -248,9 +248,6 @@ fn assert_parity(world: &World, cpu: &[PairContact], gpu: &[PairContact]) {
             m_cpu.count, m_gpu.count,
             "pair {pair}: {m_cpu:?} vs {m_gpu:?}"
         );
-        if m_cpu.count == 0 {
-            continue;
-        }
         let (normal, point) = round_tolerances(world, world.keys[pair], m_cpu);
         assert_close("normal", pair, m_cpu.normal, m_gpu.normal, normal);
         for (p_cpu, p_gpu) in m_cpu.points().iter().zip(m_gpu.points()) {
@@ -265,6 +262,29 @@ fn assert_parity(world: &World, cpu: &[PairContact], gpu: &[PairContact]) {
             );
         }
         assert_eq!(cpu.impulses, gpu.impulses, "pair {pair}: impulses");
+        // The cache each made (or kept): the same, within rounding.
+        let (c_cpu, c_gpu) = (&cpu.cache, &gpu.cache);
+        assert_eq!(
+            c_cpu.valid, c_gpu.valid,
+            "pair {pair}: {c_cpu:?} vs {c_gpu:?}"
+        );
+        if c_cpu.valid == 1 {
+            assert_close(
+                "cache position",
+                pair,
+                c_cpu.position,
+                c_gpu.position,
+                point,
+            );
+            assert_close("cache normal", pair, c_cpu.normal, c_gpu.normal, normal);
+            let rotation = |q: Quat| Vec3::new(q.x, q.y, q.z) * q.w.signum();
+            let (r_cpu, r_gpu) = (rotation(c_cpu.rotation), rotation(c_gpu.rotation));
+            assert_close("cache rotation", pair, r_cpu, r_gpu, TOLERANCE);
+            assert!((c_cpu.margin - c_gpu.margin).abs() <= TOLERANCE * c_cpu.margin);
+            let separations = (c_cpu.separations.iter().zip(&c_gpu.separations))
+                .all(|(s_cpu, s_gpu)| (s_cpu - s_gpu).abs() <= TOLERANCE);
+            assert!(separations, "pair {pair}: {c_cpu:?} vs {c_gpu:?}");
+        }
     }
 }
 

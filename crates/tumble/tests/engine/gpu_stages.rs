@@ -664,3 +664,45 @@ fn a_step_with_many_more_pairs_than_the_last_reads_them_all_back() {
     assert_eq!(gpu_pairs, cpu_pairs, "pairs");
     assert_eq!(gpu_contacts, cpu_contacts, "pairs with points");
 }
+
+/// A body removed and another added in its slot before the next step: the pairs of the slot
+/// keep their keys, and the narrowphase must not move the old body's manifolds as the new
+/// one's. A box rests on the ground; a taller one takes its slot at the same pose and is pushed
+/// out to rest on its own base, on the CPU and with every stage on the GPU.
+#[test]
+fn a_body_added_in_a_removed_bodys_slot_gets_its_own_contacts() {
+    let _turn = gpu_common::context();
+    for executor in [Executor::Cpu, Executor::Gpu] {
+        let mut world = World::new(StepConfig {
+            sleeping: false,
+            ..StepConfig::default()
+        })
+        .unwrap();
+        world
+            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+            .unwrap();
+        let cube = BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::Y * 0.5);
+        let first = world.add_body(cube).unwrap();
+        world
+            .set_stage_devices(StageDevices::all(executor))
+            .unwrap();
+        for _ in 0..60 {
+            world.step();
+        }
+        let pose = world.pose(first).unwrap();
+        world.remove_body(first).unwrap();
+        let tall = BodyDesc::dynamic(Shape::cuboid(Vec3::new(0.5, 0.6, 0.5)))
+            .position(pose.position)
+            .rotation(pose.rotation);
+        let second = world.add_body(tall).unwrap();
+        assert_eq!(second.index(), first.index(), "the slot is reused");
+        for _ in 0..60 {
+            world.step();
+        }
+        let height = world.pose(second).unwrap().position.y;
+        assert!(
+            (height - 0.6).abs() < 5e-3,
+            "{executor:?}: the tall box rests at y = {height}, not 0.6"
+        );
+    }
+}

@@ -141,6 +141,11 @@ fn each_bad_input_names_its_field() {
             contact_with_cache(r#""rotation": [0, 0, 0, 1], "separations": [-0.001], "age": 3"#),
             "unknown field `age`",
         ),
+        (
+            contact_with_cache(r#""rotation": [0, 0, 0, 1], "separations": [-0.001]"#)
+                .replace(r#""bodies": [0, 1],"#, r#""bodies": [0, 1], "child": 2,"#),
+            "contacts[0].cache: a contact with a mesh triangle keeps no cache",
+        ),
     ];
     for (json, expected) in cases {
         let message = error_of(&json);

@@ -142,7 +142,8 @@ fn collide_ordered(body_a: u32, body_b: u32, margin: f32) {
 // old_contacts[old] (none for NEW_PAIR), by feature id first, then the nearest unclaimed old
 // anchor within MATCH_DISTANCE (first on ties). Both pair contacts are read and written where
 // they lie, and the claimed and matched points are bit masks: copies of them indexed by loop
-// variables were kept in local memory, 192 bytes each a thread.
+// variables were kept in local memory, 192 bytes each a thread (before the contact had a
+// cache).
 fn store_carrying_impulses(index: u32, old: u32) {
     contacts[index].manifold = out;
     for (var i = 0u; i < MAX_MANIFOLD_POINTS; i++) {

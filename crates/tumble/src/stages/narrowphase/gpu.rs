@@ -1,6 +1,8 @@
-//! Stage 4 on the GPU: `narrowphase.wgsl`, one thread per pair, the twin of
-//! [`update_contacts`](super::update_contacts) (same pair functions, same feature ids, same
-//! warm-start matching; the WGSL files say how they keep the CPU's decisions).
+//! Stage 4 on the GPU, the twin of [`update_contacts`](super::update_contacts) (same cache
+//! decisions, pair functions, feature ids and warm-start matching; the WGSL files say how they
+//! keep the CPU's decisions): `move.wgsl` moves the cached manifolds, a thread per pair, and
+//! lists the other pairs, whose pair functions `collide.wgsl` runs (`narrowphase.wgsl` says
+//! why).
 //!
 //! [`GpuNarrowphase::encode`] works on device-resident arrays: this step's sorted pair keys,
 //! the map from each pair to its index in last step's contacts (or [`NEW_PAIR`]), last step's
@@ -323,8 +325,9 @@ struct HostBuffers {
     downloaded: Vec<PairContact>,
 }
 
-/// The GPU narrowphase: its kernel, the dispatch recorded for the current buffers, and the
-/// buffers of [`update_contacts`](Self::update_contacts).
+/// The GPU narrowphase: its kernels, the dispatches recorded for the current buffers, the list
+/// of pairs left to the pair functions, and the buffers of
+/// [`update_contacts`](Self::update_contacts).
 pub struct GpuNarrowphase {
     /// The kernels for the shape kinds they were built for, built again when they change.
     kernels: Option<(u32, Kernels)>,
@@ -342,7 +345,7 @@ impl Default for GpuNarrowphase {
 }
 
 impl GpuNarrowphase {
-    /// The stage with no kernel yet: the first encode builds the one for its shape kinds.
+    /// The stage with no kernels yet: the first encode builds those for its shape kinds.
     pub fn new() -> Self {
         Self {
             kernels: None,

@@ -1,7 +1,9 @@
 //! Stage 4: contact manifolds for every candidate pair, persistent from step to step.
 //!
-//! Each step computes a fresh manifold per pair (one-shot, as Box2D does) and matches its points
-//! with last step's; a matched point inherits the impulses the solver accumulated on it, which
+//! Each step computes a fresh manifold per pair (one-shot, as Box2D does), unless the pair is
+//! two polyhedra that have barely moved relative to each other since their manifold was
+//! computed: then the old points move with the bodies ([`ManifoldCache`]). A fresh manifold's
+//! points are matched with last step's; a matched point inherits the impulses the solver accumulated on it, which
 //! warm-starts the solver (Bullet's persistent manifolds, the talk's reason for persistent
 //! pairs). Points match by feature id first; points left over match the nearest old point in
 //! body A's frame within [`MATCH_DISTANCE`] (Bullet's contact breaking threshold). The second
@@ -12,8 +14,9 @@
 //! Guarantees: `contacts[i]` belongs to `keys[i]` = (a, b) with a < b, body A = a, normal from
 //! b to a; the result depends only on the poses and last step's manifold, never on thread count.
 //!
-//! [`GpuNarrowphase`] (`gpu.rs`, `narrowphase.wgsl` and the `contact_*.wgsl` pair functions) is
-//! the same stage on the GPU, one thread per pair, with the same points, ids and impulses.
+//! [`GpuNarrowphase`] (`gpu.rs`; `move.wgsl` moves the cached manifolds, a thread per pair, and
+//! `collide.wgsl` runs the `contact_*.wgsl` pair functions for the rest) is the same stage on the
+//! GPU, with the same decisions, points, ids and impulses.
 
 pub mod gpu;
 pub mod summary;
@@ -69,7 +72,7 @@ const _: () = assert!(size_of::<PairContact>() == 256);
 /// take it: their manifolds cost a few loads and a rotation instead of SAT and clipping.
 /// 64 bytes, WGSL layout.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ManifoldCache {
     /// Body B's position in body A's frame then (m).
     pub position: Vec3,
@@ -86,6 +89,14 @@ pub struct ManifoldCache {
 }
 const _: () = assert!(size_of::<ManifoldCache>() == 64);
 
+/// No cache: all zeros, as the GPU writes it (not glam's identity rotation), so that the two
+/// executors' pair contacts agree bit for bit.
+impl Default for ManifoldCache {
+    fn default() -> Self {
+        bytemuck::Zeroable::zeroed()
+    }
+}
+
 /// Farthest a point of either body may have moved relative to the other since the pair's
 /// manifold was computed for the narrowphase to move the old manifold instead of computing a
 /// new one (m). Jolt's default position tolerance; its rotation tolerance (2°) we replace by
@@ -94,7 +105,7 @@ const _: () = assert!(size_of::<ManifoldCache>() == 64);
 pub const CACHE_TOLERANCE: f32 = 1.0e-3;
 
 /// WGSL twins of [`ContactPoint`](crate::collision::manifold::ContactPoint), [`Manifold`],
-/// [`PointImpulse`] and [`PairContact`].
+/// [`PointImpulse`], [`ManifoldCache`] and [`PairContact`].
 pub const PAIR_CONTACT_WGSL: &str = include_str!("pair_contact.wgsl");
 
 /// Farthest a point may have moved on body A and still take over an old point's impulses (m).
@@ -437,11 +448,13 @@ mod tests {
         assert_eq!(carried.manifold, new);
     }
 
-    /// Body 0 a unit box resting 1 mm into body 1, a wider box below it (or a ground plane),
+    /// A unit box (body `moving`) resting 1 mm into a wider box below it or a ground plane,
     /// tilted a little so that the separations differ.
     struct Pair {
         colliders: [Collider; 2],
         poses: [BodyPose; 2],
+        /// The unit box.
+        moving: usize,
     }
 
     impl Pair {
@@ -463,13 +476,32 @@ mod tests {
                     ),
                     BodyPose::new(Vec3::ZERO, Quat::IDENTITY),
                 ],
+                moving: 0,
             }
         }
 
+        /// The box on a plane, body B: only the box gives a bound.
         fn on_plane() -> Self {
             let mut pair = Self::boxes();
             pair.colliders[1].shape = Shape::plane(Vec3::Y, 0.5);
             pair
+        }
+
+        /// The plane as body A.
+        fn on_plane_a() -> Self {
+            let mut pair = Self::on_plane();
+            pair.colliders.swap(0, 1);
+            pair.poses.swap(0, 1);
+            pair.moving = 1;
+            pair
+        }
+
+        fn all() -> [Self; 3] {
+            [Self::boxes(), Self::on_plane(), Self::on_plane_a()]
+        }
+
+        fn box_pose(&mut self) -> &mut BodyPose {
+            &mut self.poses[self.moving]
         }
 
         /// One narrowphase step from `old`.
@@ -540,7 +572,7 @@ mod tests {
 
     #[test]
     fn a_pair_moved_as_one_moves_its_manifold() {
-        for mut pair in [Pair::boxes(), Pair::on_plane()] {
+        for mut pair in Pair::all() {
             let mut first = pair.step(&PairContact::default());
             assert_eq!(first.manifold.count, 4, "a box face down: four corners");
             assert_eq!(first.cache.valid, 1);
@@ -561,10 +593,10 @@ mod tests {
 
     #[test]
     fn small_relative_motions_move_the_points_with_their_bodies() {
-        for mut pair in [Pair::boxes(), Pair::on_plane()] {
+        for mut pair in Pair::all() {
             let first = pair.step(&PairContact::default());
             // 0.4 mm deeper: the box's corners, each on the other body's face, go 0.4 mm in.
-            pair.poses[0].position.y -= 4.0e-4;
+            pair.box_pose().position.y -= 4.0e-4;
             let moved = pair.step(&first);
             assert_eq!(moved.cache, first.cache);
             for (m, f) in moved.manifold.points().iter().zip(first.manifold.points()) {
@@ -573,7 +605,8 @@ mod tests {
             assert_same_points(&moved, &pair.fresh(&first), 1e-6, 1e-6);
             // A turn of the box that moves its corners 0.5 mm more: 0.9 mm from where the
             // manifold was computed, held as well.
-            pair.poses[0].rotation = Quat::from_rotation_y(5.0e-4 / 0.866) * pair.poses[0].rotation;
+            let pose = pair.box_pose();
+            pose.rotation = Quat::from_rotation_y(5.0e-4 / 0.866) * pose.rotation;
             let turned = pair.step(&moved);
             assert_eq!(turned.cache, first.cache);
             // Each corner of the box turned 0.5 mm over the face below. A fresh manifold's
@@ -591,9 +624,9 @@ mod tests {
             // Turned in place by what moves a corner of the box 1.2 mm (its radius is 0.866).
             Transform::new(Vec3::ZERO, Quat::from_rotation_y(1.2e-3 / 0.866)),
         ] {
-            for mut pair in [Pair::boxes(), Pair::on_plane()] {
+            for mut pair in Pair::all() {
                 let first = pair.step(&PairContact::default());
-                let pose = &mut pair.poses[0];
+                let pose = pair.box_pose();
                 pose.position += motion.position;
                 pose.rotation = motion.rotation * pose.rotation;
                 let next = pair.step(&first);

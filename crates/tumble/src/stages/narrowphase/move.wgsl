@@ -103,7 +103,8 @@ fn load_cache(old: u32) -> ManifoldCache {
 // `relative` for `margin`, bodies `a` and `b` (a plane's points near the other body may lie
 // anywhere: no bound from its side).
 fn cache_holds(cache: ManifoldCache, relative: BodyPose, margin: f32, a: u32, b: u32) -> bool {
-    if cache.valid == 0u || margin > cache.margin + CACHE_TOLERANCE {
+    // Negated as the CPU writes it, so that a NaN margin holds on neither.
+    if cache.valid == 0u || !(margin <= cache.margin + CACHE_TOLERANCE) {
         return false;
     }
     let turn = quat_mul(relative.rotation, quat_conjugate(cache.rotation));

@@ -1,6 +1,6 @@
 //! What the host's step reads of each pair's contact when the contacts stay on the device
 //! (`summary.wgsl`): its point count and deepest penetration, 8 bytes a pair instead of the
-//! contact's 192. The row summaries, the islands and the step's statistics need no more.
+//! contact's 256. The row summaries, the islands and the step's statistics need no more.
 
 use bytemuck::{Pod, Zeroable};
 
