@@ -21,8 +21,9 @@ fn max_distance(a: &World, b: &World, bodies: &[BodyHandle]) -> f32 {
 
 /// Two towers of boxes, one turned, and a capsule and a ball resting against them: every
 /// GPU pair function of the step meets work, small enough for a CPU driver.
-fn world_on(stages: &[Stage]) -> World {
-    // Awake: the comparison is of every step's contacts and motion.
+/// A world that never sleeps (the tests compare every step's contacts and motion), with the
+/// ground plane at y = 0 as its first body.
+fn awake_on_ground() -> World {
     let mut world = World::new(StepConfig {
         sleeping: false,
         ..StepConfig::default()
@@ -31,6 +32,11 @@ fn world_on(stages: &[Stage]) -> World {
     world
         .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
         .unwrap();
+    world
+}
+
+fn world_on(stages: &[Stage]) -> World {
+    let mut world = awake_on_ground();
     for level in 0..5 {
         let y = 0.5 + level as f32;
         let turn = Quat::from_rotation_y(0.3 * level as f32);
@@ -237,14 +243,7 @@ fn rows_kept_on_the_gpu_give_the_step_through_the_host_exactly() {
 fn hulls_and_meshes_beside_the_gpu_narrowphase_follow_the_cpu() {
     let _turn = gpu_common::context();
     let world = |stages: &[Stage]| {
-        let mut world = World::new(StepConfig {
-            sleeping: false,
-            ..StepConfig::default()
-        })
-        .unwrap();
-        world
-            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-            .unwrap();
+        let mut world = awake_on_ground();
         // A 4 m square of two triangles at y = 1, facing up, beside the origin.
         let floor = tumble::shape::TriMesh::new(
             vec![
@@ -405,14 +404,7 @@ fn compounds_beside_gpu_stages_follow_the_cpu() {
     ])
     .unwrap();
     let world = |stages: &[Stage]| {
-        let mut world = World::new(StepConfig {
-            sleeping: false,
-            ..StepConfig::default()
-        })
-        .unwrap();
-        world
-            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-            .unwrap();
+        let mut world = awake_on_ground();
         // A 4 m square of two triangles at y = 1, facing up, beside the origin.
         let floor = TriMesh::new(
             vec![
@@ -673,14 +665,7 @@ fn a_step_with_many_more_pairs_than_the_last_reads_them_all_back() {
 fn a_body_added_in_a_removed_bodys_slot_gets_its_own_contacts() {
     let _turn = gpu_common::context();
     for executor in [Executor::Cpu, Executor::Gpu] {
-        let mut world = World::new(StepConfig {
-            sleeping: false,
-            ..StepConfig::default()
-        })
-        .unwrap();
-        world
-            .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
-            .unwrap();
+        let mut world = awake_on_ground();
         let cube = BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::Y * 0.5);
         let first = world.add_body(cube).unwrap();
         world
