@@ -998,10 +998,31 @@ fn small_motions_move_the_cached_manifolds_as_the_cpu_does() {
     let context = context();
     let mut narrowphase = GpuNarrowphase::new();
     let mut random = Random::new(7);
-    let mut world = random_world(&mut random, 3000);
+    let world = random_world(&mut random, 3000);
+    move_slightly_on_both(&context, &mut narrowphase, &mut random, world);
+    // Hulls against hulls, boxes and planes: the pairs that clip the most.
+    let world = random_world_with(&mut random, 1000, |random| {
+        let b = match random.below(3) {
+            0 => random_hull(random),
+            1 => Shape::cuboid(vec3(0.5, 0.3, 0.7)),
+            _ => Shape::plane(random.direction(), 0.0),
+        };
+        (random_hull(random), b)
+    });
+    move_slightly_on_both(&context, &mut narrowphase, &mut random, world);
+}
+
+/// One step of `world`'s pairs from contacts computed where they are to poses moved by up to
+/// 0.6 mm and 4e-4 rad a body, on both executors: see the test above.
+fn move_slightly_on_both(
+    context: &GpuContext,
+    narrowphase: &mut GpuNarrowphase,
+    random: &mut Random,
+    mut world: World,
+) {
     let mut old = vec![PairContact::default(); world.keys.len()];
     update_contacts(&world.keys, &mut old, &world.inputs());
-    give_impulses(&mut random, &mut old);
+    give_impulses(random, &mut old);
     // Up to 0.6 mm and 4e-4 rad a body: a pair's points move by up to about 2 mm.
     for pose in &mut world.poses {
         pose.position += random.direction() * random.range(0.0, 6.0e-4);
@@ -1012,7 +1033,7 @@ fn small_motions_move_the_cached_manifolds_as_the_cpu_does() {
     let mut cpu = old.clone();
     update_contacts(&world.keys, &mut cpu, &world.inputs());
     let identity: Vec<u32> = (0..world.keys.len() as u32).collect();
-    let mut gpu = gpu_step(&context, &mut narrowphase, &world, &identity, &old);
+    let mut gpu = gpu_step(context, narrowphase, &world, &identity, &old);
     // A pair that moved its manifold kept its cache, bit for bit.
     let held = |contacts: &[PairContact]| -> Vec<bool> {
         (contacts.iter().zip(&old))
@@ -1047,7 +1068,7 @@ fn small_motions_move_the_cached_manifolds_as_the_cpu_does() {
     };
     let (moved, computed) = (count(true), count(false));
     assert!(
-        moved > 200 && computed > 200,
+        moved > 100 && computed > 100,
         "both paths taken: {moved} touching pairs moved, {computed} computed"
     );
 }
