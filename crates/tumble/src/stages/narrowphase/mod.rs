@@ -101,7 +101,9 @@ impl Default for ManifoldCache {
 /// manifold was computed for the narrowphase to move the old manifold instead of computing a
 /// new one (m). Jolt's default position tolerance; its rotation tolerance (2°) we replace by
 /// what the rotation moves the body's farthest point, which is tighter for bodies larger than
-/// 3 cm. A rebuilt point's separation is exact while the same features touch.
+/// 3 cm. A rebuilt point's separation is exact while the same features touch; its position
+/// may be off by half the tolerance, a thousandth of a metre-sized body (the scale the step's
+/// defaults are for, as `StepConfig` says).
 pub const CACHE_TOLERANCE: f32 = 1.0e-3;
 
 /// WGSL twins of [`ContactPoint`](crate::collision::manifold::ContactPoint), [`Manifold`],
