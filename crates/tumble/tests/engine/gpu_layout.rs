@@ -266,109 +266,89 @@ fn body_structs_match_rust() {
     );
 }
 
+/// The Rust layouts of `pair_contact.wgsl`'s structs, which several kernels include.
+fn pair_contact_layouts() -> Vec<Layout> {
+    use tumble::collision::manifold::{ContactPoint, Manifold};
+    use tumble::stages::narrowphase::{ManifoldCache, PairContact, PointImpulse};
+    vec![
+        rust_layout!(ContactPoint {
+            position,
+            separation,
+            anchor,
+            id
+        }),
+        rust_layout!(Manifold {
+            normal,
+            count,
+            points
+        }),
+        rust_layout!(PointImpulse { normal, tangent }),
+        rust_layout!(ManifoldCache {
+            position,
+            margin,
+            rotation,
+            normal,
+            valid,
+            separations
+        }),
+        rust_layout!(PairContact {
+            manifold,
+            impulses,
+            cache
+        }),
+    ]
+}
+
 #[test]
 fn pair_contact_structs_match_rust() {
-    use tumble::collision::manifold::{ContactPoint, Manifold};
-    use tumble::stages::narrowphase::{
-        ManifoldCache, PAIR_CONTACT_WGSL, PairContact, PointImpulse,
-    };
+    use tumble::stages::narrowphase::PAIR_CONTACT_WGSL;
     check(
         Source::new().snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL),
-        vec![
-            rust_layout!(ContactPoint {
-                position,
-                separation,
-                anchor,
-                id
-            }),
-            rust_layout!(Manifold {
-                normal,
-                count,
-                points
-            }),
-            rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(ManifoldCache {
-                position,
-                margin,
-                rotation,
-                normal,
-                valid,
-                separations
-            }),
-            rust_layout!(PairContact {
-                manifold,
-                impulses,
-                cache
-            }),
-        ],
+        pair_contact_layouts(),
     );
 }
 
 #[test]
 fn narrowphase_structs_match_rust() {
-    use tumble::collision::manifold::{ContactPoint, Manifold};
     use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
+    use tumble::stages::narrowphase::NarrowphaseParams;
     use tumble::stages::narrowphase::gpu::wgsl;
-    use tumble::stages::narrowphase::{
-        ManifoldCache, NarrowphaseParams, PairContact, PointImpulse,
-    };
     check_with_gpu_only(
         wgsl(u32::MAX),
-        vec![
-            rust_layout!(NarrowphaseParams {
-                pair_count,
-                skipped_count,
-                margin,
-                dt
-            }),
-            rust_layout!(BodyPose {
-                position,
-                _pad,
-                rotation
-            }),
-            rust_layout!(BodyVelocity {
-                linear,
-                _pad0,
-                angular,
-                _pad1
-            }),
-            rust_layout!(BodyMass {
-                inverse_inertia,
-                inverse_mass
-            }),
-            rust_layout!(ColliderData {
-                kind,
-                friction,
-                restitution,
-                bounding_radius,
-                params
-            }),
-            rust_layout!(ContactPoint {
-                position,
-                separation,
-                anchor,
-                id
-            }),
-            rust_layout!(Manifold {
-                normal,
-                count,
-                points
-            }),
-            rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(ManifoldCache {
-                position,
-                margin,
-                rotation,
-                normal,
-                valid,
-                separations
-            }),
-            rust_layout!(PairContact {
-                manifold,
-                impulses,
-                cache
-            }),
-        ],
+        [
+            vec![
+                rust_layout!(NarrowphaseParams {
+                    pair_count,
+                    skipped_count,
+                    margin,
+                    dt
+                }),
+                rust_layout!(BodyPose {
+                    position,
+                    _pad,
+                    rotation
+                }),
+                rust_layout!(BodyVelocity {
+                    linear,
+                    _pad0,
+                    angular,
+                    _pad1
+                }),
+                rust_layout!(BodyMass {
+                    inverse_inertia,
+                    inverse_mass
+                }),
+                rust_layout!(ColliderData {
+                    kind,
+                    friction,
+                    restitution,
+                    bounding_radius,
+                    params
+                }),
+            ],
+            pair_contact_layouts(),
+        ]
+        .concat(),
         // Box–box's polygon vertex and the hull pairs' views of the packed hulls, frames,
         // queries, polygon vertices and round cores' features live in one thread's private
         // memory; the hulls themselves are words (`pack_hulls`).
@@ -646,38 +626,10 @@ fn batched_impulses_match_rust() {
 /// writes has the Rust layout; the constraint structs are `solver_structs_match_rust`'s.
 #[test]
 fn pair_impulses_structs_match_rust() {
-    use tumble::collision::manifold::{ContactPoint, Manifold};
-    use tumble::stages::narrowphase::{ManifoldCache, PairContact, PointImpulse};
     use tumble::stages::solver::batched::pair_impulses_wgsl;
     check_with_gpu_only(
         pair_impulses_wgsl(),
-        vec![
-            rust_layout!(ContactPoint {
-                position,
-                separation,
-                anchor,
-                id
-            }),
-            rust_layout!(Manifold {
-                normal,
-                count,
-                points
-            }),
-            rust_layout!(PointImpulse { normal, tangent }),
-            rust_layout!(ManifoldCache {
-                position,
-                margin,
-                rotation,
-                normal,
-                valid,
-                separations
-            }),
-            rust_layout!(PairContact {
-                manifold,
-                impulses,
-                cache
-            }),
-        ],
+        pair_contact_layouts(),
         &["Softness", "Row"],
     );
 }

@@ -38,7 +38,7 @@
 //! step's children, never on thread count (children are computed per pair in parallel and
 //! concatenated in pair order).
 
-use super::{MATCH_DISTANCE, NarrowphaseInputs, PairContact, PointImpulse, closing_speed_bound};
+use super::{MATCH_DISTANCE, NarrowphaseInputs, PairContact, PointImpulse};
 use crate::collision::contact::{collide_compound, collide_mesh, mix_child_ids};
 use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold, reduce};
 use crate::math::{Quat, Transform};
@@ -270,11 +270,12 @@ pub fn has_children(a: &Shape, b: &Shape) -> bool {
 pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children: &mut ChildCache) {
     let NarrowphaseInputs {
         poses,
-        velocities,
         colliders,
-        margin,
-        dt,
         skipped,
+        // The margin is `pair_margin`'s.
+        velocities: _,
+        margin: _,
+        dt: _,
         // Sleeping bodies' child manifolds are recomputed: the same poses give the same
         // manifolds and impulses, at the cost of the narrowphase work.
         keep_resting: _,
@@ -289,13 +290,7 @@ pub fn update_child_contacts(keys: &[u64], inputs: &NarrowphaseInputs, children:
         .map(|&key| {
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
-            let margin = margin
-                + dt * closing_speed_bound(
-                    &velocities[a],
-                    &velocities[b],
-                    &colliders[a],
-                    &colliders[b],
-                );
+            let margin = inputs.pair_margin(a, b);
             let (shape_a, shape_b) = (&colliders[a].shape, &colliders[b].shape);
             let (pose_a, pose_b) = (poses[a].transform(), poses[b].transform());
             let found = match (shape_a, shape_b) {

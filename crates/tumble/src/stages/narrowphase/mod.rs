@@ -132,6 +132,17 @@ pub struct NarrowphaseInputs<'a> {
     pub keep_resting: Option<&'a [BodyMass]>,
 }
 
+impl NarrowphaseInputs<'_> {
+    /// The speculative distance of bodies `a` and `b` (m): `margin` at rest, plus as far as
+    /// they can close in a step ([`closing_speed_bound`]).
+    pub fn pair_margin(&self, a: usize, b: usize) -> f32 {
+        let (velocities, colliders) = (self.velocities, self.colliders);
+        self.margin
+            + self.dt
+                * closing_speed_bound(&velocities[a], &velocities[b], &colliders[a], &colliders[b])
+    }
+}
+
 /// CPU executor: refresh the manifold of every pair.
 pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &NarrowphaseInputs) {
     update_contacts_where(keys, contacts, inputs, |_, _| true);
@@ -187,12 +198,13 @@ pub fn update_contacts_where(
 ) {
     let NarrowphaseInputs {
         poses,
-        velocities,
         colliders,
-        margin,
-        dt,
         skipped,
         keep_resting,
+        // The margin is `pair_margin`'s.
+        velocities: _,
+        margin: _,
+        dt: _,
     } = *inputs;
     debug_assert_eq!(keys.len(), contacts.len());
     contacts
@@ -220,13 +232,7 @@ pub fn update_contacts_where(
             {
                 return;
             }
-            let margin = margin
-                + dt * closing_speed_bound(
-                    &velocities[a],
-                    &velocities[b],
-                    &colliders[a],
-                    &colliders[b],
-                );
+            let margin = inputs.pair_margin(a, b);
             let (pose_a, pose_b) = (poses[a].transform(), poses[b].transform());
             let relative = relative_pose(&pose_a, &pose_b);
             let radii = [cache_radius(&colliders[a]), cache_radius(&colliders[b])];
