@@ -234,35 +234,41 @@ fn particle_structs_match_rust() {
     }
 }
 
+/// The Rust layouts of `body.wgsl`'s structs, which every rigid-body kernel includes.
+fn body_layouts() -> Vec<Layout> {
+    use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
+    vec![
+        rust_layout!(BodyPose {
+            position,
+            _pad,
+            rotation
+        }),
+        rust_layout!(BodyVelocity {
+            linear,
+            _pad0,
+            angular,
+            _pad1
+        }),
+        rust_layout!(BodyMass {
+            inverse_inertia,
+            inverse_mass
+        }),
+        rust_layout!(ColliderData {
+            kind,
+            friction,
+            restitution,
+            bounding_radius,
+            params
+        }),
+    ]
+}
+
 #[test]
 fn body_structs_match_rust() {
-    use tumble::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity, ColliderData};
+    use tumble::dynamics::body::BODY_WGSL;
     check(
         Source::new().snippet("body.wgsl", BODY_WGSL),
-        vec![
-            rust_layout!(BodyPose {
-                position,
-                _pad,
-                rotation
-            }),
-            rust_layout!(BodyVelocity {
-                linear,
-                _pad0,
-                angular,
-                _pad1
-            }),
-            rust_layout!(BodyMass {
-                inverse_inertia,
-                inverse_mass
-            }),
-            rust_layout!(ColliderData {
-                kind,
-                friction,
-                restitution,
-                bounding_radius,
-                params
-            }),
-        ],
+        body_layouts(),
     );
 }
 
@@ -310,42 +316,18 @@ fn pair_contact_structs_match_rust() {
 
 #[test]
 fn narrowphase_structs_match_rust() {
-    use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
     use tumble::stages::narrowphase::NarrowphaseParams;
     use tumble::stages::narrowphase::gpu::wgsl;
     check_with_gpu_only(
         wgsl(u32::MAX),
         [
-            vec![
-                rust_layout!(NarrowphaseParams {
-                    pair_count,
-                    skipped_count,
-                    margin,
-                    dt
-                }),
-                rust_layout!(BodyPose {
-                    position,
-                    _pad,
-                    rotation
-                }),
-                rust_layout!(BodyVelocity {
-                    linear,
-                    _pad0,
-                    angular,
-                    _pad1
-                }),
-                rust_layout!(BodyMass {
-                    inverse_inertia,
-                    inverse_mass
-                }),
-                rust_layout!(ColliderData {
-                    kind,
-                    friction,
-                    restitution,
-                    bounding_radius,
-                    params
-                }),
-            ],
+            vec![rust_layout!(NarrowphaseParams {
+                pair_count,
+                skipped_count,
+                margin,
+                dt
+            })],
+            body_layouts(),
             pair_contact_layouts(),
         ]
         .concat(),
@@ -368,44 +350,23 @@ fn narrowphase_structs_match_rust() {
 
 #[test]
 fn collision_front_half_parameter_blocks_match_rust() {
-    use tumble::dynamics::body::{BodyPose, BodyVelocity, ColliderData};
     use tumble::stages::aabb::gpu::{self as aabb, AabbParams};
     use tumble::stages::broadphase::gpu::TraverseParams;
     use tumble::stages::broadphase::gpu::{self as broadphase, BuildParams, CodeParams};
     use tumble::stages::pairs::gpu::{self as pairs, DiffParams};
     check(
         aabb::wgsl(),
-        vec![
-            rust_layout!(AabbParams {
+        [
+            vec![rust_layout!(AabbParams {
                 count,
                 margin,
                 dt,
                 padding
-            }),
-            // body.wgsl's structs, included by the kernel (checked above with BodyMass).
-            rust_layout!(BodyPose {
-                position,
-                _pad,
-                rotation
-            }),
-            rust_layout!(BodyVelocity {
-                linear,
-                _pad0,
-                angular,
-                _pad1
-            }),
-            rust_layout!(tumble::dynamics::body::BodyMass {
-                inverse_inertia,
-                inverse_mass
-            }),
-            rust_layout!(ColliderData {
-                kind,
-                friction,
-                restitution,
-                bounding_radius,
-                params
-            }),
-        ],
+            })],
+            // body.wgsl's structs, included by the kernel.
+            body_layouts(),
+        ]
+        .concat(),
     );
     let [codes, build, traverse] = broadphase::wgsl();
     check(
@@ -452,31 +413,35 @@ fn collision_front_half_parameter_blocks_match_rust() {
 
 #[test]
 fn contact_constraint_structs_match_rust() {
-    use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::{CONTACT_CONSTRAINT_WGSL, Row};
+    use tumble::stages::constraints::CONTACT_CONSTRAINT_WGSL;
     check(
         Source::new().snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL),
-        vec![
-            rust_layout!(Softness {
-                bias_rate,
-                mass_scale,
-                impulse_scale
-            }),
-            rust_layout!(Row {
-                angular_a,
-                mass,
-                angular_b,
-                impulse
-            }),
-        ],
+        contact_constraint_layouts(),
     );
+}
+
+/// The Rust layouts of `contact_constraint.wgsl`'s structs, which the solver includes.
+fn contact_constraint_layouts() -> Vec<Layout> {
+    use tumble::pipeline::config::Softness;
+    use tumble::stages::constraints::Row;
+    vec![
+        rust_layout!(Softness {
+            bias_rate,
+            mass_scale,
+            impulse_scale
+        }),
+        rust_layout!(Row {
+            angular_a,
+            mass,
+            angular_b,
+            impulse
+        }),
+    ]
 }
 
 #[test]
 fn solver_structs_match_rust() {
-    use tumble::dynamics::body::{BodyMass, BodyPose, BodyVelocity, ColliderData};
-    use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::{JointConstraint, JointFrame, JointSlot, Row};
+    use tumble::stages::constraints::{JointConstraint, JointFrame, JointSlot};
     use tumble::stages::solver::SolverBody;
     use tumble::stages::solver::batched::BatchedJointImpulses;
     use tumble::stages::solver::gpu::{SolverParams, wgsl};
@@ -484,109 +449,81 @@ fn solver_structs_match_rust() {
     // ConstraintHeader the contact kernels' registers.
     check_with_gpu_only(
         wgsl(),
-        vec![
-            rust_layout!(BodyPose {
-                position,
-                _pad,
-                rotation
-            }),
-            rust_layout!(BodyVelocity {
-                linear,
-                _pad0,
-                angular,
-                _pad1
-            }),
-            rust_layout!(BodyMass {
-                inverse_inertia,
-                inverse_mass
-            }),
-            rust_layout!(ColliderData {
-                kind,
-                friction,
-                restitution,
-                bounding_radius,
-                params
-            }),
-            rust_layout!(Softness {
-                bias_rate,
-                mass_scale,
-                impulse_scale
-            }),
-            rust_layout!(Row {
-                angular_a,
-                mass,
-                angular_b,
-                impulse
-            }),
-            rust_layout!(SolverBody {
-                linear_velocity,
-                inverse_mass,
-                angular_velocity,
-                _pad0,
-                delta_position,
-                _pad1,
-                delta_rotation
-            }),
-            rust_layout!(SolverParams {
-                gravity,
-                h,
-                first_batch,
-                end_batch,
-                sequential,
-                use_bias,
-                moved,
-                max_push_velocity,
-                restitution_threshold,
-                body_count,
-                overflow_batch,
-                _pad0,
-                _pad1,
-                _pad2
-            }),
-            rust_layout!(JointFrame {
-                local_anchor_a,
-                kind,
-                local_anchor_b,
-                flags,
-                local_axis_a,
-                lower,
-                local_axis_b,
-                upper,
-                local_reference_a,
-                swing_limit,
-                local_reference_b,
-                target_speed,
-                relative_rotation,
-                max_torque,
-                _pad
-            }),
-            rust_layout!(JointConstraint {
-                frame,
-                rotation_a,
-                rotation_b,
-                center_offset,
-                inverse_mass_a,
-                point_impulse,
-                inverse_mass_b,
-                body_a,
-                body_b,
-                joint,
-                max_point_impulse,
-                softness,
-                angular_impulse,
-                inverse_inertia_a,
-                inverse_inertia_b,
-                _pad
-            }),
-            rust_layout!(JointSlot {
-                frame,
-                body_a,
-                body_b,
-                live,
-                _pad
-            }),
-            rust_layout!(BatchedJointImpulses { point, angular }),
-        ],
+        [
+            body_layouts(),
+            contact_constraint_layouts(),
+            vec![
+                rust_layout!(SolverBody {
+                    linear_velocity,
+                    inverse_mass,
+                    angular_velocity,
+                    _pad0,
+                    delta_position,
+                    _pad1,
+                    delta_rotation
+                }),
+                rust_layout!(SolverParams {
+                    gravity,
+                    h,
+                    first_batch,
+                    end_batch,
+                    sequential,
+                    use_bias,
+                    moved,
+                    max_push_velocity,
+                    restitution_threshold,
+                    body_count,
+                    overflow_batch,
+                    _pad0,
+                    _pad1,
+                    _pad2
+                }),
+                rust_layout!(JointFrame {
+                    local_anchor_a,
+                    kind,
+                    local_anchor_b,
+                    flags,
+                    local_axis_a,
+                    lower,
+                    local_axis_b,
+                    upper,
+                    local_reference_a,
+                    swing_limit,
+                    local_reference_b,
+                    target_speed,
+                    relative_rotation,
+                    max_torque,
+                    _pad
+                }),
+                rust_layout!(JointConstraint {
+                    frame,
+                    rotation_a,
+                    rotation_b,
+                    center_offset,
+                    inverse_mass_a,
+                    point_impulse,
+                    inverse_mass_b,
+                    body_a,
+                    body_b,
+                    joint,
+                    max_point_impulse,
+                    softness,
+                    angular_impulse,
+                    inverse_inertia_a,
+                    inverse_inertia_b,
+                    _pad
+                }),
+                rust_layout!(JointSlot {
+                    frame,
+                    body_a,
+                    body_b,
+                    live,
+                    _pad
+                }),
+                rust_layout!(BatchedJointImpulses { point, angular }),
+            ],
+        ]
+        .concat(),
         &[
             "AngularRow",
             "JointPose",
