@@ -736,7 +736,9 @@ impl GpuStages {
     /// ([`CollideOutput::Summaries`]). Reads through a staging buffer of its own, so that a
     /// caller holding only `&self` (the world's contact queries) can read them.
     pub fn read_pair_contacts(&self) -> Result<Vec<PairContact>, GpuError> {
-        self.contacts.read(&self.context)
+        let mut contacts = self.contacts.read(&self.context)?;
+        contacts.iter_mut().for_each(PairContact::clear_unused);
+        Ok(contacts)
     }
 
     /// This step's end poses on the device, when it integrated here ([`DevicePoses`]).
@@ -1156,6 +1158,7 @@ impl GpuStages {
                 context.queue.submit([encoder.finish()]);
                 self.keys.read_download(context, keys)?;
                 self.contacts.read_download(context, contacts)?;
+                contacts.iter_mut().for_each(PairContact::clear_unused);
             }
         }
         self.contacts.resize(context, count)?;
@@ -3367,6 +3370,56 @@ mod tests {
         // The pairs added and removed as the device's diff counted them, and the contact
         // points as its tally did, the host's.
         assert_eq!(kept.5, brought.5);
+    }
+
+    /// The device leaves the point slots past a moved manifold's count as its buffer had them
+    /// (`move.wgsl`); the contacts the host reads back have them zero, as the CPU keeps them.
+    /// Here a box flies off the ground, so the pairs sorted after its ground pair each move
+    /// down a slot, and the pair of two boxes an edge apart (two points, moved by its cache)
+    /// lands where a box's four points on the ground were written before.
+    #[test]
+    fn unused_point_slots_come_back_zero() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = awake_gpu_world_on_a_plane(&context);
+        let cube = || BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5)));
+        let flying = cube()
+            .position(Vec3::new(-3.0, 0.5, 0.0))
+            .linear_velocity(Vec3::new(0.0, 4.0, 0.0));
+        world.add_body(flying).unwrap();
+        world
+            .add_body(cube().position(Vec3::new(0.0, 0.5, 0.0)))
+            .unwrap();
+        // Turned a quarter about the vertical, 5 mm from the other box: its edge, two points.
+        let edge = cube()
+            .position(Vec3::new(0.505 + 0.5 * std::f32::consts::SQRT_2, 0.5, 0.0))
+            .rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_4));
+        world.add_body(edge).unwrap();
+        let (mut most_pairs, mut fewest_pairs) = (0, usize::MAX);
+        for _ in 0..30 {
+            world.step();
+            assert!(world.contacts_on_device);
+            most_pairs = most_pairs.max(world.pairs.len());
+            fewest_pairs = fewest_pairs.min(world.pairs.len());
+            for contact in world.pair_values() {
+                let count = contact.manifold.count as usize;
+                let zero_points = contact.manifold.points[count..]
+                    .iter()
+                    .all(|p| *p == Default::default());
+                let zero_impulses = contact.impulses[count..]
+                    .iter()
+                    .all(|i| *i == Default::default());
+                assert!(
+                    zero_points && zero_impulses,
+                    "unused point slots in {contact:?}"
+                );
+            }
+        }
+        // The flying box's ground pair went, the edge's pair stayed.
+        assert_eq!((most_pairs, fewest_pairs), (4, 3));
+        let points: Vec<u32> = world.contacts().map(|(_, _, c)| c.manifold.count).collect();
+        assert_eq!(points, [4, 4, 2]);
     }
 
     /// Bodies falling asleep keep the step on the one-submission path, their resting pairs

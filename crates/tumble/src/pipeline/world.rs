@@ -1036,7 +1036,7 @@ impl World {
     }
 
     /// The pairs' contacts in pair order, wherever they are newest (see `contacts_on_device`).
-    fn pair_values(&self) -> &[PairContact] {
+    pub(crate) fn pair_values(&self) -> &[PairContact] {
         if !self.contacts_on_device {
             return self.pairs.values();
         }

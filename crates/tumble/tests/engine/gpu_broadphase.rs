@@ -284,6 +284,26 @@ fn pairs_match_brute_force() {
     }
 }
 
+/// A walk appends its pairs sixteen at a time (`lbvh_traverse.wgsl`): bodies piled on one
+/// another, so that the first of them has 59 pairs to append, the next 58, and so on, besides
+/// a random scene.
+#[test]
+fn bodies_with_many_pairs_append_them_all() {
+    let (mut aabbs, mut is_static) = scene(300, 11);
+    let mut random = Random::new(12);
+    for _ in 0..60 {
+        let centre = Vec3::splat(50.0) + vector(&mut random, 0.1);
+        aabbs.push(Aabb::from_center_half_extents(centre, Vec3::splat(0.5)));
+        is_static.push(false);
+    }
+    let expected = brute_force(&aabbs, &is_static);
+    let mut broadphase = GpuBroadphase::new(&context()).expect("broadphase");
+    for traversal in [Traversal::HistoryFlags, Traversal::Ropes] {
+        let found = gpu_pairs(&mut broadphase, traversal, &aabbs, &is_static);
+        assert_eq!(found, expected, "{traversal:?}");
+    }
+}
+
 /// Past 65 536 bodies a packed key (lower << 17 | higher) spans both words of the sort key.
 #[test]
 fn pairs_past_16_bit_body_indices() {

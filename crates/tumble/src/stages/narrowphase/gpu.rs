@@ -61,7 +61,7 @@ use std::mem::offset_of;
 
 use super::{
     CACHE_TOLERANCE, MATCH_DISTANCE, MAX_HULL_FACE_VERTICES, ManifoldCache, NarrowphaseInputs,
-    PAIR_CONTACT_WGSL, PairContact,
+    PAIR_CONTACT_WGSL, PairContact, PointImpulse,
 };
 use crate::collision::contact::hull::{self, BoxPolyhedron, Polyhedron};
 use crate::collision::contact::wgsl_constants;
@@ -222,6 +222,8 @@ const _: () = {
     assert!(size_of::<ContactPoint>() == 32 && offset_of!(ContactPoint, separation) == 12);
     assert!(offset_of!(ContactPoint, anchor) == 16 && offset_of!(ContactPoint, id) == 28);
     assert!(IMPULSES_WORD == POINTS_WORD + 2 * MAX_MANIFOLD_POINTS as u32);
+    // Point k's impulses end within the first ⌈3(k + 1)/4⌉ words of them.
+    assert!(size_of::<PointImpulse>() == 12);
     assert!(offset_of!(ManifoldCache, margin) == 12 && offset_of!(ManifoldCache, rotation) == 16);
     assert!(offset_of!(ManifoldCache, normal) == 32 && offset_of!(ManifoldCache, valid) == 44);
     assert!(offset_of!(ManifoldCache, separations) == 48);
@@ -460,6 +462,7 @@ impl GpuNarrowphase {
         context.queue.submit([encoder.finish()]);
         host.contacts.download_into(context, &mut host.downloaded)?;
         contacts.copy_from_slice(&host.downloaded);
+        contacts.iter_mut().for_each(PairContact::clear_unused);
         Ok(())
     }
 }

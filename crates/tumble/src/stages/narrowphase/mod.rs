@@ -30,7 +30,7 @@ mod children;
 pub use children::{ChildCache, ChildKey, has_children, update_child_contacts};
 
 use crate::collision::contact::collide;
-use crate::collision::manifold::{MAX_MANIFOLD_POINTS, Manifold};
+use crate::collision::manifold::{ContactPoint, MAX_MANIFOLD_POINTS, Manifold};
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
 use crate::math::{Quat, Transform, Vec3};
 use crate::shape::{Shape, ShapeKind};
@@ -61,6 +61,17 @@ pub struct PairContact {
     pub cache: ManifoldCache,
 }
 const _: () = assert!(size_of::<PairContact>() == 256);
+
+impl PairContact {
+    /// Zeroes the point slots past the manifold's count and their impulses, as the CPU keeps
+    /// them. The GPU's narrowphase leaves them as its buffer had them (`move.wgsl`: no kernel
+    /// reads them there), so the host clears them in what it reads back.
+    pub fn clear_unused(&mut self) {
+        let count = (self.manifold.count as usize).min(MAX_MANIFOLD_POINTS);
+        self.manifold.points[count..].fill(ContactPoint::default());
+        self.impulses[count..].fill(PointImpulse::default());
+    }
+}
 
 /// The relative pose a pair's manifold was computed at, and what its points need to follow
 /// the bodies from there (Jolt's body pair cache): while neither body's points have moved by
