@@ -304,6 +304,28 @@ fn bodies_with_many_pairs_append_them_all() {
     }
 }
 
+/// Between two whole builds the dynamic tree keeps its leaf order and is only refit to the
+/// bodies' boxes (`REFITS_PER_BUILD`): bodies moving step after step, the pairs found are the
+/// brute force's at every step, on both walks.
+#[test]
+fn trees_refit_between_builds_find_the_moved_pairs() {
+    let (mut aabbs, is_static) = scene(2000, 13);
+    let mut random = Random::new(14);
+    let mut broadphase = GpuBroadphase::new(&context()).expect("broadphase");
+    for step in 0..9 {
+        for (aabb, &fixed) in aabbs.iter_mut().zip(&is_static) {
+            if !fixed {
+                let offset = vector(&mut random, 0.4);
+                *aabb = Aabb::new(aabb.min + offset, aabb.max + offset);
+            }
+        }
+        let expected = brute_force(&aabbs, &is_static);
+        let traversal = [Traversal::HistoryFlags, Traversal::Ropes][step % 2];
+        let found = gpu_pairs(&mut broadphase, traversal, &aabbs, &is_static);
+        assert_eq!(found, expected, "step {step}, {traversal:?}");
+    }
+}
+
 /// Past 65 536 bodies a packed key (lower << 17 | higher) spans both words of the sort key.
 #[test]
 fn pairs_past_16_bit_body_indices() {

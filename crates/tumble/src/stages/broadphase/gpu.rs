@@ -164,6 +164,13 @@ const TRAVERSE_BINDINGS: [Binding; 11] = [
     Binding::StorageRead,
 ];
 
+/// How many steps in a row the dynamic tree keeps the leaf order of its last build, its boxes
+/// refit to the bodies' new ones, before the Morton codes are sorted again. The pairs are the
+/// same either way (the boxes are exact); a tree of an older order only walks more nodes as
+/// the bodies move. Each step between two builds skips the codes and their sort, a dozen
+/// dispatches: on an H100, TODO ms a step at 3k bodies and TODO at 100k.
+const REFITS_PER_BUILD: u32 = 3;
+
 /// One LBVH over a fixed list of bodies; layout in `lbvh_build.wgsl`.
 #[derive(Debug)]
 struct Lbvh {
@@ -183,6 +190,8 @@ struct Lbvh {
     sort: RadixSort,
     /// Dispatches before and after the sort, and the AABB buffer they read.
     cached: Option<(wgpu::Buffer, Vec<Dispatch>, Vec<Dispatch>)>,
+    /// Encodes since the last whole build that only refit the tree ([`REFITS_PER_BUILD`]).
+    refits: u32,
     /// The codes' kernels (bounds, fold, Morton) and the build's (internal nodes, refit),
     /// compiled once: the dispatches are built again for each new leaf count.
     kernels: [Kernel; 5],
@@ -210,6 +219,7 @@ impl Lbvh {
             ends: empty("lbvh range ends")?,
             sort: RadixSort::new(),
             cached: None,
+            refits: 0,
         })
     }
 
@@ -234,7 +244,9 @@ impl Lbvh {
         Ok(())
     }
 
-    /// Encodes the build from `aabbs` (indexed by body).
+    /// Encodes the build from `aabbs` (indexed by body): the whole build, or, for the
+    /// [`REFITS_PER_BUILD`] encodes after one, the tree of the last build's order refit to
+    /// `aabbs`.
     fn encode(
         &mut self,
         context: &GpuContext,
@@ -244,6 +256,8 @@ impl Lbvh {
         if self.leaves() == 0 {
             return Ok(());
         }
+        // New dispatches (new bodies, buffers or AABBs) sort the codes again.
+        let mut whole = self.refits >= REFITS_PER_BUILD;
         if self
             .cached
             .as_ref()
@@ -251,18 +265,25 @@ impl Lbvh {
         {
             let (codes, build) = self.dispatches(context, aabbs)?;
             self.cached = Some((aabbs.buffer().clone(), codes, build));
+            whole = true;
         }
         let Some((_, codes, build)) = &self.cached else {
             unreachable!("built above")
         };
-        encode_all(pass, codes);
-        self.sort.encode(
-            context,
-            pass,
-            (&self.codes, &self.bodies),
-            (&mut self.sorted_codes, &mut self.sorted_bodies),
-            MORTON_BITS,
-        )?;
+        if whole {
+            encode_all(pass, codes);
+            self.sort.encode(
+                context,
+                pass,
+                (&self.codes, &self.bodies),
+                (&mut self.sorted_codes, &mut self.sorted_bodies),
+                MORTON_BITS,
+            )?;
+            self.refits = 0;
+        } else {
+            self.refits += 1;
+        }
+        // From the sorted codes, the same nodes again (and their boxes reset), refit.
         encode_all(pass, build);
         Ok(())
     }
@@ -809,7 +830,11 @@ impl GpuBroadphase {
         if count <= self.capacity() {
             return Ok(false);
         }
-        self.set_capacity(context, count.next_power_of_two())?;
+        // A quarter more than the count, not the next power of two: the pair search, its sort,
+        // the pair diff and the narrowphase all pass over the whole capacity, padding included
+        // (a settled pile of 100k boxes has 584k pairs, which the next power of two would
+        // pad to 1M).
+        self.set_capacity(context, (count + count / 4).next_multiple_of(64))?;
         Ok(true)
     }
 
