@@ -311,12 +311,13 @@ fn run(args: &RunArgs) -> Result<(), String> {
         }
         print!("{report}");
         println!(
-            "# bodies = {} ({} asleep)  # pairs = {} (+{} -{})  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",
+            "# bodies = {} ({} asleep)  # pairs = {} (+{} -{}, {} computed)  # manifolds = {}  # contacts = {}  max penetration = {:.4} m",
             world.body_count(),
             stats.sleeping,
             stats.pairs,
             stats.pairs_added,
             stats.pairs_removed,
+            stats.pairs_computed,
             stats.manifolds,
             stats.contacts,
             stats.max_penetration
@@ -365,6 +366,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "ms_per_step": ms_per_step,
             "stage_ms": stage_ms,
             "pairs": stats.pairs,
+            "pairs_computed": stats.pairs_computed,
             "contacts": stats.contacts,
             "sleeping": stats.sleeping,
             "max_penetration": stats.max_penetration,

@@ -282,6 +282,55 @@ impl Dispatch {
     }
 }
 
+/// What a stage recorded (bind groups, dispatches) for the last two keys of its inputs, the
+/// newer first. The pairs' contacts alternate between two buffers from step to step (last
+/// step's are read while this step's are written), so a stage that binds them finds either
+/// key recorded instead of binding again every step.
+#[derive(Debug)]
+pub struct LastTwo<K, V> {
+    slots: [Option<(K, V)>; 2],
+}
+
+impl<K, V> Default for LastTwo<K, V> {
+    fn default() -> Self {
+        Self {
+            slots: [None, None],
+        }
+    }
+}
+
+impl<K: PartialEq, V> LastTwo<K, V> {
+    /// The value recorded for `key`, else `make`'s, which takes the older slot's place.
+    pub fn get_or_try_insert<E>(
+        &mut self,
+        key: K,
+        make: impl FnOnce() -> Result<V, E>,
+    ) -> Result<&mut V, E> {
+        let holds = |slot: &Option<(K, V)>| slot.as_ref().is_some_and(|(held, _)| *held == key);
+        if holds(&self.slots[1]) {
+            self.slots.swap(0, 1);
+        } else if !holds(&self.slots[0]) {
+            let value = make()?;
+            self.slots[1] = self.slots[0].take();
+            self.slots[0] = Some((key, value));
+        }
+        let (_, value) = self.slots[0].as_mut().expect("filled above");
+        Ok(value)
+    }
+
+    /// [`Self::get_or_try_insert`] with a `make` that cannot fail.
+    pub fn get_or_insert(&mut self, key: K, make: impl FnOnce() -> V) -> &mut V {
+        match self.get_or_try_insert(key, || Ok::<V, std::convert::Infallible>(make())) {
+            Ok(value) => value,
+        }
+    }
+
+    /// Forgets both keys.
+    pub fn clear(&mut self) {
+        self.slots = [None, None];
+    }
+}
+
 /// Encodes `dispatches` in order. wgpu places a barrier between dispatches of one pass that
 /// touch the same buffer, so each sees the previous one's writes.
 pub fn encode_all(pass: &mut wgpu::ComputePass<'_>, dispatches: &[Dispatch]) {

@@ -45,6 +45,9 @@ pub(crate) struct StepScratch {
     pair_keys: Vec<u64>,
     /// Pairs added and removed by this step's collision, as the device counted them.
     pair_changes: (usize, usize),
+    /// Pairs whose manifolds the narrowphase's pair functions computed this step
+    /// ([`StepStats::pairs_computed`]).
+    pairs_computed: usize,
     /// The rows' counts as this step's collision made them on the device (`tally_fresh`),
     /// and whether an island woke since (its rows are then counted on the host).
     pair_tally: PairTally,
@@ -913,6 +916,7 @@ impl World {
             }
         }
         collided?;
+        scratch.pairs_computed = gpu.pairs_computed();
         if device_contacts {
             scratch.tally_fresh = true;
             // The contacts are the device's, and so is the diff: the keys only move here.
@@ -961,7 +965,7 @@ impl World {
         if host_pairs == 0 {
             gpu.pair_cache_is_collide_output();
         } else {
-            profiler.scope("cpu pairs", || {
+            scratch.pairs_computed += profiler.scope("cpu pairs", || {
                 narrowphase::update_contacts_where(keys, contacts, &inputs, |a, b| {
                     !narrowphase::gpu_pair(a, b)
                 })
@@ -1084,12 +1088,10 @@ impl World {
                 };
                 gpu.update_contacts(profiler, keys, contacts, &inputs, &bodies)
             }
-            _ => {
-                narrowphase::update_contacts(keys, contacts, &inputs);
-                Ok(())
-            }
+            _ => Ok(narrowphase::update_contacts(keys, contacts, &inputs)),
         };
-        if narrowphase.is_ok() {
+        if let Ok(computed) = narrowphase {
+            self.scratch.pairs_computed = computed;
             // Pairs with a mesh or a compound: one child manifold per touching triangle or
             // child pair (on the CPU: the GPU narrowphase has neither yet).
             narrowphase::update_child_contacts(keys, &inputs, &mut self.children);
@@ -1502,6 +1504,7 @@ fn collect_stats(
         pairs: pairs.len(),
         pairs_added: pairs.changes().0,
         pairs_removed: pairs.changes().1,
+        pairs_computed: scratch.pairs_computed,
         child_manifolds: children.len(),
         child_manifolds_added: children.added(),
         child_manifolds_removed: children.removed(),

@@ -58,6 +58,11 @@ pub struct StepStats {
     /// Pairs new this step / gone this step (the talk's persistent pairs).
     pub pairs_added: usize,
     pub pairs_removed: usize,
+    /// Pairs whose manifolds the narrowphase's pair functions computed this step: the others
+    /// moved their last manifolds with their bodies (the manifold cache, for polyhedra that
+    /// barely moved), were skipped (jointed, or resting and asleep), or belong to meshes and
+    /// compounds, whose manifolds are the children's.
+    pub pairs_computed: usize,
     /// Child manifolds (one per touching triangle of a mesh, coplanar ones merged), and how
     /// many were new / gone this step.
     pub child_manifolds: usize,

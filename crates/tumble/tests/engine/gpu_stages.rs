@@ -691,3 +691,40 @@ fn a_body_added_in_a_removed_bodys_slot_gets_its_own_contacts() {
         );
     }
 }
+
+/// `StepStats::pairs_computed` counts the pairs whose pair functions ran, on either executor:
+/// a box at rest moves its first manifold with it from then on (the manifold cache), a ball at
+/// rest computes its own every step (spheres keep no cache), and a box in the air has no pair
+/// until it lands.
+#[test]
+fn the_pairs_computed_are_those_the_manifold_cache_does_not_move() {
+    let _turn = gpu_common::context();
+    let executors: [&[Stage]; 3] = [&[], &[Stage::Narrowphase], &Stage::ALL];
+    for stages in executors {
+        let mut world = awake_on_ground();
+        let cube = Shape::cuboid(Vec3::splat(0.5));
+        world
+            .add_body(BodyDesc::dynamic(cube.clone()).position(Vec3::new(0.0, 0.5, 0.0)))
+            .unwrap();
+        world
+            .add_body(BodyDesc::dynamic(Shape::sphere(0.5)).position(Vec3::new(3.0, 0.5, 0.0)))
+            .unwrap();
+        world
+            .add_body(BodyDesc::dynamic(cube).position(Vec3::new(-3.0, 20.0, 0.0)))
+            .unwrap();
+        let mut devices = StageDevices::default();
+        for &stage in stages {
+            devices.set(stage, Executor::Gpu);
+        }
+        world.set_stage_devices(devices).unwrap();
+        let computed: Vec<usize> = (0..20)
+            .map(|_| {
+                world.step();
+                world.stats().pairs_computed
+            })
+            .collect();
+        let mut expected = vec![1; 20];
+        expected[0] = 2;
+        assert_eq!(computed, expected, "{stages:?} on the GPU");
+    }
+}

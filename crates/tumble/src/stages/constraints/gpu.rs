@@ -16,7 +16,7 @@ use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity, Collide
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
+    Binding, Dispatch, Kernel, LastTwo, Source, UniformSlots, WORKGROUP_SIZE, workgroups_for,
 };
 use crate::gpu::prims::scan::{Scan, ScanKind};
 use crate::pipeline::config::Softness;
@@ -98,7 +98,7 @@ pub struct GpuRows {
     scan: Scan,
     /// Word 0: the live slots, sent with each encode.
     live: GpuVec<u32>,
-    cached: Option<(RowKey, [Dispatch; 2])>,
+    cached: LastTwo<RowKey, [Dispatch; 2]>,
     host_places: Vec<u32>,
     /// The constraints' words on their way back ([`Self::read_back`]).
     host_words: Vec<Word>,
@@ -113,7 +113,7 @@ impl GpuRows {
             bodies: GpuVec::with_capacity(context, "row bodies", 0)?,
             scan: Scan::new(),
             live: GpuVec::from_slice(context, "live row slots", &[0])?,
-            cached: None,
+            cached: LastTwo::default(),
             host_places: Vec::new(),
             host_words: Vec::new(),
         })
@@ -162,17 +162,12 @@ impl GpuRows {
         };
         let words: [u32; 12] = bytemuck::cast(params);
         let key = (buffers, slots, words);
-        if self
-            .cached
-            .as_ref()
-            .is_none_or(|(cached, _)| *cached != key)
-        {
-            let dispatches = self.dispatches(context, inputs, params);
-            self.cached = Some((key, dispatches));
-        }
-        let Some((_, [flag, build])) = &self.cached else {
-            unreachable!("cached above")
-        };
+        // Out of `self` while it is filled, since the dispatches are made from `self`.
+        let mut cached = std::mem::take(&mut self.cached);
+        let [flag, build] = cached
+            .get_or_insert(key, || self.dispatches(context, inputs, params))
+            .clone();
+        self.cached = cached;
         flag.encode(pass);
         self.scan.encode(
             context,

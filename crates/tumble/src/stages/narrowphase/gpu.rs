@@ -72,7 +72,8 @@ use crate::dynamics::body::{BODY_WGSL, BodyPose, BodyVelocity, Collider, Collide
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
+    Binding, Dispatch, Kernel, LastTwo, Source, UniformSlots, WORKGROUP_SIZE, encode_all,
+    workgroups_for,
 };
 use crate::math::Vec3;
 use crate::shape::{Cuboid, Shape, ShapeKind};
@@ -306,7 +307,7 @@ struct Kernels {
 
 /// The stage's recorded dispatches, in order, and the uniform slots their bind groups point
 /// into.
-type Recorded = (DispatchKey, [Dispatch; 3], UniformSlots);
+type Recorded = LastTwo<DispatchKey, ([Dispatch; 3], UniformSlots)>;
 
 /// Host copies of [`GpuNarrowphase::update_contacts`]'s inputs, kept between calls.
 struct HostBuffers {
@@ -334,7 +335,7 @@ pub struct GpuNarrowphase {
     /// The kernels for the shape kinds they were built for, built again when they change.
     kernels: Option<(u32, Kernels)>,
     /// The uniform slots live as long as the dispatches whose bind groups point into them.
-    cached: Option<Recorded>,
+    cached: Recorded,
     /// The pairs left to the pair functions: a count, then pair indices.
     misses: Option<GpuVec<u32>>,
     host: Option<HostBuffers>,
@@ -351,10 +352,32 @@ impl GpuNarrowphase {
     pub fn new() -> Self {
         Self {
             kernels: None,
-            cached: None,
+            cached: Recorded::default(),
             misses: None,
             host: None,
         }
+    }
+
+    /// Encodes the download of how many pairs the pair functions computed in the last encoded
+    /// pass (the others moved their manifolds with the bodies, or have none), for
+    /// [`Self::read_computed`] after the submission.
+    pub fn encode_computed_download(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> Result<(), GpuError> {
+        let misses = misses_buffer(&mut self.misses, context)?;
+        // The list's count, its first word.
+        misses.encode_download_prefix(context, encoder, 1);
+        Ok(())
+    }
+
+    /// The count [`Self::encode_computed_download`] copied.
+    pub fn read_computed(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
+        let misses = misses_buffer(&mut self.misses, context)?;
+        let mut count = Vec::new();
+        misses.read_download(context, &mut count)?;
+        Ok(count.first().map_or(0, |&count| count as usize))
     }
 
     /// Records the stage into `pass`: `contacts` (resized to the pair count) gets this step's
@@ -380,14 +403,14 @@ impl GpuNarrowphase {
 
     /// [`update_contacts`](super::update_contacts) on the GPU: uploads the inputs (`contacts`
     /// holds last step's contacts of the same keys), runs the kernel and downloads the result
-    /// into `contacts`.
+    /// into `contacts`. Returns how many pairs the pair functions computed.
     pub fn update_contacts(
         &mut self,
         context: &GpuContext,
         keys: &[u64],
         contacts: &mut [PairContact],
         inputs: &NarrowphaseInputs,
-    ) -> Result<(), GpuError> {
+    ) -> Result<usize, GpuError> {
         assert_eq!(keys.len(), contacts.len(), "one contact per key");
         let host = match &mut self.host {
             Some(host) => host,
@@ -459,11 +482,13 @@ impl GpuNarrowphase {
                 (&mut host.contacts, misses),
             )?;
         }
+        // The count of pairs computed, with the contacts (`encode_computed_download`).
+        misses_buffer(&mut self.misses, context)?.encode_download_prefix(context, &mut encoder, 1);
         context.queue.submit([encoder.finish()]);
         host.contacts.download_into(context, &mut host.downloaded)?;
         contacts.copy_from_slice(&host.downloaded);
         contacts.iter_mut().for_each(PairContact::clear_unused);
-        Ok(())
+        self.read_computed(context)
     }
 }
 
@@ -504,7 +529,7 @@ fn misses_buffer<'a>(
 /// [`GpuNarrowphase::encode`] on its parts, so that `update_contacts` can lend its own buffers:
 /// `outputs` are the contacts and the list of missed pairs.
 fn encode_with(
-    cached_dispatches: &mut Option<Recorded>,
+    cached_dispatches: &mut Recorded,
     kernels: &Kernels,
     context: &GpuContext,
     pass: &mut wgpu::ComputePass<'_>,
@@ -537,35 +562,32 @@ fn encode_with(
         params,
         inputs.shape_kinds,
     );
-    let dispatches = match cached_dispatches {
-        Some((cached_key, dispatches, _)) if *cached_key == key => dispatches,
-        cached => {
-            let slots = UniformSlots::new(context, "narrowphase params", &[params]);
-            let buffers = [
-                slots.binding(0),
-                inputs.keys.whole(),
-                inputs.old_index.whole(),
-                inputs.old_contacts.whole(),
-                inputs.poses.whole(),
-                inputs.velocities.whole(),
-                inputs.colliders.whole(),
-                inputs.skipped.whole(),
-                inputs.hulls.whole(),
-                contacts.whole(),
-                misses.whole(),
-            ];
-            let groups = workgroups_for(inputs.keys.len(), WORKGROUP_SIZE);
-            let dispatch =
-                |kernel: &Kernel, groups| kernel.dispatch(kernel.bind(context, &buffers), groups);
-            let dispatches = [
-                dispatch(&kernels.clear_misses, 1),
-                dispatch(&kernels.move_cached, groups),
-                // As many threads as pairs: those past the list's count return at once.
-                dispatch(&kernels.update_contacts, groups),
-            ];
-            &mut cached.insert((key, dispatches, slots)).1
-        }
-    };
+    let (dispatches, _) = cached_dispatches.get_or_insert(key, || {
+        let slots = UniformSlots::new(context, "narrowphase params", &[params]);
+        let buffers = [
+            slots.binding(0),
+            inputs.keys.whole(),
+            inputs.old_index.whole(),
+            inputs.old_contacts.whole(),
+            inputs.poses.whole(),
+            inputs.velocities.whole(),
+            inputs.colliders.whole(),
+            inputs.skipped.whole(),
+            inputs.hulls.whole(),
+            contacts.whole(),
+            misses.whole(),
+        ];
+        let groups = workgroups_for(inputs.keys.len(), WORKGROUP_SIZE);
+        let dispatch =
+            |kernel: &Kernel, groups| kernel.dispatch(kernel.bind(context, &buffers), groups);
+        let dispatches = [
+            dispatch(&kernels.clear_misses, 1),
+            dispatch(&kernels.move_cached, groups),
+            // As many threads as pairs: those past the list's count return at once.
+            dispatch(&kernels.update_contacts, groups),
+        ];
+        (dispatches, slots)
+    });
     encode_all(pass, dispatches);
     Ok(())
 }

@@ -154,9 +154,14 @@ impl NarrowphaseInputs<'_> {
     }
 }
 
-/// CPU executor: refresh the manifold of every pair.
-pub fn update_contacts(keys: &[u64], contacts: &mut [PairContact], inputs: &NarrowphaseInputs) {
-    update_contacts_where(keys, contacts, inputs, |_, _| true);
+/// CPU executor: refresh the manifold of every pair. Returns how many pairs the pair
+/// functions computed (the others moved their last manifold with the bodies, or have none).
+pub fn update_contacts(
+    keys: &[u64],
+    contacts: &mut [PairContact],
+    inputs: &NarrowphaseInputs,
+) -> usize {
+    update_contacts_where(keys, contacts, inputs, |_, _| true)
 }
 
 /// Longest face loop of a hull whose pairs the GPU computes: the kernel clips the incident
@@ -206,7 +211,7 @@ pub fn update_contacts_where(
     contacts: &mut [PairContact],
     inputs: &NarrowphaseInputs,
     select: impl Fn(&Shape, &Shape) -> bool + Sync,
-) {
+) -> usize {
     let NarrowphaseInputs {
         poses,
         colliders,
@@ -222,26 +227,26 @@ pub fn update_contacts_where(
         .par_iter_mut()
         .zip(keys.par_iter())
         .with_min_len(MIN_PAIRS_PER_TASK)
-        .for_each(|(contact, &key)| {
+        .map(|(contact, &key)| {
             let (a, b) = pair_bodies(key);
             let (a, b) = (a as usize, b as usize);
             if !select(&colliders[a].shape, &colliders[b].shape) {
-                return;
+                return 0;
             }
             if !skipped.is_empty() && skipped.binary_search(&key).is_ok() {
                 *contact = PairContact::default();
-                return;
+                return 0;
             }
             if has_children(&colliders[a].shape, &colliders[b].shape) {
                 // One manifold per triangle: they live in the child cache.
                 *contact = PairContact::default();
-                return;
+                return 0;
             }
             if let Some(masses) = keep_resting
                 && masses[a].inverse_mass == 0.0
                 && masses[b].inverse_mass == 0.0
             {
-                return;
+                return 0;
             }
             let margin = inputs.pair_margin(a, b);
             let (pose_a, pose_b) = (poses[a].transform(), poses[b].transform());
@@ -250,7 +255,7 @@ pub fn update_contacts_where(
             let cacheable = cacheable(&colliders[a].shape, &colliders[b].shape);
             if cacheable && cache_holds(&contact.cache, &relative, margin, radii) {
                 *contact = rebuild(contact, &pose_a, &relative);
-                return;
+                return 0;
             }
             let mut manifold = Manifold::default();
             collide(
@@ -269,7 +274,9 @@ pub fn update_contacts_where(
             if cacheable {
                 contact.cache = cache_of(&contact.manifold, &pose_a, &relative, margin);
             }
-        });
+            1
+        })
+        .sum()
 }
 
 /// Whether the narrowphase keeps a [`ManifoldCache`] for a pair of these shapes: two

@@ -8,7 +8,7 @@ use super::{PAIR_CONTACT_WGSL, PairContact};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
+    Binding, Dispatch, Kernel, LastTwo, Source, WORKGROUP_SIZE, workgroups_for,
 };
 
 const WGSL: &str = include_str!("summary.wgsl");
@@ -54,7 +54,7 @@ pub struct GpuPairSummaries {
     kernel: Kernel,
     pub summaries: GpuVec<PairSummary>,
     /// For the count, contacts and summaries buffers, and the capacity.
-    cached: Option<(([wgpu::Buffer; 3], usize), Dispatch)>,
+    cached: LastTwo<([wgpu::Buffer; 3], usize), Dispatch>,
 }
 
 impl GpuPairSummaries {
@@ -62,7 +62,7 @@ impl GpuPairSummaries {
         Ok(Self {
             kernel: Kernel::new(context, "summarize", &wgsl(), "summarize", &BINDINGS),
             summaries: GpuVec::with_capacity(context, "pair summaries", 0)?,
-            cached: None,
+            cached: LastTwo::default(),
         })
     }
 
@@ -84,23 +84,15 @@ impl GpuPairSummaries {
             ],
             capacity,
         );
-        if self
-            .cached
-            .as_ref()
-            .is_none_or(|(cached, _)| *cached != key)
-        {
-            let group = self.kernel.bind(
+        let (kernel, summaries) = (&self.kernel, &self.summaries);
+        let dispatch = self.cached.get_or_insert(key, || {
+            let group = kernel.bind(
                 context,
-                &[count.whole(), contacts.whole(), self.summaries.whole()],
+                &[count.whole(), contacts.whole(), summaries.whole()],
             );
-            let dispatch = self
-                .kernel
-                .dispatch(group, workgroups_for(capacity, WORKGROUP_SIZE));
-            self.cached = Some((key, dispatch));
-        }
-        if let Some((_, dispatch)) = &self.cached {
-            encode_all(pass, std::slice::from_ref(dispatch));
-        }
+            kernel.dispatch(group, workgroups_for(capacity, WORKGROUP_SIZE))
+        });
+        dispatch.encode(pass);
         Ok(())
     }
 }

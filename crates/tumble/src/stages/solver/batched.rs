@@ -25,7 +25,7 @@ use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
+    Binding, Dispatch, Kernel, LastTwo, Source, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::math::Vec3;
 use crate::stages::constraints::lanes::{Word, with_lanes, word_count};
@@ -115,7 +115,7 @@ pub struct GpuBatched {
     cached: Option<(Key, [Dispatch; 3])>,
     scatter_pair_impulses: Kernel,
     /// For the contacts buffer and the constraint capacity it was built for.
-    scattered: Option<((wgpu::Buffer, wgpu::Buffer, usize), Dispatch)>,
+    scattered: LastTwo<(wgpu::Buffer, wgpu::Buffer, usize), Dispatch>,
 }
 
 impl GpuBatched {
@@ -145,7 +145,7 @@ impl GpuBatched {
                 "scatter_pair_impulses",
                 &PAIR_IMPULSES_BINDINGS,
             ),
-            scattered: None,
+            scattered: LastTwo::default(),
         })
     }
 
@@ -274,25 +274,13 @@ impl GpuBatched {
             self.constraints.buffer().clone(),
             self.order.capacity(),
         );
-        if self
-            .scattered
-            .as_ref()
-            .is_none_or(|(cached, _)| *cached != key)
-        {
-            let group = self.scatter_pair_impulses.bind(
-                context,
-                &[
-                    self.count.whole(),
-                    self.constraints.whole(),
-                    contacts.whole(),
-                ],
-            );
-            let groups = workgroups_for(key.2, WORKGROUP_SIZE);
-            let dispatch = self.scatter_pair_impulses.dispatch(group, groups);
-            self.scattered = Some((key, dispatch));
-        }
-        if let Some((_, dispatch)) = &self.scattered {
-            encode_all(pass, std::slice::from_ref(dispatch));
-        }
+        let groups = workgroups_for(key.2, WORKGROUP_SIZE);
+        let (kernel, count, constraints) =
+            (&self.scatter_pair_impulses, &self.count, &self.constraints);
+        let dispatch = self.scattered.get_or_insert(key, || {
+            let buffers = [count.whole(), constraints.whole(), contacts.whole()];
+            kernel.dispatch(kernel.bind(context, &buffers), groups)
+        });
+        dispatch.encode(pass);
     }
 }
