@@ -1,6 +1,6 @@
-// Stage 4's pair functions on the GPU (see narrowphase.wgsl): `update_contacts`, a thread per
-// pair that `move_cached` listed, runs the pair's function, carries last step's impulses and
-// makes the pair's cache.
+// Stage 4's pair functions on the GPU (see narrowphase.wgsl): `update_contacts`, over the pairs
+// that `move_cached` listed, runs each pair's function, carries last step's impulses and makes
+// the pair's cache.
 
 @group(0) @binding(3) var<storage, read> old_contacts: array<PairContact>;
 @group(0) @binding(9) var<storage, read_write> contacts: array<PairContact>;
@@ -21,17 +21,24 @@ const HAS_HULL = (SHAPE_KINDS & (1u << SHAPE_CONVEX_HULL)) != 0u;
 // No old point chosen yet.
 const NO_POINT: u32 = 0xffffffffu;
 
-@compute @workgroup_size(WORKGROUP_SIZE)
+// At most PAIR_FUNCTION_GROUPS workgroups of PAIR_FUNCTION_WORKGROUP threads (gpu.rs says
+// why), each thread taking every stride-th listed pair.
+@compute @workgroup_size(PAIR_FUNCTION_WORKGROUP)
 fn update_contacts(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) local: u32,
 ) {
-    let slot = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
-    if slot >= misses[0] {
-        return;
+    let first = flat_workgroup(workgroup, groups) * PAIR_FUNCTION_WORKGROUP + local;
+    let stride = groups.x * groups.y * PAIR_FUNCTION_WORKGROUP;
+    let count = misses[0];
+    for (var slot = first; slot < count; slot += stride) {
+        update_pair(misses[1u + slot]);
     }
-    let index = misses[1u + slot];
+}
+
+// Pair `index`'s contact: its pair function, last step's impulses, its cache.
+fn update_pair(index: u32) {
     let key = keys[index];
     let a = key.y;
     let b = key.x;

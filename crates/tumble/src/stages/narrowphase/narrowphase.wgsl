@@ -3,7 +3,7 @@
 // contacts through the old-index map, and writes this step's contacts. Three dispatches:
 // `clear_misses`; `move_cached`, a thread per pair, which clears the pairs that get no
 // contacts and moves the manifolds whose cache holds (mod.rs `cache_holds`), and lists the
-// others; `update_contacts`, a thread per listed pair, which runs the pair function. The list
+// others; `update_contacts`, over the listed pairs, which runs their pair functions. The list
 // keeps the pair functions' warps full: with nine pairs in ten moved, nearly every warp of
 // one thread per pair would hold a pair to compute, and wait for it. A pair's contact depends
 // on nothing but its own inputs, so the list's order (atomics) changes no result.
