@@ -168,7 +168,8 @@ const TRAVERSE_BINDINGS: [Binding; 11] = [
 /// refit to the bodies' new ones, before the Morton codes are sorted again. The pairs are the
 /// same either way (the boxes are exact); a tree of an older order only walks more nodes as
 /// the bodies move. Each step between two builds skips the codes and their sort, a dozen
-/// dispatches: on an H100, TODO ms a step at 3k bodies and TODO at 100k.
+/// dispatches: on an H100 the trees' pass went from 0.214 to 0.117 ms a step at falling-boxes'
+/// 3k bodies, and from 0.302 to 0.249 on a settled pile of 100k (where the walk did not slow).
 const REFITS_PER_BUILD: u32 = 3;
 
 /// One LBVH over a fixed list of bodies; layout in `lbvh_build.wgsl`.
