@@ -285,7 +285,9 @@ impl Dispatch {
 /// What a stage recorded (bind groups, dispatches) for the last two keys of its inputs, the
 /// newer first. The pairs' contacts alternate between two buffers from step to step (last
 /// step's are read while this step's are written), so a stage that binds them finds either
-/// key recorded instead of binding again every step.
+/// key recorded instead of binding again every step. The older recording keeps its buffers
+/// alive until a third key replaces it: after a buffer grew, the one it replaced lingers a
+/// while.
 #[derive(Debug)]
 pub struct LastTwo<K, V> {
     slots: [Option<(K, V)>; 2],

@@ -136,7 +136,7 @@ fn cache_holds(cache: ManifoldCache, relative: BodyPose, margin: f32, a: u32, b:
 fn rebuild(index: u32, old: u32, cache: ManifoldCache, pose_a: BodyPose, relative: BodyPose) {
     let old_first = old * CONTACT_WORDS;
     let first = index * CONTACT_WORDS;
-    let count = old_contacts[old_first].w;
+    let count = min(old_contacts[old_first].w, MAX_MANIFOLD_POINTS);
     let normal = quat_rotate(pose_a.rotation, cache.normal);
     contacts[first] = vec4<u32>(bitcast<vec3<u32>>(normal), count);
     let inverse = quat_conjugate(cache.rotation);
