@@ -1,7 +1,8 @@
 // Batching rounds (see `stages/batching/mod.rs`): in each round every unbatched constraint
-// claims its dynamic bodies with its priority (atomicMin into the round's half of `locks`),
-// then the constraints that hold all their bodies' locks are batched. The constants
-// MAX_COLORS, STATIC_BODY, UNBATCHED and the batcher ids come from Rust.
+// takes its tentative color and claims its dynamic bodies' lock slots for that color with its
+// priority (atomicMin into the round's half of `locks`), then the constraints that hold all
+// their slots are batched. The constants MAX_COLORS, STATIC_BODY, UNBATCHED, LOCK_SLOTS and
+// the batcher ids come from Rust.
 
 struct BatchParams {
     body_count: u32,
@@ -27,12 +28,15 @@ struct Tally {
 @group(0) @binding(1) var<storage, read> bodies: array<vec2<u32>>;
 // Per constraint: its color, UNBATCHED until a round batches it, MAX_COLORS for overflow.
 @group(0) @binding(2) var<storage, read_write> colors: array<u32>;
-// Two halves of body_count locks: round r claims half r % 2 and resets the other half for
-// round r + 1, so no dispatch both claims and clears one lock.
+// Two halves of LOCK_SLOTS locks a body (body-major): round r claims half r % 2 and resets the
+// other half for round r + 1, so no dispatch both claims and clears one lock.
 @group(0) @binding(3) var<storage, read_write> locks: array<atomic<u32>>;
-// Per body: the colors its constraints have (low word, high word), overflow aside.
-@group(0) @binding(4) var<storage, read_write> masks: array<vec2<u32>>;
+// Per body: the colors its constraints have (words 2b and 2b + 1: low, high), overflow aside.
+// Atomic: a round's winners on one body (of different colors) set their bits together.
+@group(0) @binding(4) var<storage, read_write> masks: array<atomic<u32>>;
 @group(0) @binding(5) var<storage, read_write> tally: Tally;
+// Per constraint: the color its claim of this round took, which its commit reads.
+@group(0) @binding(6) var<storage, read_write> tentative: array<u32>;
 
 const NO_LOCK: u32 = 0xffffffffu;
 
@@ -72,9 +76,12 @@ fn start(
         colors[i] = UNBATCHED;
     }
     if i < params.body_count {
-        atomicStore(&locks[i], NO_LOCK);
-        atomicStore(&locks[params.body_count + i], NO_LOCK);
-        masks[i] = vec2<u32>(0u);
+        for (var slot = 0u; slot < LOCK_SLOTS; slot++) {
+            atomicStore(&locks[i * LOCK_SLOTS + slot], NO_LOCK);
+            atomicStore(&locks[(params.body_count + i) * LOCK_SLOTS + slot], NO_LOCK);
+        }
+        atomicStore(&masks[2u * i], 0u);
+        atomicStore(&masks[2u * i + 1u], 0u);
     }
     if i == 0u {
         atomicStore(&tally.batched, 0u);
@@ -91,17 +98,49 @@ fn claim_one(i: u32, round: u32) {
     claim_constraint(i, round);
 }
 
-// Round `round`'s claim by constraint `i`: its priority into its dynamic bodies' locks.
+// The lock of `body` for color `color` in the half that starts at body `half`: the colors
+// batcher's slot `color % LOCK_SLOTS`, the rounds batcher's only slot (its color is the
+// round's).
+fn lock_index(half: u32, body: u32, color: u32) -> u32 {
+    let slot = select(0u, color % LOCK_SLOTS, params.batcher == BATCHER_COLORS);
+    return (half + body) * LOCK_SLOTS + slot;
+}
+
+// Round `round`'s claim by constraint `i`: its tentative color (the lowest free on its bodies,
+// or the round's), and its priority into its dynamic bodies' locks for that color.
 fn claim_constraint(i: u32, round: u32) {
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
     }
     let half = (round % 2u) * params.body_count;
     let pair = bodies[i];
+    var color = round;
+    if params.batcher == BATCHER_COLORS {
+        // The masks as the last round's commit left them: this round's commit changes them
+        // only after every claim.
+        var used = vec2<u32>(0u);
+        for (var k = 0u; k < 2u; k++) {
+            if pair[k] != STATIC_BODY {
+                used |= vec2<u32>(atomicLoad(&masks[2u * pair[k]]),
+                    atomicLoad(&masks[2u * pair[k] + 1u]));
+            }
+        }
+        color = lowest_free_color(used);
+    }
+    tentative[i] = color;
     let p = priority(i);
+    // A joint (ranked by index) claims every slot: on its bodies no contact, and no later
+    // joint, wins before it, as with one lock a body (the module docs of mod.rs say why).
+    let ordered = i < params.ordered;
     for (var k = 0u; k < 2u; k++) {
         if pair[k] != STATIC_BODY {
-            atomicMin(&locks[half + pair[k]], p);
+            if ordered {
+                for (var slot = 0u; slot < LOCK_SLOTS; slot++) {
+                    atomicMin(&locks[(half + pair[k]) * LOCK_SLOTS + slot], p);
+                }
+            } else {
+                atomicMin(&locks[lock_index(half, pair[k], color)], p);
+            }
         }
     }
 }
@@ -126,7 +165,8 @@ fn lowest_free_color(used: vec2<u32>) -> u32 {
     return MAX_COLORS;
 }
 
-// Round `round`'s commit by constraint `i`: batched when it holds all its bodies' locks.
+// Round `round`'s commit by constraint `i`: batched, with its tentative color, when it holds
+// all its bodies' locks for that color. Winners on one body have different colors.
 fn commit_one(i: u32, round: u32) {
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
         return;
@@ -135,35 +175,26 @@ fn commit_one(i: u32, round: u32) {
     let next_half = params.body_count - half;
     let pair = bodies[i];
     let p = priority(i);
+    let color = tentative[i];
     var won = true;
     for (var k = 0u; k < 2u; k++) {
         if pair[k] != STATIC_BODY {
-            won = won && atomicLoad(&locks[half + pair[k]]) == p;
-            atomicStore(&locks[next_half + pair[k]], NO_LOCK);
+            won = won && atomicLoad(&locks[lock_index(half, pair[k], color)]) == p;
+            // Next round's claims on this body may take any slot.
+            for (var slot = 0u; slot < LOCK_SLOTS; slot++) {
+                atomicStore(&locks[(next_half + pair[k]) * LOCK_SLOTS + slot], NO_LOCK);
+            }
         }
     }
     if !won {
         return;
     }
-    // Winners share no body, so only this thread reads and writes these masks.
-    var color = round;
-    if params.batcher == BATCHER_COLORS {
-        var used = vec2<u32>(0u);
-        for (var k = 0u; k < 2u; k++) {
-            if pair[k] != STATIC_BODY {
-                used |= masks[pair[k]];
-            }
-        }
-        color = lowest_free_color(used);
-    }
     // Both batchers record each body's colors: the colors batcher chooses by them, and the
     // solver's warm start finds a body's constraints by them (`adjacency.wgsl`).
     if color < MAX_COLORS {
-        var bit = vec2<u32>(0u);
-        bit[color / 32u] = 1u << (color % 32u);
         for (var k = 0u; k < 2u; k++) {
             if pair[k] != STATIC_BODY {
-                masks[pair[k]] |= bit;
+                atomicOr(&masks[2u * pair[k] + color / 32u], 1u << (color % 32u));
             }
         }
     }

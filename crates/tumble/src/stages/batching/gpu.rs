@@ -8,7 +8,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use super::{Batcher, Coloring, MAX_COLORS, MAX_ROUNDS};
+use super::{Batcher, Coloring, LOCK_SLOTS, MAX_COLORS, MAX_ROUNDS};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
@@ -19,9 +19,10 @@ use crate::stages::constraints::STATIC_BODY;
 const WGSL: &str = include_str!("batching.wgsl");
 /// The color of a constraint no round has batched yet.
 const UNBATCHED: u32 = u32::MAX;
-const BINDINGS: [Binding; 6] = [
+const BINDINGS: [Binding; 7] = [
     Binding::Uniform,
     Binding::StorageRead,
+    Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
@@ -45,13 +46,14 @@ pub fn wgsl() -> Source {
         .constant_u32("STATIC_BODY", STATIC_BODY)
         .constant_u32("UNBATCHED", UNBATCHED)
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
+        .constant_u32("LOCK_SLOTS", LOCK_SLOTS as u32)
         .snippet("batching.wgsl", WGSL)
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,
-/// tally), constraint capacity, body count, ordered count, batcher. Not the constraint count,
-/// which changes every step: the kernels read it from the tally.
-type BatchKey = ([wgpu::Buffer; 5], usize, usize, usize, Batcher);
+/// tally, tentative colors), constraint capacity, body count, ordered count, batcher. Not the
+/// constraint count, which changes every step: the kernels read it from the tally.
+type BatchKey = ([wgpu::Buffer; 6], usize, usize, usize, Batcher);
 
 /// A batching's dispatches for every number of rounds encoded on their own.
 #[derive(Debug)]
@@ -72,6 +74,8 @@ pub struct GpuBatching {
     pub colors: GpuVec<u32>,
     locks: GpuVec<u32>,
     masks: GpuVec<[u32; 2]>,
+    /// Per constraint: the color its last claim took.
+    tentative: GpuVec<u32>,
     /// How many constraints have a batch (the rounds' early exit), how many there are, and
     /// how many rounds found one left to batch ([`Coloring::rounds`]).
     tally: GpuVec<[u32; 3]>,
@@ -89,6 +93,7 @@ impl GpuBatching {
             colors: GpuVec::with_capacity(context, "batching colors", 0)?,
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
+            tentative: GpuVec::with_capacity(context, "batching tentative colors", 0)?,
             tally: GpuVec::from_slice(context, "batching tally", &[[0, 0, 0]])?,
             cached: None,
             host_bodies: Vec::new(),
@@ -152,14 +157,16 @@ impl GpuBatching {
             return Ok(());
         }
         self.colors.resize(context, count)?;
-        self.locks.resize(context, 2 * body_count)?;
+        self.locks.resize(context, 2 * LOCK_SLOTS * body_count)?;
         self.masks.resize(context, body_count)?;
+        self.tentative.resize(context, capacity)?;
         let buffers = [
             bodies.clone(),
             self.colors.buffer().clone(),
             self.locks.buffer().clone(),
             self.masks.buffer().clone(),
             self.tally.buffer().clone(),
+            self.tentative.buffer().clone(),
         ];
         let key = (buffers, capacity, body_count, ordered, batcher);
         if self
@@ -229,6 +236,7 @@ impl GpuBatching {
                     self.locks.whole(),
                     self.masks.whole(),
                     self.tally.whole(),
+                    self.tentative.whole(),
                 ],
             )
         };

@@ -5,14 +5,20 @@
 //! Both batchers (the talk's `d` key, [`Batcher`]) work in rounds that a GPU runs as two
 //! dispatches each, and the CPU executor here runs the same rounds, so both executors give
 //! the same batches. In a round every constraint not yet batched claims its dynamic bodies,
-//! and a constraint wins when it has the highest priority (the lowest [`priority`] value) on
-//! each of them — the talk's per-body locks, made deterministic. Winners share no body, so
-//! they are batched together:
-//! - [`Batcher::Rounds`] (the talk's `kSetupBatches`): round k's winners are batch k.
-//! - [`Batcher::Colors`]: a winner takes the lowest color that none of its bodies has yet
-//!   (per-body 64-bit masks, as Box2D v3's constraint graph), so later rounds fill earlier
-//!   batches. This is greedy coloring in priority order (when a constraint wins, every
-//!   constraint before it on its bodies has a color), so it needs far fewer batches.
+//! and a constraint wins when it has the highest priority (the lowest [`priority`] value)
+//! among the claims of each of them — the talk's per-body locks, made deterministic:
+//! - [`Batcher::Rounds`] (the talk's `kSetupBatches`): a body has one lock, so winners share
+//!   no body; round k's winners are batch k.
+//! - [`Batcher::Colors`]: a constraint first takes, tentatively, the lowest color that none of
+//!   its bodies has yet (per-body 64-bit masks, as Box2D v3's constraint graph, as they were
+//!   at the round's start), and claims its bodies' lock slot for that color
+//!   ([`LOCK_SLOTS`] a body): constraints that took different colors on one body win
+//!   together, and a winner keeps its color. Winners on one body have different colors, so
+//!   no batch shares a body. A joint claims every slot of its bodies, so joints keep one
+//!   winner a body a round, before any contact there, as the sweeps need (below). Later rounds fill earlier batches, so this needs far fewer
+//!   batches than `Rounds`, and about as many as greedy coloring in priority order (which is
+//!   the one-slot case: when a constraint wins, every constraint before it on its bodies has a
+//!   color), in about half its rounds.
 //!
 //! Contact priorities are a bijective hash of the constraint index: in index order (pair
 //! keys, spatially sorted) chains of constraints sharing bodies would let one constraint in a
@@ -41,6 +47,13 @@ pub const MAX_COLORS: usize = 64;
 /// Rounds before the constraints still unbatched go to the overflow batch. `Rounds` makes
 /// one batch a round, so it is the same limit as [`MAX_COLORS`].
 pub const MAX_ROUNDS: usize = MAX_COLORS;
+
+/// Locks a body has in a round of the colors batcher: a constraint claims slot
+/// `color % LOCK_SLOTS` of its bodies for its tentative color, so constraints that took
+/// different colors on one body (but for every fourth) win together. Simulated on a settled
+/// pile of 9k boxes (`docs/bench/s20-batching-rounds-experiment.rs`): 10 rounds for 10 colors
+/// with 4 slots, as with 64, against 23 with one (one winner a body a round).
+pub const LOCK_SLOTS: usize = 4;
 
 /// How constraints are put into batches (the talk's `d` key).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -129,11 +142,12 @@ pub struct Coloring {
     /// constraint is left for the overflow batch after the last round.
     pub rounds: usize,
     /// Scratch kept to avoid allocation per step: the constraints' bodies, the per-body
-    /// color masks and locks, the constraints not yet batched.
+    /// color masks and lock slots, the constraints not yet batched and their tentative colors.
     bodies: Vec<[u32; 2]>,
     masks: Vec<u64>,
     locks: Vec<u32>,
     remaining: Vec<u32>,
+    tentative: Vec<u8>,
 }
 
 impl Coloring {
@@ -201,6 +215,7 @@ pub fn color_constraints(
         masks,
         locks,
         remaining,
+        tentative,
         ..
     } = coloring;
     pairs.clear();
@@ -210,11 +225,21 @@ pub fn color_constraints(
     masks.clear();
     masks.resize(body_count, 0);
     locks.clear();
-    locks.resize(body_count, u32::MAX);
+    locks.resize(body_count * LOCK_SLOTS, u32::MAX);
     remaining.clear();
     remaining.extend(0..pairs.len() as u32);
+    tentative.clear();
+    tentative.resize(pairs.len(), 0);
     let dynamic = |pair: [u32; 2]| pair.into_iter().filter(|&body| body != STATIC_BODY);
     let ordered = ordered as u32;
+    // Body `body`'s lock for `color` (`lock_index` in batching.wgsl).
+    let lock = |body: u32, color: u8| {
+        let slot = match batcher {
+            Batcher::Rounds => 0,
+            Batcher::Colors => color as usize % LOCK_SLOTS,
+        };
+        body as usize * LOCK_SLOTS + slot
+    };
 
     coloring.rounds = 0;
     for round in 0..MAX_ROUNDS {
@@ -222,36 +247,55 @@ pub fn color_constraints(
             break;
         }
         coloring.rounds = round + 1;
-        for &c in remaining.iter() {
-            for body in dynamic(pairs[c as usize]) {
-                let lock = &mut locks[body as usize];
-                *lock = (*lock).min(priority(c, ordered));
-            }
-        }
+        // The claims, from the masks as the last round left them.
         for &c in remaining.iter() {
             let pair = pairs[c as usize];
-            if !dynamic(pair).all(|body| locks[body as usize] == priority(c, ordered)) {
-                continue;
-            }
-            colors[c as usize] = match batcher {
+            let color = match batcher {
                 Batcher::Rounds => round as u8,
                 Batcher::Colors => {
                     let used = dynamic(pair).fold(0, |used, body| used | masks[body as usize]);
                     if used == u64::MAX {
                         OVERFLOW
                     } else {
-                        let color = (!used).trailing_zeros();
-                        for body in dynamic(pair) {
-                            masks[body as usize] |= 1 << color;
-                        }
-                        color as u8
+                        (!used).trailing_zeros() as u8
                     }
                 }
             };
+            tentative[c as usize] = color;
+            // A joint claims every slot: on its bodies no contact, and no later joint, wins
+            // before it, as with one lock a body.
+            let p = priority(c, ordered);
+            for body in dynamic(pair) {
+                let first = body as usize * LOCK_SLOTS;
+                let slots = if c < ordered {
+                    first..first + LOCK_SLOTS
+                } else {
+                    let slot = lock(body, color);
+                    slot..slot + 1
+                };
+                for slot in &mut locks[slots] {
+                    *slot = (*slot).min(p);
+                }
+            }
+        }
+        for &c in remaining.iter() {
+            let (pair, color) = (pairs[c as usize], tentative[c as usize]);
+            if !dynamic(pair).all(|body| locks[lock(body, color)] == priority(c, ordered)) {
+                continue;
+            }
+            // Both batchers record each body's colors: the colors batcher chooses by them,
+            // and the solver's warm start finds a body's constraints by them.
+            if color != OVERFLOW {
+                for body in dynamic(pair) {
+                    masks[body as usize] |= 1 << color;
+                }
+            }
+            colors[c as usize] = color;
         }
         for &c in remaining.iter() {
             for body in dynamic(pairs[c as usize]) {
-                locks[body as usize] = u32::MAX;
+                let first = body as usize * LOCK_SLOTS;
+                locks[first..first + LOCK_SLOTS].fill(u32::MAX);
             }
         }
         remaining.retain(|&c| colors[c as usize] == UNBATCHED);
@@ -384,9 +428,11 @@ mod tests {
         }
     }
 
-    /// `Colors` is sequential greedy coloring in priority order when nothing overflows.
+    /// `Colors` is a first-fit coloring when nothing overflows: every color below a
+    /// constraint's is taken on one of its bodies by another constraint (it had those when the
+    /// constraint won, and keeps them).
     #[test]
-    fn colors_equal_greedy_coloring_in_priority_order() {
+    fn colors_are_first_fit() {
         let mut state = 0x2545_f491_4f6c_dd1d;
         for &(bodies, count) in &[(10usize, 30usize), (1000, 3000), (5000, 20_000)] {
             let edges = random_edges(&mut state, bodies, count);
@@ -399,24 +445,51 @@ mod tests {
                 &mut coloring,
             );
             assert!(!coloring.has_overflow);
-            let mut order: Vec<u32> = (0..count as u32).collect();
-            order.sort_by_key(|&c| priority(c, 7));
-            let mut masks = vec![0u64; bodies];
-            for c in order {
-                let (a, b) = edges[c as usize];
-                let mask = |body: u32| {
-                    if body == STATIC_BODY {
-                        0
-                    } else {
-                        masks[body as usize]
-                    }
-                };
-                let color = (!(mask(a) | mask(b))).trailing_zeros();
-                assert_eq!(coloring.colors[c as usize] as u32, color, "constraint {c}");
+            let mut taken = vec![Vec::new(); bodies];
+            for (c, &(a, b)) in edges.iter().enumerate() {
                 for body in [a, b].into_iter().filter(|&body| body != STATIC_BODY) {
-                    masks[body as usize] |= 1 << color;
+                    taken[body as usize].push((c, coloring.colors[c]));
                 }
             }
+            for (c, &(a, b)) in edges.iter().enumerate() {
+                let on = |body: u32, color: u8| {
+                    body != STATIC_BODY
+                        && taken[body as usize]
+                            .iter()
+                            .any(|&(d, k)| d != c && k == color)
+                };
+                for color in 0..coloring.colors[c] {
+                    assert!(
+                        on(a, color) || on(b, color),
+                        "constraint {c}, color {color}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// With [`LOCK_SLOTS`] slots a body, the colors batcher takes about a round a color on
+    /// random graphs: 14, 18 and 14 rounds for as many colors on these, where one lock a body
+    /// (greedy coloring in priority order, the same colors' count) took 21, 30 and 23.
+    #[test]
+    fn lock_slots_take_about_a_round_a_color() {
+        let mut state = 0x2545_f491_4f6c_dd1d;
+        for &(bodies, count) in &[(1000usize, 3000usize), (5000, 20_000), (20_000, 50_000)] {
+            let edges = random_edges(&mut state, bodies, count);
+            let mut coloring = Coloring::default();
+            color_constraints(
+                edges.iter().copied(),
+                bodies,
+                0,
+                Batcher::Colors,
+                &mut coloring,
+            );
+            assert!(
+                coloring.rounds <= coloring.batch_count + 2,
+                "{bodies} bodies: {} rounds for {} colors",
+                coloring.rounds,
+                coloring.batch_count
+            );
         }
     }
 
