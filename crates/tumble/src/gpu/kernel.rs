@@ -303,33 +303,16 @@ impl<K, V> Default for LastTwo<K, V> {
 
 impl<K: PartialEq, V> LastTwo<K, V> {
     /// The value recorded for `key`, else `make`'s, which takes the older slot's place.
-    pub fn get_or_try_insert<E>(
-        &mut self,
-        key: K,
-        make: impl FnOnce() -> Result<V, E>,
-    ) -> Result<&mut V, E> {
+    pub fn get_or_insert(&mut self, key: K, make: impl FnOnce() -> V) -> &mut V {
         let holds = |slot: &Option<(K, V)>| slot.as_ref().is_some_and(|(held, _)| *held == key);
         if holds(&self.slots[1]) {
             self.slots.swap(0, 1);
         } else if !holds(&self.slots[0]) {
-            let value = make()?;
             self.slots[1] = self.slots[0].take();
-            self.slots[0] = Some((key, value));
+            self.slots[0] = Some((key, make()));
         }
         let (_, value) = self.slots[0].as_mut().expect("filled above");
-        Ok(value)
-    }
-
-    /// [`Self::get_or_try_insert`] with a `make` that cannot fail.
-    pub fn get_or_insert(&mut self, key: K, make: impl FnOnce() -> V) -> &mut V {
-        match self.get_or_try_insert(key, || Ok::<V, std::convert::Infallible>(make())) {
-            Ok(value) => value,
-        }
-    }
-
-    /// Forgets both keys.
-    pub fn clear(&mut self) {
-        self.slots = [None, None];
+        value
     }
 }
 

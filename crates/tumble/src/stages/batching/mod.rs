@@ -428,6 +428,21 @@ mod tests {
         }
     }
 
+    /// `count` random constraints among `bodies` (the first `ordered` of them joints), and their
+    /// colors by the colors batcher.
+    fn colored_random_graph(
+        state: &mut u64,
+        bodies: usize,
+        count: usize,
+        ordered: usize,
+    ) -> (Vec<(u32, u32)>, Coloring) {
+        let edges = random_edges(state, bodies, count);
+        let mut coloring = Coloring::default();
+        let constraints = edges.iter().copied();
+        color_constraints(constraints, bodies, ordered, Batcher::Colors, &mut coloring);
+        (edges, coloring)
+    }
+
     /// `Colors` is a first-fit coloring when nothing overflows: every color below a
     /// constraint's is taken on one of its bodies by another constraint (it had those when the
     /// constraint won, and keeps them).
@@ -435,15 +450,7 @@ mod tests {
     fn colors_are_first_fit() {
         let mut state = 0x2545_f491_4f6c_dd1d;
         for &(bodies, count) in &[(10usize, 30usize), (1000, 3000), (5000, 20_000)] {
-            let edges = random_edges(&mut state, bodies, count);
-            let mut coloring = Coloring::default();
-            color_constraints(
-                edges.iter().copied(),
-                bodies,
-                7,
-                Batcher::Colors,
-                &mut coloring,
-            );
+            let (edges, coloring) = colored_random_graph(&mut state, bodies, count, 7);
             assert!(!coloring.has_overflow);
             let mut taken = vec![Vec::new(); bodies];
             for (c, &(a, b)) in edges.iter().enumerate() {
@@ -475,15 +482,7 @@ mod tests {
     fn lock_slots_take_about_a_round_a_color() {
         let mut state = 0x2545_f491_4f6c_dd1d;
         for &(bodies, count) in &[(1000usize, 3000usize), (5000, 20_000), (20_000, 50_000)] {
-            let edges = random_edges(&mut state, bodies, count);
-            let mut coloring = Coloring::default();
-            color_constraints(
-                edges.iter().copied(),
-                bodies,
-                0,
-                Batcher::Colors,
-                &mut coloring,
-            );
+            let (_, coloring) = colored_random_graph(&mut state, bodies, count, 0);
             assert!(
                 coloring.rounds <= coloring.batch_count + 2,
                 "{bodies} bodies: {} rounds for {} colors",

@@ -349,6 +349,8 @@ pub struct GpuNarrowphase {
     cached: Recorded,
     /// The pairs left to the pair functions: a count, then pair indices.
     misses: Option<GpuVec<u32>>,
+    /// The list's count as [`Self::read_computed`] reads it back (scratch kept between steps).
+    miss_count: Vec<u32>,
     host: Option<HostBuffers>,
 }
 
@@ -365,6 +367,7 @@ impl GpuNarrowphase {
             kernels: None,
             cached: Recorded::default(),
             misses: None,
+            miss_count: Vec::new(),
             host: None,
         }
     }
@@ -386,9 +389,8 @@ impl GpuNarrowphase {
     /// The count [`Self::encode_computed_download`] copied.
     pub fn read_computed(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
         let misses = misses_buffer(&mut self.misses, context)?;
-        let mut count = Vec::new();
-        misses.read_download(context, &mut count)?;
-        Ok(count.first().map_or(0, |&count| count as usize))
+        misses.read_download(context, &mut self.miss_count)?;
+        Ok(self.miss_count.first().map_or(0, |&count| count as usize))
     }
 
     /// Records the stage into `pass`: `contacts` (resized to the pair count) gets this step's
