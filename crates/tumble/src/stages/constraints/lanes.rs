@@ -26,8 +26,13 @@ const WGSL: &str = include_str!("lanes.wgsl");
 
 /// Constraints a block: a warp of NVIDIA's, half a wave of AMD's, four of lavapipe's subgroups.
 pub const LANES: usize = 32;
-/// 16-byte words of a [`ContactConstraint`].
-pub const WORDS: usize = size_of::<ContactConstraint>() / 16;
+/// 16-byte words of a [`ContactConstraint`] as the struct has them.
+const STRUCT_WORDS: usize = size_of::<ContactConstraint>() / 16;
+/// Where the impulse sums lie, past the struct's words: see [`impulse_sums`].
+const SUMS_WORD: usize = STRUCT_WORDS;
+/// 16-byte words of a constraint on the device: the struct's, then the three of its
+/// [`impulse_sums`].
+pub const WORDS: usize = STRUCT_WORDS + 3;
 const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
 const _: () = assert!(size_of::<ConstraintPoint>().is_multiple_of(16));
 const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multiple_of(16));
@@ -92,9 +97,43 @@ fn lane(word: Word, lane: usize) -> f32 {
     f32::from_bits(word[lane])
 }
 
+/// What a constraint's accumulated impulses do to its bodies, summed over its points' rows in
+/// the sweeps' order (points 0 to count − 1; normal, then tangents): Σ d λ, and each side's
+/// Σ I⁻¹(r × d) λ. Body A's warm start adds `inverse_mass_a · linear` and `angular_a` to
+/// its velocities, B's subtracts `inverse_mass_b · linear` and `angular_b`. The device keeps
+/// them beside the constraint (`lanes.wgsl`: the relax sweep writes them), so that the warm
+/// start by body reads two words of each constraint instead of its rows (`warm_start_bodies`);
+/// the CPU applies the rows one by one, which rounds differently.
+pub fn impulse_sums(constraint: &ContactConstraint) -> [Vec3; 3] {
+    let [mut linear, mut angular_a, mut angular_b] = [Vec3::ZERO; 3];
+    let tangents = constraint.tangents();
+    // `take`: a count past the points (which no built constraint has) sums them all.
+    for p in constraint
+        .points
+        .iter()
+        .take(constraint.point_count as usize)
+    {
+        let rows = [
+            (p.normal, constraint.normal),
+            (p.tangent[0], tangents[0]),
+            (p.tangent[1], tangents[1]),
+        ];
+        for (row, direction) in rows {
+            linear += direction * row.impulse;
+            angular_a += row.angular_a * row.impulse;
+            angular_b += row.angular_b * row.impulse;
+        }
+    }
+    [linear, angular_a, angular_b]
+}
+
 /// A constraint's words, as `lanes.wgsl` lists them.
 fn constraint_words(constraint: &ContactConstraint) -> [Word; WORDS] {
     let mut words = [[0; 4]; WORDS];
+    let [linear, angular_a, angular_b] = impulse_sums(constraint);
+    words[SUMS_WORD] = word(linear, 0.0);
+    words[SUMS_WORD + 1] = word(angular_a, constraint.inverse_mass_a);
+    words[SUMS_WORD + 2] = word(angular_b, constraint.inverse_mass_b);
     let bytes: &[Word] = bytemuck::cast_slice(std::slice::from_ref(constraint));
     words[..HEADER_WORDS].copy_from_slice(&bytes[..HEADER_WORDS]);
     for (k, p) in constraint.points.iter().enumerate() {
@@ -151,6 +190,7 @@ pub fn with_lanes(source: Source) -> Source {
         .constant_u32("CONSTRAINT_WORDS", WORDS as u32)
         .constant_u32("HEADER_WORDS", HEADER_WORDS as u32)
         .constant_u32("POINT_WORDS", POINT_WORDS as u32)
+        .constant_u32("SUMS_WORD", SUMS_WORD as u32)
         .snippet("lanes.wgsl", WGSL)
 }
 

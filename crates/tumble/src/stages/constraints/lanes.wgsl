@@ -18,7 +18,11 @@
 //               7   anchor_b, separation
 //               8   the impulses: normal, tangent[0], tangent[1], max_normal_impulse
 // So row r (0: normal, 1, 2: the tangents) is angular_a in word 2r, angular_b in word 2r + 1,
-// its mass in word r's w and its impulse in lane r of word 8.
+// its mass in word r's w and its impulse in lane r of word 8. Past the points, the impulse
+// sums (impulse_sums in lanes.rs), which the warm start by body reads instead of the rows:
+//   SUMS_WORD       Σ d λ over the points' rows, 0
+//               1   Σ I⁻¹(r_a × d) λ, inverse_mass_a
+//               2   Σ I⁻¹(r_b × d) λ, inverse_mass_b
 
 const HEADER_IDS: u32 = 0u;
 const HEADER_NORMAL: u32 = 1u;
@@ -29,6 +33,18 @@ const POINT_APPROACH: u32 = 3u;
 const POINT_ANCHOR_A: u32 = 6u;
 const POINT_ANCHOR_B: u32 = 7u;
 const POINT_IMPULSES: u32 = 8u;
+
+// A constraint's impulse sums, accumulated row by row (`add_row`) in the sweeps' order: Σ d λ,
+// Σ I⁻¹(r_a × d) λ, Σ I⁻¹(r_b × d) λ (an array, not a struct: kept in registers as BodyPair is,
+// and no struct without a Rust twin).
+alias ImpulseSums = array<vec3<f32>, 3>;
+
+// `sums` with a row along `direction` of arms `angular_a`, `angular_b` and impulse `impulse`.
+fn add_row(sums: ImpulseSums, direction: vec3<f32>, angular_a: vec3<f32>,
+           angular_b: vec3<f32>, impulse: f32) -> ImpulseSums {
+    return ImpulseSums(sums[0] + direction * impulse, sums[1] + angular_a * impulse,
+        sums[2] + angular_b * impulse);
+}
 
 // Where word `word` of constraint `index` lies.
 fn lane_word(index: u32, word: u32) -> u32 {

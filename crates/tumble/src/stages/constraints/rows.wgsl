@@ -137,6 +137,8 @@ fn build(
     let inertia_b = world_inverse_inertia(b);
     let va = velocities[a];
     let vb = velocities[b];
+    // What the warm start applies, for the warm start by body (lanes.wgsl).
+    var sums = ImpulseSums();
     // Every point slot, those past the count zero (as the CPU's constraint has them).
     for (var i = 0u; i < MAX_MANIFOLD_POINTS; i++) {
         if i >= point_count {
@@ -167,5 +169,11 @@ fn build(
         constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
         constraints[point_word(place, i, POINT_IMPULSES)] =
             vec4<f32>(n.impulse, t1.impulse, t2.impulse, 0.0);
+        sums = add_row(sums, normal, n.angular_a, n.angular_b, n.impulse);
+        sums = add_row(sums, tangents[0], t1.angular_a, t1.angular_b, t1.impulse);
+        sums = add_row(sums, tangents[1], t2.angular_a, t2.angular_b, t2.impulse);
     }
+    constraints[lane_word(place, SUMS_WORD)] = vec4<f32>(sums[0], 0.0);
+    constraints[lane_word(place, SUMS_WORD + 1u)] = vec4<f32>(sums[1], mass_a);
+    constraints[lane_word(place, SUMS_WORD + 2u)] = vec4<f32>(sums[2], mass_b);
 }

@@ -330,7 +330,37 @@ fn solve_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     store_point(index, 1u, count, p1);
     store_point(index, 2u, count, p2);
     store_point(index, 3u, count, p3);
+    if params.use_bias == 0u {
+        // The relax sweep is the sub-step's last: the next sub-step's warm start by body
+        // reads what its impulses add up to.
+        var sums = ImpulseSums();
+        if count > 0u {
+            sums = add_point(h, p0, sums);
+        }
+        if count > 1u {
+            sums = add_point(h, p1, sums);
+        }
+        if count > 2u {
+            sums = add_point(h, p2, sums);
+        }
+        if count > 3u {
+            sums = add_point(h, p3, sums);
+        }
+        contacts[lane_word(index, SUMS_WORD)] = vec4<f32>(sums[0], 0.0);
+        contacts[lane_word(index, SUMS_WORD + 1u)] = vec4<f32>(sums[1], h.mass_a);
+        contacts[lane_word(index, SUMS_WORD + 2u)] = vec4<f32>(sums[2], h.mass_b);
+    }
     return pair;
+}
+
+// `sums` with a point's three rows, in the warm start's order.
+fn add_point(h: ConstraintHeader, point: PointRows, sums: ImpulseSums) -> ImpulseSums {
+    var out = add_row(sums, h.normal, point.normal.angular_a, point.normal.angular_b,
+        point.normal.impulse);
+    out = add_row(out, h.tangent1, point.tangent1.angular_a, point.tangent1.angular_b,
+        point.tangent1.impulse);
+    return add_row(out, h.tangent2, point.tangent2.angular_a, point.tangent2.angular_b,
+        point.tangent2.impulse);
 }
 
 fn restitution_contact(index: u32) {
