@@ -158,12 +158,15 @@ fn constraint_words(constraint: &ContactConstraint) -> [Word; WORDS] {
     words
 }
 
-/// [`constraint_words`] undone.
+/// [`constraint_words`] undone. The points past the count come back zero, as the CPU builds
+/// them: the device does not write their words (`rows.wgsl`), so they hold whatever the
+/// buffer had.
 fn from_words(words: &[Word; WORDS]) -> ContactConstraint {
     let mut constraint = ContactConstraint::default();
     let bytes: &mut [Word] = bytemuck::cast_slice_mut(std::slice::from_mut(&mut constraint));
     bytes[..HEADER_WORDS].copy_from_slice(&words[..HEADER_WORDS]);
-    for (k, p) in constraint.points.iter_mut().enumerate() {
+    let count = constraint.point_count as usize;
+    for (k, p) in constraint.points.iter_mut().enumerate().take(count) {
         let point = &words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
         let row = |r: usize| Row {
             angular_a: xyz(point[2 * r]),
@@ -236,6 +239,30 @@ mod tests {
     fn a_warp_reads_a_word_from_contiguous_bytes() {
         let places: Vec<usize> = (32..64).map(|c| word_index(c, 7)).collect();
         assert!(places.windows(2).all(|w| w[1] == w[0] + 1), "{places:?}");
+    }
+
+    /// The device writes no word of a point past the count: what the buffer held there comes
+    /// back as zero points, as the CPU builds them.
+    #[test]
+    fn points_past_the_count_come_back_zero() {
+        for count in 0..=4 {
+            let mut constraint = numbered(3);
+            constraint.point_count = count;
+            let mut words = Vec::new();
+            lay_out(&[constraint], &mut words);
+            let mut back = [ContactConstraint::default()];
+            read_back(&words, &mut back);
+            let count = count as usize;
+            // Bytes, not floats: the numbering makes some of them NaN.
+            let bytes = |p: &[ConstraintPoint]| bytemuck::cast_slice::<_, u8>(p).to_vec();
+            assert!(bytes(&back[0].points[..count]) == bytes(&constraint.points[..count]));
+            assert!(
+                back[0].points[count..]
+                    .iter()
+                    .all(|p| *p == ConstraintPoint::default()),
+                "{count} points"
+            );
+        }
     }
 
     #[test]

@@ -139,14 +139,10 @@ fn build(
     let vb = velocities[b];
     // What the warm start applies, for the warm start by body (lanes.wgsl).
     var sums = ImpulseSums();
-    // Every point slot, those past the count zero (as the CPU's constraint has them).
-    for (var i = 0u; i < MAX_MANIFOLD_POINTS; i++) {
-        if i >= point_count {
-            for (var word = 0u; word < POINT_WORDS; word++) {
-                constraints[point_word(place, i, word)] = vec4<f32>(0.0);
-            }
-            continue;
-        }
+    // The points up to the count. No kernel reads a point's words past it, so they are not
+    // written (zeroing them was about half the stores of a pile's build); the host's
+    // read-back zeroes them (lanes.rs).
+    for (var i = 0u; i < min(point_count, MAX_MANIFOLD_POINTS); i++) {
         let point = (*contact).manifold.points[i];
         let warm = (*contact).impulses[i];
         let r_a = point.position - center_a;
