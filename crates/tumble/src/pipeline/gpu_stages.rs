@@ -140,6 +140,16 @@ const COLLISION: StageSpans = StageSpans {
     wait: &["collision", "submit and wait"],
     download: &["collision", "copy to cpu"],
 };
+/// The batching rounds the next step dispatches, from the last batching's: its `rounds` that
+/// found a constraint left, and the first round that started with few enough left for
+/// `rest_rounds` to list them (when one did), and a few more. The rounds after those run in
+/// one workgroup, which takes about as long for one as a claim and a commit dispatch take;
+/// a round started with more left than it lists would go over every constraint there.
+fn next_batching_rounds(rounds: usize, listable_from: Option<usize>) -> usize {
+    let dispatched = listable_from.map_or(rounds, |first| first.min(rounds));
+    (dispatched + BATCHING_ROUND_SLACK).min(MAX_ROUNDS)
+}
+
 /// Pairs whose keys and summaries [`GpuStages::collide`] copies back with its kernels, from
 /// the `last` step's count: an eighth more, and at least 1024 more. At rest the pairs change by
 /// a few hundred a step (a settled pile of 100k boxes: 588k pairs, ±30), so this copies about
@@ -1426,7 +1436,7 @@ impl GpuStages {
             coloring,
             |batching, pass| batching.encode(context, pass, body_count, ordered, batcher, rounds),
         )?;
-        self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
+        self.batching_rounds = next_batching_rounds(coloring.rounds, self.batching.listable_from());
         Ok(())
     }
 
@@ -1987,7 +1997,8 @@ impl GpuStages {
             coloring.rounds = self
                 .batching
                 .finish_read_tally(context, offsets[LAYOUT_BATCHES])?;
-            self.batching_rounds = (coloring.rounds + BATCHING_ROUND_SLACK).min(MAX_ROUNDS);
+            self.batching_rounds =
+                next_batching_rounds(coloring.rounds, self.batching.listable_from());
         }
         record_copy(profiler, SOLVER.download, elapsed_ms(start));
         self.impulses_scattered = scatter;
@@ -2291,9 +2302,9 @@ mod tests {
         TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
 
-    /// The batching stage encodes the rounds the last batching needed and a few more: a chain
-    /// that needs more than encoded takes the second pass and gives the CPU's colors all the
-    /// same, and the next step encodes what it needed.
+    /// The batching stage dispatches rounds up to the first the last batching started with few
+    /// enough constraints left for one workgroup to list, and a few more: whatever it
+    /// dispatched, the colors are the CPU's, and it finds the same first round.
     #[test]
     fn batching_rounds_follow_what_the_last_batching_needed() {
         let _turn = turn();
@@ -2302,34 +2313,68 @@ mod tests {
                 .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}")),
         )
         .unwrap();
+        let mut profiler = Profiler::default();
         // A chain of bodies, ranked by index (all "ordered"): each round batches one link.
         let links = 12u32;
         let chain = || (0..links).map(|i| (i, i + 1));
-        let mut cpu = Coloring::default();
-        crate::stages::batching::color_constraints(
-            chain(),
-            links as usize + 1,
-            links as usize,
-            Batcher::Rounds,
-            &mut cpu,
-        );
-        assert_eq!(cpu.rounds, links as usize, "one link a round");
-        let mut profiler = Profiler::default();
-        for first_rounds in [1, links as usize, MAX_ROUNDS] {
-            gpu.batching_rounds = first_rounds;
-            let mut colored = Coloring::default();
-            gpu.color_constraints(
-                &mut profiler,
-                chain(),
+        // 6000 constraints on 2000 bodies, more than one workgroup lists.
+        let mut state = 0x5eedu64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 33) as u32 % 2000
+        };
+        let graph: Vec<(u32, u32)> = (0..6000).map(|_| (next(), next())).collect();
+        // (constraints, bodies, ordered, batcher)
+        type Case = (Vec<(u32, u32)>, usize, usize, Batcher);
+        let cases: [Case; 2] = [
+            (
+                chain().collect(),
                 links as usize + 1,
                 links as usize,
                 Batcher::Rounds,
-                &mut colored,
-            )
-            .unwrap();
-            assert_eq!(colored.colors, cpu.colors, "from {first_rounds} rounds");
-            assert_eq!(colored.rounds, cpu.rounds, "from {first_rounds} rounds");
-            assert_eq!(gpu.batching_rounds, links as usize + BATCHING_ROUND_SLACK);
+            ),
+            (graph, 2000, 0, Batcher::Colors),
+        ];
+        for (constraints, bodies, ordered, batcher) in cases {
+            let mut cpu = Coloring::default();
+            let iter = || constraints.iter().copied();
+            crate::stages::batching::color_constraints(iter(), bodies, ordered, batcher, &mut cpu);
+            let mut color = |gpu: &mut GpuStages, first_rounds| {
+                gpu.batching_rounds = first_rounds;
+                let mut colored = Coloring::default();
+                gpu.color_constraints(
+                    &mut profiler,
+                    iter(),
+                    bodies,
+                    ordered,
+                    batcher,
+                    &mut colored,
+                )
+                .unwrap();
+                assert_eq!(colored.colors, cpu.colors, "from {first_rounds} rounds");
+                assert_eq!(colored.rounds, cpu.rounds, "from {first_rounds} rounds");
+                (gpu.batching_rounds, gpu.batching.listable_from())
+            };
+            // Every round dispatched: the first listable round is known.
+            let (planned, listable) = color(&mut gpu, MAX_ROUNDS);
+            let first = listable.expect("a round started with few enough left");
+            assert_eq!(planned, first.min(cpu.rounds) + BATCHING_ROUND_SLACK);
+            // From the plan, the same plan again.
+            assert_eq!(color(&mut gpu, planned), (planned, listable));
+            if constraints.len() <= 1024 {
+                assert_eq!(first, 0, "a chain of {links} is listable from the start");
+            } else {
+                assert!(
+                    first > 0 && first < cpu.rounds,
+                    "{first} of {} rounds",
+                    cpu.rounds
+                );
+                // One round dispatched, the others left to one workgroup going over every
+                // constraint (too many to list): its rounds find the same first one.
+                assert_eq!(color(&mut gpu, 1), (planned, listable));
+            }
         }
     }
 

@@ -21,6 +21,10 @@ struct Tally {
     // Rounds that found a constraint left to batch (written by thread 0 of each claim), so
     // that the host encodes no more of them than the next steps need.
     rounds: u32,
+    // The first round that started with at most REST_LIST constraints left (NO_ROUND until
+    // one did), from which `rest_rounds` runs the rounds in one workgroup about as fast as
+    // their dispatches: the host dispatches rounds up to about there.
+    listable_from: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: BatchParams;
@@ -39,6 +43,7 @@ struct Tally {
 @group(0) @binding(6) var<storage, read_write> tentative: array<u32>;
 
 const NO_LOCK: u32 = 0xffffffffu;
+const NO_ROUND: u32 = 0xffffffffu;
 
 // Twin of `priority` in `mod.rs`: joints by index, then a bijective 31-bit hash above 2^31.
 fn priority(index: u32) -> u32 {
@@ -86,14 +91,21 @@ fn start(
     if i == 0u {
         atomicStore(&tally.batched, 0u);
         tally.rounds = 0u;
+        tally.listable_from = NO_ROUND;
     }
 }
 
 // Round `round`'s claim by constraint `i`, which also counts the round if `i` is 0.
 fn claim_one(i: u32, round: u32) {
     // Commits happen after every claim of the round: no claim changes what another sees here.
-    if i == 0u && !all_batched() {
-        tally.rounds = round + 1u;
+    if i == 0u {
+        let left = tally.count - atomicLoad(&tally.batched);
+        if left > 0u {
+            tally.rounds = round + 1u;
+        }
+        if left <= REST_LIST && tally.listable_from == NO_ROUND {
+            tally.listable_from = round;
+        }
     }
     claim_constraint(i, round);
 }
@@ -212,8 +224,8 @@ fn commit(
 }
 
 var<workgroup> rest_done: u32;
-// The constraints still unbatched when `rest_rounds` starts, if no more than REST_LIST.
-const REST_LIST: u32 = 1024u;
+// The constraints still unbatched when `rest_rounds` starts, if no more than REST_LIST (from
+// Rust).
 var<workgroup> rest_list: array<u32, REST_LIST>;
 var<workgroup> rest_count: atomic<u32>;
 var<workgroup> rest_listed: u32;
@@ -231,6 +243,9 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
     if local == 0u {
         rest_done = u32(all_batched());
         atomicStore(&rest_count, 0u);
+        if rest_done != 0u && tally.listable_from == NO_ROUND {
+            tally.listable_from = params.round;
+        }
     }
     if workgroupUniformLoad(&rest_done) != 0u {
         return;
@@ -246,6 +261,9 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
     workgroupBarrier();
     if local == 0u {
         rest_listed = atomicLoad(&rest_count);
+        if rest_listed <= REST_LIST && tally.listable_from == NO_ROUND {
+            tally.listable_from = params.round;
+        }
     }
     let listed = workgroupUniformLoad(&rest_listed);
     if listed > REST_LIST {

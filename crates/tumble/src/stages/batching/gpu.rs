@@ -19,6 +19,11 @@ use crate::stages::constraints::STATIC_BODY;
 const WGSL: &str = include_str!("batching.wgsl");
 /// The color of a constraint no round has batched yet.
 const UNBATCHED: u32 = u32::MAX;
+
+/// The most constraints `rest_rounds` lists to go over round after round in one workgroup
+/// (more left, each of its rounds goes over all of them).
+const REST_LIST: u32 = 1024;
+
 const BINDINGS: [Binding; 7] = [
     Binding::Uniform,
     Binding::StorageRead,
@@ -47,6 +52,7 @@ pub fn wgsl() -> Source {
         .constant_u32("UNBATCHED", UNBATCHED)
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
         .constant_u32("LOCK_SLOTS", LOCK_SLOTS as u32)
+        .constant_u32("REST_LIST", REST_LIST)
         .snippet("batching.wgsl", WGSL)
 }
 
@@ -78,12 +84,12 @@ pub struct GpuBatching {
     tentative: GpuVec<u32>,
     /// How many constraints have a batch (the rounds' early exit), how many there are, and
     /// how many rounds found one left to batch ([`Coloring::rounds`]).
-    tally: GpuVec<[u32; 3]>,
+    tally: GpuVec<[u32; 4]>,
     cached: Option<(BatchKey, Dispatches)>,
     /// Host scratch: the bodies to upload, the colors and the tally read back.
     host_bodies: Vec<[u32; 2]>,
     host_colors: Vec<u32>,
-    host_tally: Vec<[u32; 3]>,
+    host_tally: Vec<[u32; 4]>,
 }
 
 impl GpuBatching {
@@ -94,7 +100,7 @@ impl GpuBatching {
             locks: GpuVec::with_capacity(context, "batching locks", 0)?,
             masks: GpuVec::with_capacity(context, "batching masks", 0)?,
             tentative: GpuVec::with_capacity(context, "batching tentative colors", 0)?,
-            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0, 0]])?,
+            tally: GpuVec::from_slice(context, "batching tally", &[[0, 0, 0, u32::MAX]])?,
             cached: None,
             host_bodies: Vec::new(),
             host_colors: Vec::new(),
@@ -151,7 +157,8 @@ impl GpuBatching {
         rounds: usize,
     ) -> Result<(), GpuError> {
         // Lands before this submission's commands run (the batch layout reads the count).
-        self.tally.upload(context, &[[0, count as u32, 0]])?;
+        self.tally
+            .upload(context, &[[0, count as u32, 0, u32::MAX]])?;
         if count == 0 {
             self.colors.resize(context, 0)?;
             return Ok(());
@@ -285,7 +292,7 @@ impl GpuBatching {
 
     /// How many constraints have a batch, how many there are, and the rounds that found one
     /// left: what the batch layout reads the count from.
-    pub fn tally(&self) -> &GpuVec<[u32; 3]> {
+    pub fn tally(&self) -> &GpuVec<[u32; 4]> {
         &self.tally
     }
 
@@ -337,10 +344,23 @@ impl GpuBatching {
         constraints: u32,
     ) -> Result<usize, GpuError> {
         if constraints == 0 {
+            self.host_tally.clear();
             return Ok(0);
         }
         self.tally.read_download(context, &mut self.host_tally)?;
         Ok(self.host_tally[0][2] as usize)
+    }
+
+    /// The first round of the last batching read back that started with few enough
+    /// constraints left for `rest_rounds` to list them (`None` when none did): from there one
+    /// workgroup runs the rounds about as fast as dispatches of their own. `Some(0)` when
+    /// there were no constraints.
+    pub fn listable_from(&self) -> Option<usize> {
+        match self.host_tally.first() {
+            None => Some(0),
+            Some(&[.., u32::MAX]) => None,
+            Some(&[.., round]) => Some(round as usize),
+        }
     }
 
     /// [`Self::read_back`] after [`Self::encode_read_back`]'s submission.
@@ -355,6 +375,7 @@ impl GpuBatching {
             "the rest and finish give every constraint a color"
         );
         coloring.rounds = if self.host_colors.is_empty() {
+            self.host_tally.clear();
             0
         } else {
             self.tally.read_download(context, &mut self.host_tally)?;

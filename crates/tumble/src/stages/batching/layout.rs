@@ -104,7 +104,7 @@ impl GpuBatchLayout {
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        tally: &GpuVec<[u32; 3]>,
+        tally: &GpuVec<[u32; 4]>,
         colors: &GpuVec<u32>,
         order: &GpuVec<u32>,
     ) -> Result<(), GpuError> {

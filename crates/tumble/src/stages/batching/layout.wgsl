@@ -16,6 +16,7 @@ struct Tally {
     batched: u32,
     count: u32,
     rounds: u32,
+    listable_from: u32,
 }
 
 struct LayoutParams {
