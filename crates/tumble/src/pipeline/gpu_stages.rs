@@ -268,6 +268,7 @@ pub(crate) struct SummaryOutput<'a> {
     pub summaries: Option<&'a mut Vec<PairSummary>>,
     /// Gets how many pairs were added and removed since last step's (the device's diff),
     /// what [`PairCache::adopt_keys`](crate::stages::pairs::PairCache::adopt_keys) takes.
+    /// With none, the keys are last step's and do not come back: `keys` is left empty.
     pub changes: &'a mut (usize, usize),
     /// Gets the pairs that touch, the rows they make and those that bounce, as the masses
     /// stand at the collision.
@@ -1135,17 +1136,22 @@ impl GpuStages {
                     );
                     context.queue.submit([encoder.finish()]);
                 }
-                self.keys.read_download(context, keys)?;
-                keys.truncate(count);
+                *tally = self.row_tally.read(context)?;
+                // The pairs the lookup found among last step's are kept; the others were added,
+                // and last step's that it did not find were removed.
+                *changes = (count - tally.kept, old_count - tally.kept);
+                // No pair added or removed: the keys are last step's, which the host has (a
+                // settled pile's 4.7 MB at 100k bodies, mapped and copied for nothing).
+                keys.clear();
+                if *changes != (0, 0) {
+                    self.keys.read_download(context, keys)?;
+                    keys.truncate(count);
+                }
                 if let Some(out) = out {
                     self.summaries.summaries.read_download(context, out)?;
                     out.truncate(count);
                 }
                 self.keys.resize(context, count)?;
-                *tally = self.row_tally.read(context)?;
-                // The pairs the lookup found among last step's are kept; the others were added,
-                // and last step's that it did not find were removed.
-                *changes = (count - tally.kept, old_count - tally.kept);
                 if let Some(query) = wake {
                     *query.listed = wake_asleep.is_some();
                     if *query.listed {

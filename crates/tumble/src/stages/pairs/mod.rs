@@ -125,16 +125,20 @@ impl<T: Default> PairCache<T> {
     /// the changes, `(added, removed)`): takes `new_keys` by swapping it with the old keys,
     /// which `new_keys` then holds, and passes over no key. [`Self::added`] and
     /// [`Self::removed`] are then empty; [`Self::changes`] gives the counts. The keys must be
-    /// sorted ascending and unique (checked in debug builds).
+    /// sorted ascending and unique (checked in debug builds). With no change the keys are the
+    /// cache's: `new_keys` is not read (the GPU step does not bring them back then).
     pub fn adopt_keys(&mut self, new_keys: &mut Vec<u64>, changes: (usize, usize)) {
-        debug_assert!(
-            sorted_unique(new_keys),
-            "pair keys must be sorted ascending and unique"
-        );
         self.version += 1;
         self.added.clear();
         self.removed.clear();
         self.changes = changes;
+        if changes == (0, 0) {
+            return;
+        }
+        debug_assert!(
+            sorted_unique(new_keys),
+            "pair keys must be sorted ascending and unique"
+        );
         std::mem::swap(&mut self.keys, new_keys);
         self.values.resize_with(self.keys.len(), T::default);
     }
@@ -365,6 +369,25 @@ mod tests {
             assert_ne!(adopted.version(), version);
         }
         assert_eq!(full.changes(), (2, 0));
+    }
+
+    /// No pair added or removed: the cache keeps its keys and values without reading the
+    /// vector handed over (the GPU step brings no keys back then), and still moves its version.
+    #[test]
+    fn adopting_no_change_keeps_the_keys_unread() {
+        let mut cache = PairCache::<u32>::new();
+        cache.adopt_keys(&mut vec![1, 4, 9], (3, 0));
+        cache.values_mut().copy_from_slice(&[10, 40, 90]);
+        let version = cache.version();
+        let mut unread = Vec::new();
+        cache.adopt_keys(&mut unread, (0, 0));
+        assert_eq!(
+            (cache.keys(), cache.values()),
+            (&[1, 4, 9][..], &[10, 40, 90][..])
+        );
+        assert_eq!(cache.changes(), (0, 0));
+        assert!(unread.is_empty());
+        assert_ne!(cache.version(), version);
     }
 
     #[test]
