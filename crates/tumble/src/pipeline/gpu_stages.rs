@@ -1088,14 +1088,17 @@ impl GpuStages {
                         })?;
                     }
                     broadphase.encode_count_download(context, encoder);
-                    narrowphase.encode_computed_download(context, encoder)?;
                     if summarize {
                         let summaries = summaries_back.then_some(&mut *summaries);
                         encode_summary_downloads(
                             context, encoder, broadphase, row_keys, summaries, staged,
                         );
                         let wake_total = wake_asleep.map(|_| wake.total());
-                        row_tally.encode_download(context, encoder, wake_total);
+                        // The computed pairs' count comes back with the tally's (one map).
+                        let computed = narrowphase.computed_list(context)?;
+                        row_tally.encode_download(context, encoder, wake_total, computed);
+                    } else {
+                        narrowphase.encode_computed_download(context, encoder)?;
                     }
                     if wake_asleep.is_some() {
                         wake_staged = wake.encode_download(context, encoder);
@@ -1108,7 +1111,6 @@ impl GpuStages {
                 break;
             }
         }
-        self.pairs_computed = self.narrowphase.read_computed(context)?;
         let start = Instant::now();
         let count = self.broadphase.last_pair_count();
         match output {
@@ -1137,6 +1139,7 @@ impl GpuStages {
                     context.queue.submit([encoder.finish()]);
                 }
                 *tally = self.row_tally.read(context)?;
+                self.pairs_computed = self.row_tally.computed();
                 // The pairs the lookup found among last step's are kept; the others were added,
                 // and last step's that it did not find were removed.
                 *changes = (count - tally.kept, old_count - tally.kept);
@@ -1162,6 +1165,7 @@ impl GpuStages {
                 }
             }
             CollideOutput::Contacts(contacts) => {
+                self.pairs_computed = self.narrowphase.read_computed(context)?;
                 // Only the counted keys and contacts come back, in one submission; the rows
                 // read them on the device, the keys copied there from the broadphase's.
                 self.keys.resize(context, count)?;
@@ -2992,9 +2996,13 @@ mod tests {
                     .encode(&context, &mut pass, &count_buffer, pairs, bodies, slots)
                     .unwrap();
             }
-            tally.encode_download(&context, &mut encoder, Some(&wake_total));
+            // The narrowphase's list of computed pairs, its count first, comes back with them.
+            let computed = GpuVec::from_slice(&context, "computed", &[count as u32 / 3, 7, 7]);
+            let computed = computed.unwrap();
+            tally.encode_download(&context, &mut encoder, Some(&wake_total), &computed);
             context.queue.submit([encoder.finish()]);
             let device = tally.read(&context).unwrap();
+            assert_eq!(tally.computed(), count / 3, "{count} pairs");
 
             let touching: Vec<usize> = (0..count)
                 .filter(|&i| summaries[i].point_count > 0)

@@ -31,9 +31,12 @@ const BINDINGS: [Binding; 7] = [
     Binding::StorageReadWrite,
     Binding::StorageRead,
 ];
-/// Words of the totals (`tally.wgsl`); the last is the wake test's candidate count.
-const TOTALS: usize = 7;
+/// Words of the totals: `tally.wgsl`'s six, then two counts copied in from other stages' lists
+/// so that they come back in the same read-back: the wake test's candidates and the pairs the
+/// narrowphase computed.
+const TOTALS: usize = 8;
 const WAKE_CANDIDATES_WORD: u64 = 6;
+const COMPUTED_WORD: u64 = 7;
 
 /// The counts of [`GpuRowTally`], as the masses stood at the collision.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -137,18 +140,28 @@ impl GpuRowTally {
     }
 
     /// Encodes the read-back of the totals, after [`Self::encode`]'s pass, with the wake
-    /// test's candidate count (a one-word buffer) copied in first when it was encoded.
+    /// test's candidate count (a one-word buffer) copied in first when it was encoded, and
+    /// the first word of `computed`, the count of the pairs the narrowphase computed
+    /// ([`Self::computed`]).
     pub fn encode_download(
         &mut self,
         context: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
         wake_candidates: Option<&GpuVec<u32>>,
+        computed: &GpuVec<u32>,
     ) {
+        let totals = self.totals.buffer();
         if let Some(total) = wake_candidates {
             let word = WAKE_CANDIDATES_WORD * 4;
-            encoder.copy_buffer_to_buffer(total.buffer(), 0, self.totals.buffer(), word, 4);
+            encoder.copy_buffer_to_buffer(total.buffer(), 0, totals, word, 4);
         }
+        encoder.copy_buffer_to_buffer(computed.buffer(), 0, totals, COMPUTED_WORD * 4, 4);
         self.totals.encode_download(context, encoder);
+    }
+
+    /// After [`Self::read`]: the count [`Self::encode_download`] copied from `computed`.
+    pub fn computed(&self) -> usize {
+        self.read[COMPUTED_WORD as usize] as usize
     }
 
     /// After the submission of [`Self::encode_download`]: the counts.

@@ -386,6 +386,12 @@ impl GpuNarrowphase {
         Ok(())
     }
 
+    /// The list of the pairs the last encoded step computed, whose first word is their count:
+    /// for a stage that reads that back with its own counts.
+    pub fn computed_list(&mut self, context: &GpuContext) -> Result<&GpuVec<u32>, GpuError> {
+        misses_buffer(&mut self.misses, context).map(|misses| &*misses)
+    }
+
     /// The count [`Self::encode_computed_download`] copied.
     pub fn read_computed(&mut self, context: &GpuContext) -> Result<usize, GpuError> {
         let misses = misses_buffer(&mut self.misses, context)?;
