@@ -25,6 +25,7 @@ mod gpu_profiler;
 mod gpu_radix_sort;
 mod gpu_reduce;
 mod gpu_scan;
+mod gpu_scenes;
 mod gpu_solver;
 mod gpu_solver_world;
 mod gpu_stages;
