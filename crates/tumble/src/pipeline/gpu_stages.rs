@@ -869,9 +869,10 @@ impl GpuStages {
     /// pairs (the talk's persistent pairs, [`GpuPairDiff`]) and the narrowphase, with nothing
     /// read back between them. `old_keys` and `old_contacts` are the pair cache after last
     /// step (its contacts carry the solver's impulses, which live on the host); `keys` gets
-    /// this step's sorted pair keys and `contacts` their contacts, warm-started through the
-    /// diff, as [`find_pairs`](Self::find_pairs) then [`update_contacts`](Self::update_contacts)
-    /// would give them. Pairs the GPU narrowphase has no kernel for ([`gpu_pair`]) come back
+    /// this step's sorted pair keys (none when the output is summaries and no pair was added
+    /// or removed: see [`SummaryOutput::changes`]) and `contacts` their contacts,
+    /// warm-started through the diff, as [`find_pairs`](Self::find_pairs) then
+    /// [`update_contacts`](Self::update_contacts) would give them. Pairs the GPU narrowphase has no kernel for ([`gpu_pair`]) come back
     /// with last step's contact: the caller computes them. The pair count is read back once;
     /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
     /// again (from the same inputs). When the step fails (pairs past the adapter's limits),

@@ -82,8 +82,9 @@ pub struct GpuBatching {
     masks: GpuVec<[u32; 2]>,
     /// Per constraint: the color its last claim took.
     tentative: GpuVec<u32>,
-    /// How many constraints have a batch (the rounds' early exit), how many there are, and
-    /// how many rounds found one left to batch ([`Coloring::rounds`]).
+    /// How many constraints have a batch (the rounds' early exit), how many there are, how
+    /// many rounds found one left to batch ([`Coloring::rounds`]), and the first round that
+    /// started with few enough left for `rest_rounds` to list ([`Self::listable_from`]).
     tally: GpuVec<[u32; 4]>,
     cached: Option<(BatchKey, Dispatches)>,
     /// Host scratch: the bodies to upload, the colors and the tally read back.
@@ -290,8 +291,8 @@ impl GpuBatching {
         &self.masks
     }
 
-    /// How many constraints have a batch, how many there are, and the rounds that found one
-    /// left: what the batch layout reads the count from.
+    /// How many constraints have a batch, how many there are, the rounds that found one left
+    /// and the first listable round: what the batch layout reads the count from.
     pub fn tally(&self) -> &GpuVec<[u32; 4]> {
         &self.tally
     }

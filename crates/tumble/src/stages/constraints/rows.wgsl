@@ -139,9 +139,10 @@ fn build(
     let vb = velocities[b];
     // What the warm start applies, for the warm start by body (lanes.wgsl).
     var sums = ImpulseSums();
-    // The points up to the count. No kernel reads a point's words past it, so they are not
-    // written (zeroing them was about half the stores of a pile's build); the host's
-    // read-back zeroes them (lanes.rs).
+    // The points up to the count. No kernel uses a point's words past it (the Jacobi sweep
+    // reads all four impulse words, and uses the count's), so they are not written (zeroing
+    // them was about half the stores of a pile's build); the host's read-back zeroes them
+    // (lanes.rs).
     for (var i = 0u; i < min(point_count, MAX_MANIFOLD_POINTS); i++) {
         let point = (*contact).manifold.points[i];
         let warm = (*contact).impulses[i];

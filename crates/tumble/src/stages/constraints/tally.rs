@@ -6,7 +6,8 @@
 //! (which give the added and the removed ones). On the host these are passes over every pair
 //! (0.57 ms a step of a settled pile of 100k boxes on 16 cores for the rows, 0.13 for the
 //! statistics, 0.46 for the pair diff, BENCHMARKS.md 2026-12-04). The device's counts, with the
-//! wake test's candidate count copied beside them, come back in one read-back with the keys.
+//! wake test's candidates and the narrowphase's computed pairs copied beside them, come back in
+//! one read-back, in the collision's submission.
 //!
 //! The rows depend on the masses, which an island that wakes after the collision changes: the
 //! step then counts the rows on the host (`World::step_stages`). The touching pairs do not.

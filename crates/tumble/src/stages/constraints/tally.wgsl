@@ -4,8 +4,9 @@
 // statistics the rows' points and the deepest penetration, and for the pair cache how many
 // pairs were last step's too (the lookup found them). Each workgroup sums (and maxes) its pairs
 // in shared memory and adds its results to the totals: integer sums and maxima, the same in
-// any order. The totals' last word is the wake test's candidate count, copied in after the
-// pass (dynamics/wake.rs), so that one read-back brings every count.
+// any order. The totals' buffer has two more words past these, copied in after the pass so
+// that one read-back brings every count: the wake test's candidates (dynamics/wake.rs) and
+// the pairs the narrowphase computed (tally.rs).
 
 // Word 0: the pair count (the broadphase's); the keys past it are padding.
 @group(0) @binding(0) var<storage, read> count: array<u32>;

@@ -72,7 +72,9 @@ fn jacobi_contact(kind: u32, index: u32) {
     let old_max = vec4<f32>(before[0].w, before[1].w, before[2].w, before[3].w);
     var end: BodyPair;
     if kind == SOLVE {
-        end = solve_contact_pair(index, start);
+        // No impulse sums: the Jacobi warm start reads the rows (and they would be the
+        // impulses before the relaxation below).
+        end = solve_contact_pair(index, start, false);
     } else {
         end = restitution_contact_pair(index, start);
     }
