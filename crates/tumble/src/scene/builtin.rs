@@ -278,9 +278,12 @@ fn stacked_boxes(scale: f32) -> Scene {
             }
         }
         // Brick wall along x, every other row shifted by half a box and one box shorter, so
-        // that every brick rests on two below.
+        // that every brick rests on two below. A full row's end bricks rest on half a brick,
+        // their centres right above its edge: the shifted row above holds them down, so the
+        // wall has an even number of rows and ends with a shifted one (with a full row on top,
+        // its end bricks topple, as the scene at a tenth of its size did).
         let width = ((24.0 * size).round() as usize).max(1);
-        let height = ((16.0 * size).round() as usize).max(1);
+        let height = ((8.0 * size).round() as usize).max(1) * 2;
         for row in 0..height {
             let (shift, bricks) = if row % 2 == 1 {
                 (0.5, width.saturating_sub(1).max(1))

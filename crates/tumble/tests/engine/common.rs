@@ -1,10 +1,25 @@
 //! Helpers shared by the scenario tests.
 #![allow(dead_code)]
 
+use crate::gpu_common;
 use tumble::math::{Quat, Vec3};
+use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::{BodyDesc, BodyHandle, Shape, StepConfig, World};
 
 pub const G: f32 = 9.81;
+
+/// Every stage of `world` on the GPU when `gpu` (as `--device gpu`): the device's turn, which
+/// the caller holds while the world steps (see `gpu_common::context`).
+#[must_use]
+pub fn on_gpu(world: &mut World, gpu: bool) -> Option<gpu_common::Gpu> {
+    gpu.then(|| {
+        let turn = gpu_common::context();
+        world
+            .set_stage_devices(StageDevices::all(Executor::Gpu))
+            .expect("every stage on the GPU");
+        turn
+    })
+}
 
 /// The default settings without sleeping: the scenario tests measure the solver, and a
 /// sleeping stack would hide a slow sag.
