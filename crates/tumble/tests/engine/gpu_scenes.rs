@@ -7,9 +7,10 @@ use tumble::pipeline::devices::{Executor, StageDevices};
 use tumble::scene::{BUILTIN_SCENES, builtin};
 
 /// Each scene, a few dozen bodies of it, steps 2 s on the GPU. Over its first 10 steps it
-/// follows the CPU's run within rounding: on lavapipe every body is within 2 µm of the CPU's
-/// then (stacked-boxes and raycast already resting on their grounds), and a stage gone wrong
-/// moves bodies by millimetres in a step (a step's gravity alone is 2.7 mm). Later the runs
+/// follows the CPU's run within rounding: on lavapipe every body is within 2 µm and 0.1 mm/s
+/// of the CPU's then (stacked-boxes and raycast already resting on their grounds), and a stage
+/// gone wrong moves bodies by millimetres in a step (a step's gravity alone is 2.7 mm and
+/// 0.16 m/s). Later the runs
 /// part, as any two roundings of a pile do: a millimetre by step 60 and decimetres by step 120
 /// for the hulls tumbling on a landscape. So after that it is held only to staying finite.
 #[test]
@@ -32,12 +33,10 @@ fn every_builtin_scene_steps_on_the_gpu_as_on_the_cpu() {
             let (c, g) = (cpu.pose(body).unwrap(), gpu.pose(body).unwrap());
             let apart = c.position.distance(g.position);
             assert!(apart < 1e-4, "{name}: a body {apart} m from the CPU's");
+            let (c, g) = (cpu.linear_velocity(body), gpu.linear_velocity(body));
+            let faster = c.unwrap().distance(g.unwrap());
+            assert!(faster < 1e-3, "{name}: a body {faster} m/s off the CPU's");
         }
-        let (c, g) = (cpu.kinetic_energy(), gpu.kinetic_energy());
-        assert!(
-            (c - g).abs() <= 1e-4 * c,
-            "{name}: {g} J against the CPU's {c} J"
-        );
         for _ in 10..120 {
             gpu.try_step()
                 .unwrap_or_else(|error| panic!("{name}: {error}"));

@@ -1,12 +1,12 @@
 //! Restitution against closed forms: a ball rebounds to e² of its drop height; two equal balls
-//! in a head-on elastic collision exchange velocities with momentum conserved.
+//! in a head-on elastic collision exchange velocities with momentum conserved; on the CPU and
+//! with every stage on the GPU.
 use crate::common;
 use common::*;
 use tumble::math::Vec3;
 use tumble::{BodyDesc, Shape, StepConfig, World};
 
-#[test]
-fn ball_rebounds_to_e_squared_of_its_height() {
+fn ball_rebounds_to_e_squared_of_its_height(gpu: bool) {
     let e: f32 = 0.8;
     let radius = 0.1;
     let mut world = world_with_ground(0.5, e);
@@ -17,6 +17,7 @@ fn ball_rebounds_to_e_squared_of_its_height() {
                 .restitution(e),
         )
         .unwrap();
+    let _turn = on_gpu(&mut world, gpu);
     // Fall (≈0.45 s), bounce, and track the highest point of the first rebound.
     let mut bounced = false;
     let mut apex: f32 = 0.0;
@@ -40,7 +41,16 @@ fn ball_rebounds_to_e_squared_of_its_height() {
 }
 
 #[test]
-fn equal_balls_exchange_velocities_and_keep_momentum() {
+fn ball_rebounds_to_e_squared_of_its_height_on_the_cpu() {
+    ball_rebounds_to_e_squared_of_its_height(false);
+}
+
+#[test]
+fn ball_rebounds_to_e_squared_of_its_height_on_the_gpu() {
+    ball_rebounds_to_e_squared_of_its_height(true);
+}
+
+fn equal_balls_exchange_velocities_and_keep_momentum(gpu: bool) {
     let config = StepConfig {
         gravity: Vec3::ZERO,
         ..StepConfig::default()
@@ -54,6 +64,7 @@ fn equal_balls_exchange_velocities_and_keep_momentum() {
     };
     let a = world.add_body(ball(-2.0, 3.0)).unwrap();
     let b = world.add_body(ball(2.0, 0.0)).unwrap();
+    let _turn = on_gpu(&mut world, gpu);
     let momentum =
         |world: &World| world.linear_velocity(a).unwrap() + world.linear_velocity(b).unwrap();
     let before = momentum(&world);
@@ -73,4 +84,14 @@ fn equal_balls_exchange_velocities_and_keep_momentum() {
         (vb - Vec3::new(3.0, 0.0, 0.0)).length() < 1e-4,
         "b moves at {vb}"
     );
+}
+
+#[test]
+fn equal_balls_exchange_velocities_and_keep_momentum_on_the_cpu() {
+    equal_balls_exchange_velocities_and_keep_momentum(false);
+}
+
+#[test]
+fn equal_balls_exchange_velocities_and_keep_momentum_on_the_gpu() {
+    equal_balls_exchange_velocities_and_keep_momentum(true);
 }
