@@ -50,6 +50,7 @@ fn gpu_colors_equal_cpu_colors() {
         (100, 257),
         (3000, 12_001),
         (50_000, 200_003),
+        (300_000, 1_000_000),
     ] {
         graphs.push((bodies, random_edges(&mut state, bodies, count)));
     }
@@ -163,6 +164,7 @@ fn device_layout_is_the_hosts_batch_order() {
         (100, 257),
         (3000, 12_001),
         (50_000, 200_003),
+        (300_000, 1_000_000),
         (3000, 12_001),
     ] {
         graphs.push((bodies, random_edges(&mut state, bodies, count)));
