@@ -101,9 +101,9 @@ fn lane(word: Word, lane: usize) -> f32 {
 /// the sweeps' order (points 0 to count − 1; normal, then tangents): Σ d λ, and each side's
 /// Σ I⁻¹(r × d) λ. Body A's warm start adds `inverse_mass_a · linear` and `angular_a` to
 /// its velocities, B's subtracts `inverse_mass_b · linear` and `angular_b`. The device keeps
-/// them beside the constraint (`lanes.wgsl`: the relax sweep writes them), so that the warm
-/// start by body reads two words of each constraint instead of its rows (`warm_start_bodies`);
-/// the CPU applies the rows one by one, which rounds differently.
+/// them beside the constraint (`lanes.wgsl`: the rows' build and the PGS relax sweep write
+/// them), so that the warm start by body reads two words of each constraint instead of its
+/// rows (`warm_start_bodies`); the CPU applies the rows one by one, which rounds differently.
 pub fn impulse_sums(constraint: &ContactConstraint) -> [Vec3; 3] {
     let [mut linear, mut angular_a, mut angular_b] = [Vec3::ZERO; 3];
     let tangents = constraint.tangents();
