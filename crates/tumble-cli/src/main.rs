@@ -336,9 +336,10 @@ fn run(args: &RunArgs) -> Result<(), String> {
             println!("no coloring: the Jacobi solver sweeps every constraint at once");
         } else {
             println!(
-                "{} batches by {} on {device} (constraints per batch):",
+                "{} batches by {} in {} rounds on {device} (constraints per batch):",
                 stats.batch_histogram.len(),
-                batcher
+                batcher,
+                stats.batching_rounds
             );
             for (batch, count) in stats.batch_histogram.iter().enumerate() {
                 println!("{batch:4} : {count}");
@@ -372,6 +373,7 @@ fn run(args: &RunArgs) -> Result<(), String> {
             "max_penetration": stats.max_penetration,
             "kinetic_energy": world.kinetic_energy(),
             "batches": stats.batch_histogram.len(),
+            "batching_rounds": stats.batching_rounds,
             "batcher": batcher.to_string(),
             "solver": solver.to_string(),
         });

@@ -120,6 +120,7 @@ fn json_summary_and_dump_that_loads_back() {
         "contacts",
         "max_penetration",
         "kinetic_energy",
+        "batching_rounds",
     ] {
         assert!(summary.get(key).is_some(), "--json lacks {key}: {last}");
     }
@@ -164,9 +165,18 @@ fn run_on_the_gpu_shows_stages_and_copies() {
             "no {line:?} in the profile: {stdout}"
         );
     }
+    // "N batches by colors in R rounds on <devices>", R > 0.
+    let batches = stdout
+        .lines()
+        .find(|line| line.contains(" batches by colors in "));
+    let rounds = batches.and_then(|line| line.split(" in ").nth(1)?.split(' ').next());
+    assert!(
+        rounds.is_some_and(|r| r.parse::<usize>().is_ok_and(|r| r > 0)),
+        "{stdout}"
+    );
     assert!(
         stdout.contains(
-            "batches by colors on aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
+            "rounds on aabb=gpu,broadphase=gpu,narrowphase=gpu,constraints=gpu,batching=gpu,solver=gpu"
         ),
         "{stdout}"
     );

@@ -394,6 +394,7 @@ impl World {
                 coloring.colors.clear();
                 coloring.colors.resize(bodies.count(), 0);
                 coloring.count_batches();
+                coloring.rounds = 0;
                 Ok(())
             }
             (Executor::Gpu, Some(gpu)) if device_layout => {
@@ -1515,6 +1516,7 @@ fn collect_stats(
         joints: scratch.joints.len().max(scratch.joint_row_slots.len()),
         sleeping: 0,
         batch_histogram: Vec::new(),
+        batching_rounds: scratch.coloring.rounds,
     };
     let host_contacts = scratch.contacts.iter().map(|c| c.point_count as usize);
     let host_contacts = host_contacts.sum::<usize>();

@@ -183,11 +183,15 @@ fn batching_on_the_gpu_gives_the_cpu_step_exactly() {
             cpu.step();
             gpu.try_step().unwrap();
         }
-        assert_eq!(cpu.stats().batch_histogram, gpu.stats().batch_histogram);
+        let (a, b) = (cpu.stats(), gpu.stats());
+        assert_eq!(a.batch_histogram, b.batch_histogram);
         assert!(
-            cpu.stats().batch_histogram.len() > 1,
+            a.batch_histogram.len() > 1,
             "{batcher}: no batches to compare"
         );
+        // The CPU's twin counts the rounds the device took.
+        assert_eq!(a.batching_rounds, b.batching_rounds, "{batcher}");
+        assert!(a.batching_rounds > 0, "{batcher}");
         for &body in &bodies {
             assert_eq!(cpu.pose(body), gpu.pose(body), "{batcher}");
         }
@@ -223,6 +227,8 @@ fn rows_kept_on_the_gpu_give_the_step_through_the_host_exactly() {
             (b.manifolds, b.contacts, &b.batch_histogram),
             "step {step}"
         );
+        // Colored on the device (its rounds read back with the solve) and on the host.
+        assert_eq!(a.batching_rounds, b.batching_rounds, "step {step}");
         most_contacts = most_contacts.max(a.contacts);
         for &body in &bodies {
             assert_eq!(chained.pose(body), through_host.pose(body), "step {step}");
