@@ -1145,9 +1145,13 @@ impl GpuStages {
                 // and last step's that it did not find were removed.
                 *changes = (count - tally.kept, old_count - tally.kept);
                 // No pair added or removed: the keys are last step's, which the host has (a
-                // settled pile's 4.7 MB at 100k bodies, mapped and copied for nothing).
-                keys.clear();
-                if *changes != (0, 0) {
+                // settled pile's 4.7 MB at 100k bodies, mapped and copied for nothing). Else
+                // they come into `keys` as it is (last step's keys, which the cache handed back
+                // and whose length is about the count): emptied first, it would be zeroed whole
+                // before the copy, which took 0.2 ms a step on that pile (H100 host).
+                if *changes == (0, 0) {
+                    keys.clear();
+                } else {
                     self.keys.read_download(context, keys)?;
                     keys.truncate(count);
                 }
