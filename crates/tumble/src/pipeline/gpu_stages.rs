@@ -872,8 +872,9 @@ impl GpuStages {
     /// this step's sorted pair keys (none when the output is summaries and no pair was added
     /// or removed: see [`SummaryOutput::changes`]) and `contacts` their contacts,
     /// warm-started through the diff, as [`find_pairs`](Self::find_pairs) then
-    /// [`update_contacts`](Self::update_contacts) would give them. Pairs the GPU narrowphase has no kernel for ([`gpu_pair`]) come back
-    /// with last step's contact: the caller computes them. The pair count is read back once;
+    /// [`update_contacts`](Self::update_contacts) would give them. Pairs the GPU narrowphase
+    /// has no kernel for ([`gpu_pair`]) come back with last step's contact: the caller
+    /// computes them. The pair count is read back once;
     /// when the pairs outgrew the broadphase's buffers, they grow and the submission runs
     /// again (from the same inputs). When the step fails (pairs past the adapter's limits),
     /// the pair buffers keep their size from before it, so that a smaller scene steps again.

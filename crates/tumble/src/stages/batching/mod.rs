@@ -15,10 +15,12 @@
 //!   ([`LOCK_SLOTS`] a body): constraints that took different colors on one body win
 //!   together, and a winner keeps its color. Winners on one body have different colors, so
 //!   no batch shares a body. A joint claims every slot of its bodies, so joints keep one
-//!   winner a body a round, before any contact there, as the sweeps need (below). Later rounds fill earlier batches, so this needs far fewer
-//!   batches than `Rounds`, and about as many as greedy coloring in priority order (which is
-//!   the one-slot case: when a constraint wins, every constraint before it on its bodies has a
-//!   color), in about half its rounds.
+//!   winner a body a round, before any contact there, as the sweeps need (below). Later
+//!   rounds fill earlier batches, so this needs far fewer batches than `Rounds`, and about as
+//!   many as greedy coloring in priority order (which is the one-slot case: when a constraint
+//!   wins, every constraint before it on its bodies has a color), in about a round a color
+//!   (a settled 100k pile on an H100: 13 rounds for 13 colors, where one lock a body took
+//!   35).
 //!
 //! Contact priorities are a bijective hash of the constraint index: in index order (pair
 //! keys, spatially sorted) chains of constraints sharing bodies would let one constraint in a
