@@ -338,3 +338,25 @@ fn jacobi_steps_without_coloring() {
         assert_eq!(histogram.iter().sum::<u32>(), 5, "{kind}: 5 manifolds");
     }
 }
+
+/// The Jacobi solver colors nothing: a world that switches to it from PGS reports no batching
+/// rounds (and not the last PGS step's).
+#[test]
+fn the_jacobi_solver_reports_no_batching_rounds() {
+    let (mut world, _turn) = world(SolverKind::Pgs, Device::Cpu, StepConfig::default());
+    for level in 0..3 {
+        unit_box(&mut world, Vec3::new(0.0, 0.5 + level as f32, 0.0));
+    }
+    world.step();
+    assert!(
+        world.stats().batching_rounds > 0,
+        "PGS colors the stack's constraints"
+    );
+    let config = StepConfig {
+        solver: SolverKind::Jacobi,
+        ..*world.config()
+    };
+    world.set_config(config).unwrap();
+    world.step();
+    assert_eq!(world.stats().batching_rounds, 0);
+}
