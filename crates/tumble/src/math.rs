@@ -164,6 +164,45 @@ pub fn tangent_basis(n: Vec3) -> (Vec3, Vec3) {
     (t1, t2)
 }
 
+/// A symmetric 3×3 matrix by its six distinct entries: a body's world-frame inverse inertia
+/// in 24 bytes instead of [`Mat3`]'s 36. The contact rows keep both bodies' (see
+/// `stages::constraints::contact`), and WGSL's twin is `array<vec3<f32>, 2>`
+/// (`contact_constraint.wgsl`), multiplied in the same order.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SymmetricMat3 {
+    /// xx, yy, zz.
+    pub diagonal: Vec3,
+    /// xy, xz, yz.
+    pub off_diagonal: Vec3,
+}
+
+impl SymmetricMat3 {
+    pub const ZERO: Self = Self {
+        diagonal: Vec3::ZERO,
+        off_diagonal: Vec3::ZERO,
+    };
+
+    /// The upper triangle of `m`, which is symmetric up to rounding (R D Rᵀ computed in
+    /// floats is not exactly).
+    pub fn from_upper(m: Mat3) -> Self {
+        Self {
+            diagonal: Vec3::new(m.x_axis.x, m.y_axis.y, m.z_axis.z),
+            off_diagonal: Vec3::new(m.y_axis.x, m.z_axis.x, m.z_axis.y),
+        }
+    }
+
+    #[inline]
+    pub fn mul_vec3(&self, v: Vec3) -> Vec3 {
+        let (d, o) = (self.diagonal, self.off_diagonal);
+        Vec3::new(
+            d.x * v.x + o.x * v.y + o.y * v.z,
+            o.x * v.x + d.y * v.y + o.z * v.z,
+            o.y * v.x + o.z * v.y + d.z * v.z,
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -190,5 +229,15 @@ mod tests {
             assert!((t1.length() - 1.0).abs() < 1e-6 && (t2.length() - 1.0).abs() < 1e-6);
             assert!((t1.cross(t2) - n).length() < 1e-5);
         }
+    }
+
+    #[test]
+    fn a_symmetric_matrix_multiplies_as_the_full_one() {
+        let r = Mat3::from_quat(Quat::from_euler(glam::EulerRot::XYZ, 0.3, -1.2, 2.1));
+        let m = r * Mat3::from_diagonal(vec3(0.5, 2.0, 7.0)) * r.transpose();
+        let v = vec3(0.7, -1.3, 2.2);
+        let full = m * v;
+        assert!((SymmetricMat3::from_upper(m).mul_vec3(v) - full).length() < 1e-5 * full.length());
+        assert_eq!(SymmetricMat3::ZERO.mul_vec3(v), Vec3::ZERO);
     }
 }

@@ -430,12 +430,7 @@ fn contact_constraint_layouts() -> Vec<Layout> {
             mass_scale,
             impulse_scale
         }),
-        rust_layout!(Row {
-            angular_a,
-            mass,
-            angular_b,
-            impulse
-        }),
+        rust_layout!(Row { mass, impulse }),
     ]
 }
 

@@ -11,10 +11,12 @@
 //!   v_a += d Δλ/m_a,  ω_a += I_a⁻¹(r_a × d) Δλ,  v_b −= d Δλ/m_b,  ω_b −= I_b⁻¹(r_b × d) Δλ
 //! ```
 //!
-//! Rows store `I⁻¹(r × d)` for both bodies (Bullet's solver stores `r × d` too), so an
-//! iteration does no matrix work; `r × d` is two cross products from the point's arms, which
-//! cost less than the 32 bytes a row they would take to read (the solver is bound by its
-//! loads: a constraint is 656 bytes, not 1040). The Jacobians are fixed at
+//! A constraint keeps both bodies' world-frame inverse inertias (symmetric, 24 bytes each) and
+//! each row only its `1/K` and impulse; a sweep computes `r × d` from the point's arms and
+//! `I⁻¹(r × d)` from the inertia. Storing `I⁻¹(r × d)` per row instead (as Bullet's solver
+//! does) was 24 bytes a row, 72 a point: the sweeps, bound by what they load, read a two-point
+//! constraint in 16 words instead of 23, and a thread holds a point in 15 floats instead of 33
+//! (the solve kernel's registers limit how many warps a multiprocessor runs). The Jacobians are fixed at
 //! the start of the step (Box2D v3 does the same across its sub-steps); only the separation is
 //! tracked through the sub-steps, from the bodies' delta positions and rotations:
 //!
@@ -28,7 +30,7 @@
 //! one body is dynamic).
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider};
-use crate::math::{Mat3, Vec3, tangent_basis};
+use crate::math::{Mat3, SymmetricMat3, Vec3, tangent_basis};
 use crate::pipeline::config::Softness;
 use crate::stages::constraints::STATIC_BODY;
 use crate::stages::narrowphase::{ChildCache, PairContact};
@@ -37,25 +39,21 @@ use crate::stages::pairs::pair_bodies;
 // Layout: the structs below are repr(C) + Pod, the arrays both executors build and solve. On the
 // device they lie in blocks of lanes, 16-byte words of these fields (`lanes.rs`), converted
 // where they cross; `Row` and `Softness` have WGSL twins (`contact_constraint.wgsl`, checked by
-// tests/engine/gpu_layout.rs). Each vec3 shares its 16 bytes with a scalar (`angular_a` +
-// `mass`, ...) instead of padding wherever a scalar can fill the slot.
+// tests/engine/gpu_layout.rs). Each vec3 shares its 16 bytes with a scalar (`anchor_a` +
+// `adjusted_separation`, ...) instead of padding wherever a scalar can fill the slot.
 
-/// One scalar constraint direction `d` at one contact point. 32 bytes.
+/// One scalar constraint direction `d` at one contact point. 8 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Row {
-    /// I_a⁻¹ (r_a × d), world frame.
-    pub angular_a: Vec3,
     /// Effective mass 1/K (kg).
     pub mass: f32,
-    /// I_b⁻¹ (r_b × d), world frame.
-    pub angular_b: Vec3,
     /// Accumulated impulse (N·s).
     pub impulse: f32,
 }
-const _: () = assert!(size_of::<Row>() == 32);
+const _: () = assert!(size_of::<Row>() == 8);
 
-/// Rows and solver inputs of one contact point. 144 bytes.
+/// Rows and solver inputs of one contact point. 64 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ConstraintPoint {
@@ -74,9 +72,8 @@ pub struct ConstraintPoint {
     /// Largest normal impulse applied this step (N·s): restitution applies only to points
     /// that actually pushed.
     pub max_normal_impulse: f32,
-    pub _pad: [f32; 2],
 }
-const _: () = assert!(size_of::<ConstraintPoint>() == 144);
+const _: () = assert!(size_of::<ConstraintPoint>() == 64);
 
 impl ConstraintPoint {
     /// `r_a × d` and `r_b × d`, the arms' moments along `direction`.
@@ -90,7 +87,7 @@ impl ConstraintPoint {
 }
 
 /// The rows of one manifold: up to 4 points sharing a normal, bodies and material.
-/// 656 bytes.
+/// 384 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ContactConstraint {
@@ -111,15 +108,29 @@ pub struct ContactConstraint {
     pub inverse_mass_b: f32,
     /// Spring-damper of the position correction: stiffer against static bodies.
     pub softness: Softness,
+    /// World-frame inverse inertia of each body at the start of the step (zero for a static
+    /// side): a row's `I⁻¹(r × d)`.
+    pub inverse_inertia_a: SymmetricMat3,
+    pub inverse_inertia_b: SymmetricMat3,
     pub points: [ConstraintPoint; 4],
 }
-const _: () = assert!(size_of::<ContactConstraint>() == 656);
+const _: () = assert!(size_of::<ContactConstraint>() == 384);
 
 impl ContactConstraint {
     /// The two friction directions, in the order of the points' `tangent` rows.
     #[inline]
     pub fn tangents(&self) -> [Vec3; 2] {
         [self.tangent1, self.tangent2]
+    }
+
+    /// `I_a⁻¹ arm_a` and `I_b⁻¹ arm_b`: what a unit impulse along a row with these arms does
+    /// to each body's angular velocity.
+    #[inline]
+    pub fn angular(&self, (arm_a, arm_b): (Vec3, Vec3)) -> (Vec3, Vec3) {
+        (
+            self.inverse_inertia_a.mul_vec3(arm_a),
+            self.inverse_inertia_b.mul_vec3(arm_b),
+        )
     }
 }
 
@@ -243,24 +254,21 @@ fn build_constraint(
         } else {
             inputs.softness
         },
+        inverse_inertia_a: SymmetricMat3::from_upper(inputs.inverse_inertia[ia]),
+        inverse_inertia_b: SymmetricMat3::from_upper(inputs.inverse_inertia[ib]),
         points: [ConstraintPoint::default(); 4],
     };
     let (center_a, center_b) = (inputs.poses[ia].position, inputs.poses[ib].position);
-    let (inertia_a, inertia_b) = (inputs.inverse_inertia[ia], inputs.inverse_inertia[ib]);
     let (va, vb) = (inputs.velocities[ia], inputs.velocities[ib]);
     for (i, point) in contact.manifold.points().iter().enumerate() {
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
         let row = |direction: Vec3, impulse: f32| {
-            let arm_a = r_a.cross(direction);
-            let arm_b = r_b.cross(direction);
-            let angular_a = inertia_a * arm_a;
-            let angular_b = inertia_b * arm_b;
-            let k = mass_a + mass_b + arm_a.dot(angular_a) + arm_b.dot(angular_b);
+            let arms = (r_a.cross(direction), r_b.cross(direction));
+            let (angular_a, angular_b) = constraint.angular(arms);
+            let k = mass_a + mass_b + arms.0.dot(angular_a) + arms.1.dot(angular_b);
             Row {
-                angular_a,
                 mass: if k > 0.0 { 1.0 / k } else { 0.0 },
-                angular_b,
                 impulse,
             }
         };

@@ -13,11 +13,9 @@ struct Softness {
     impulse_scale: f32,
 }
 
-// One scalar direction d at one point: I⁻¹(r × d) for both bodies, 1/K, impulse (the
-// solver computes r × d from the point's anchors).
+// One scalar direction d at one point: 1/K and the impulse (the solver computes r × d from
+// the point's anchors, and I⁻¹(r × d) from the constraint's inverse inertias, lanes.wgsl).
 struct Row {
-    angular_a: vec3<f32>,
     mass: f32,
-    angular_b: vec3<f32>,
     impulse: f32,
 }

@@ -9,7 +9,7 @@
 //! constraints in 512 contiguous bytes. A constraint's words hold its fields as `lanes.wgsl`
 //! lists them: the header's in order, a point's arranged so that the four impulses a sweep
 //! writes share one word (one store instead of four). Laid out as an array of
-//! [`ContactConstraint`]s, the same access touched 32 cache lines 656 bytes apart: a memory instruction's worth of cache
+//! [`ContactConstraint`]s, the same access touched 32 cache lines 384 bytes apart: a memory instruction's worth of cache
 //! traffic 8 times over, on the loads that bound the solver's sweeps and the stores that bound
 //! the rows' build.
 //!
@@ -40,9 +40,9 @@ const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multipl
 const HEADER_WORDS: usize = std::mem::offset_of!(ContactConstraint, points) / 16;
 /// Words of a point.
 const POINT_WORDS: usize = size_of::<ConstraintPoint>() / 16;
-// `lanes.wgsl` names the header's five words and a point's nine (and `constraint_words` below
+// `lanes.wgsl` names the header's eight words and a point's four (and `constraint_words` below
 // fills them): a field added to either struct must be placed in both.
-const _: () = assert!(HEADER_WORDS == 5 && POINT_WORDS == 9);
+const _: () = assert!(HEADER_WORDS == 8 && POINT_WORDS == 4);
 
 /// 16 bytes of a constraint.
 pub type Word = [u32; 4];
@@ -99,7 +99,8 @@ fn lane(word: Word, lane: usize) -> f32 {
 
 /// What a constraint's accumulated impulses do to its bodies, summed over its points' rows in
 /// the sweeps' order (points 0 to count − 1; normal, then tangents): Σ d λ, and each side's
-/// Σ I⁻¹(r × d) λ. Body A's warm start adds `inverse_mass_a · linear` and `angular_a` to
+/// Σ I⁻¹(r × d) λ (the row by row products the sweeps apply, so that the sums round as close
+/// to them as a sum can). Body A's warm start adds `inverse_mass_a · linear` and `angular_a` to
 /// its velocities, B's subtracts `inverse_mass_b · linear` and `angular_b`. The device keeps
 /// them beside the constraint (`lanes.wgsl`: the rows' build and the PGS relax sweep write
 /// them), so that the warm start by body reads two words of each constraint instead of its
@@ -119,9 +120,10 @@ pub fn impulse_sums(constraint: &ContactConstraint) -> [Vec3; 3] {
             (p.tangent[1], tangents[1]),
         ];
         for (row, direction) in rows {
+            let (row_a, row_b) = constraint.angular(p.arms(direction));
             linear += direction * row.impulse;
-            angular_a += row.angular_a * row.impulse;
-            angular_b += row.angular_b * row.impulse;
+            angular_a += row_a * row.impulse;
+            angular_b += row_b * row.impulse;
         }
     }
     [linear, angular_a, angular_b]
@@ -139,15 +141,16 @@ fn constraint_words(constraint: &ContactConstraint) -> [Word; WORDS] {
     for (k, p) in constraint.points.iter().enumerate() {
         let [normal, tangent1, tangent2] = [p.normal, p.tangent[0], p.tangent[1]];
         let point = &mut words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
-        point[0] = word(normal.angular_a, normal.mass);
-        point[1] = word(normal.angular_b, tangent1.mass);
-        point[2] = word(tangent1.angular_a, tangent2.mass);
-        point[3] = word(tangent1.angular_b, p.approach_velocity);
-        point[4] = word(tangent2.angular_a, 0.0);
-        point[5] = word(tangent2.angular_b, 0.0);
-        point[6] = word(p.anchor_a, p.adjusted_separation);
-        point[7] = word(p.anchor_b, p.separation);
-        point[8] = [
+        point[0] = word(p.anchor_a, p.adjusted_separation);
+        point[1] = word(p.anchor_b, p.separation);
+        point[2] = [
+            normal.mass,
+            tangent1.mass,
+            tangent2.mass,
+            p.approach_velocity,
+        ]
+        .map(f32::to_bits);
+        point[3] = [
             normal.impulse,
             tangent1.impulse,
             tangent2.impulse,
@@ -169,19 +172,17 @@ fn from_words(words: &[Word; WORDS]) -> ContactConstraint {
     for (k, p) in constraint.points.iter_mut().enumerate().take(count) {
         let point = &words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
         let row = |r: usize| Row {
-            angular_a: xyz(point[2 * r]),
-            mass: lane(point[r], 3),
-            angular_b: xyz(point[2 * r + 1]),
-            impulse: lane(point[8], r),
+            mass: lane(point[2], r),
+            impulse: lane(point[3], r),
         };
         p.normal = row(0);
         p.tangent = [row(1), row(2)];
-        p.approach_velocity = lane(point[3], 3);
-        p.anchor_a = xyz(point[6]);
-        p.adjusted_separation = lane(point[6], 3);
-        p.anchor_b = xyz(point[7]);
-        p.separation = lane(point[7], 3);
-        p.max_normal_impulse = lane(point[8], 3);
+        p.anchor_a = xyz(point[0]);
+        p.adjusted_separation = lane(point[0], 3);
+        p.anchor_b = xyz(point[1]);
+        p.separation = lane(point[1], 3);
+        p.approach_velocity = lane(point[2], 3);
+        p.max_normal_impulse = lane(point[3], 3);
     }
     constraint
 }
@@ -201,16 +202,12 @@ pub fn with_lanes(source: Source) -> Source {
 mod tests {
     use super::*;
 
-    /// Constraint `index` with every byte telling which constraint and byte it is, but the
-    /// points' padding (which does not travel).
+    /// Constraint `index` with every byte telling which constraint and byte it is.
     fn numbered(index: usize) -> ContactConstraint {
         let mut constraint = ContactConstraint::default();
         let bytes: &mut [u8] = bytemuck::bytes_of_mut(&mut constraint);
         for (byte, value) in bytes.iter_mut().enumerate() {
             *value = (index * 7 + byte) as u8;
-        }
-        for point in &mut constraint.points {
-            point._pad = [0.0; 2];
         }
         constraint
     }

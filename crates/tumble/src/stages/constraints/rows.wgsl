@@ -65,32 +65,30 @@ fn flag(
     }
 }
 
-// R diag(inverse_inertia) Rᵀ: the world-frame inverse inertia (zero for static bodies).
-fn world_inverse_inertia(body: u32) -> mat3x3<f32> {
+// R diag(inverse_inertia) Rᵀ: the world-frame inverse inertia (zero for static bodies), by
+// its upper triangle (SymmetricMat3::from_upper).
+fn world_inverse_inertia(body: u32) -> SymmetricMat3 {
     let r = mat3_from_quat(poses[body].rotation);
     let d = masses[body].inverse_inertia;
     let scaled = mat3x3<f32>(r[0] * d.x, r[1] * d.y, r[2] * d.z);
-    return scaled * transpose(r);
+    let m = scaled * transpose(r);
+    return SymmetricMat3(vec3<f32>(m[0].x, m[1].y, m[2].z), vec3<f32>(m[1].x, m[2].x, m[2].y));
 }
 
+// The row along `direction` at a point with arms `r_a`, `r_b`: its effective mass 1/K.
 fn make_row(
     direction: vec3<f32>,
     r_a: vec3<f32>,
     r_b: vec3<f32>,
-    inertia_a: mat3x3<f32>,
-    inertia_b: mat3x3<f32>,
+    inertias: array<SymmetricMat3, 2>,
     inverse_masses: f32,
     impulse: f32,
 ) -> Row {
-    var row: Row;
     let arm_a = cross(r_a, direction);
     let arm_b = cross(r_b, direction);
-    row.angular_a = inertia_a * arm_a;
-    row.angular_b = inertia_b * arm_b;
-    let k = inverse_masses + dot3(arm_a, row.angular_a) + dot3(arm_b, row.angular_b);
-    row.mass = select(0.0, 1.0 / k, k > 0.0);
-    row.impulse = impulse;
-    return row;
+    let k = inverse_masses + dot3(arm_a, symmetric_mul(inertias[0], arm_a))
+        + dot3(arm_b, symmetric_mul(inertias[1], arm_b));
+    return Row(select(0.0, 1.0 / k, k > 0.0), impulse);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -133,8 +131,12 @@ fn build(
     constraints[lane_word(place, HEADER_MASSES)] = vec4<f32>(mass_b, softness.xyz);
     let center_a = poses[a].position;
     let center_b = poses[b].position;
-    let inertia_a = world_inverse_inertia(a);
-    let inertia_b = world_inverse_inertia(b);
+    let inertias = array<SymmetricMat3, 2>(world_inverse_inertia(a), world_inverse_inertia(b));
+    // Word by word, not in a loop: an array indexed by a loop variable goes to local memory.
+    let inertia = inertia_words(inertias[0], inertias[1]);
+    constraints[lane_word(place, HEADER_INERTIA)] = inertia[0];
+    constraints[lane_word(place, HEADER_INERTIA + 1u)] = inertia[1];
+    constraints[lane_word(place, HEADER_INERTIA + 2u)] = inertia[2];
     let va = velocities[a];
     let vb = velocities[b];
     // What the warm start applies, for the warm start by body (lanes.wgsl).
@@ -149,28 +151,28 @@ fn build(
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
         let masses_ab = mass_a + mass_b;
-        let n = make_row(normal, r_a, r_b, inertia_a, inertia_b, masses_ab, warm.normal);
-        let t1 = make_row(tangents[0], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[0]);
-        let t2 = make_row(tangents[1], r_a, r_b, inertia_a, inertia_b, masses_ab, warm.tangent[1]);
+        let n = make_row(normal, r_a, r_b, inertias, masses_ab, warm.normal);
+        let t1 = make_row(tangents[0], r_a, r_b, inertias, masses_ab, warm.tangent[0]);
+        let t2 = make_row(tangents[1], r_a, r_b, inertias, masses_ab, warm.tangent[1]);
         let approach = dot3(normal, va.linear - vb.linear)
             + dot3(cross(r_a, normal), va.angular) - dot3(cross(r_b, normal), vb.angular);
         let adjusted_separation = point.separation - dot3(normal, r_a - r_b);
         // The point's words (lanes.wgsl); the largest normal impulse so far is none.
-        constraints[point_word(place, i, 0u)] = vec4<f32>(n.angular_a, n.mass);
-        constraints[point_word(place, i, 1u)] = vec4<f32>(n.angular_b, t1.mass);
-        constraints[point_word(place, i, 2u)] = vec4<f32>(t1.angular_a, t2.mass);
-        constraints[point_word(place, i, 3u)] = vec4<f32>(t1.angular_b, approach);
-        constraints[point_word(place, i, 4u)] = vec4<f32>(t2.angular_a, 0.0);
-        constraints[point_word(place, i, 5u)] = vec4<f32>(t2.angular_b, 0.0);
         constraints[point_word(place, i, POINT_ANCHOR_A)] = vec4<f32>(r_a, adjusted_separation);
         constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
+        constraints[point_word(place, i, POINT_MASSES)] =
+            vec4<f32>(n.mass, t1.mass, t2.mass, approach);
         constraints[point_word(place, i, POINT_IMPULSES)] =
             vec4<f32>(n.impulse, t1.impulse, t2.impulse, 0.0);
-        sums = add_row(sums, normal, n.angular_a, n.angular_b, n.impulse);
-        sums = add_row(sums, tangents[0], t1.angular_a, t1.angular_b, t1.impulse);
-        sums = add_row(sums, tangents[1], t2.angular_a, t2.angular_b, t2.impulse);
+        sums = add_row(sums, normal, cross(r_a, normal), cross(r_b, normal), inertias,
+            n.impulse);
+        sums = add_row(sums, tangents[0], cross(r_a, tangents[0]), cross(r_b, tangents[0]),
+            inertias, t1.impulse);
+        sums = add_row(sums, tangents[1], cross(r_a, tangents[1]), cross(r_b, tangents[1]),
+            inertias, t2.impulse);
     }
-    constraints[lane_word(place, SUMS_WORD)] = vec4<f32>(sums[0], 0.0);
-    constraints[lane_word(place, SUMS_WORD + 1u)] = vec4<f32>(sums[1], mass_a);
-    constraints[lane_word(place, SUMS_WORD + 2u)] = vec4<f32>(sums[2], mass_b);
+    let sum_words = sums_words(sums, mass_a, mass_b);
+    constraints[lane_word(place, SUMS_WORD)] = sum_words[0];
+    constraints[lane_word(place, SUMS_WORD + 1u)] = sum_words[1];
+    constraints[lane_word(place, SUMS_WORD + 2u)] = sum_words[2];
 }

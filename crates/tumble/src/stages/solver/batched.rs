@@ -1,7 +1,7 @@
 //! The batches kept on the device when the rows, the batching and the solver all run on the GPU
 //! (`batched.wgsl`): the rows' constraints are gathered into batch order there, and after the
 //! solve only their accumulated impulses come back ([`BatchedImpulses`], 48 bytes a
-//! constraint), not the constraints (704 bytes each on the device, twice: down for the
+//! constraint), not the constraints (432 bytes each on the device, twice: down for the
 //! layout, up for the solve).
 //!
 //! The host still sends the order (a counting sort of the colors it read back, the same

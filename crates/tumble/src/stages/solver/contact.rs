@@ -2,37 +2,37 @@
 
 use super::{BodyAccess, SolverBody, Sweep, bias_terms};
 use crate::math::Vec3;
-use crate::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
+use crate::stages::constraints::ContactConstraint;
 
-/// How fast A moves away from B along `direction` at `point` (m/s).
+/// How fast A moves away from B along `direction` at a point with moments `(r_a × d, r_b × d)`
+/// (m/s).
 #[inline]
-fn row_velocity(point: &ConstraintPoint, direction: Vec3, a: &SolverBody, b: &SolverBody) -> f32 {
-    let (arm_a, arm_b) = point.arms(direction);
+fn row_velocity(
+    direction: Vec3,
+    (arm_a, arm_b): (Vec3, Vec3),
+    a: &SolverBody,
+    b: &SolverBody,
+) -> f32 {
     direction.dot(a.linear_velocity - b.linear_velocity) + arm_a.dot(a.angular_velocity)
         - arm_b.dot(b.angular_velocity)
 }
 
-/// Inverse masses of a constraint's two bodies (1/kg).
-#[derive(Clone, Copy)]
-struct InverseMasses {
-    a: f32,
-    b: f32,
-}
-
-/// Applies `impulse` along a row: +impulse to A, −impulse to B.
+/// Applies `impulse` along a row of direction `direction` and moments `arms` of `c`: +impulse
+/// to A, −impulse to B.
 #[inline]
 fn apply(
-    row: &Row,
+    c: &ContactConstraint,
     direction: Vec3,
+    arms: (Vec3, Vec3),
     impulse: f32,
-    masses: InverseMasses,
     a: &mut SolverBody,
     b: &mut SolverBody,
 ) {
-    a.linear_velocity += direction * (impulse * masses.a);
-    a.angular_velocity += row.angular_a * impulse;
-    b.linear_velocity -= direction * (impulse * masses.b);
-    b.angular_velocity -= row.angular_b * impulse;
+    let (angular_a, angular_b) = c.angular(arms);
+    a.linear_velocity += direction * (impulse * c.inverse_mass_a);
+    a.angular_velocity += angular_a * impulse;
+    b.linear_velocity -= direction * (impulse * c.inverse_mass_b);
+    b.angular_velocity -= angular_b * impulse;
 }
 
 pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
@@ -45,15 +45,15 @@ pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
 /// [`warm_start`] on the bodies `a` and `b` of `c`, wherever they come from (the Jacobi sweep
 /// passes copies).
 pub(super) fn warm_start_pair(c: &ContactConstraint, a: &mut SolverBody, b: &mut SolverBody) {
-    let masses = InverseMasses {
-        a: c.inverse_mass_a,
-        b: c.inverse_mass_b,
-    };
-    let tangents = c.tangents();
+    let [t1, t2] = c.tangents();
     for point in &c.points[..c.point_count as usize] {
-        apply(&point.normal, c.normal, point.normal.impulse, masses, a, b);
-        for (row, direction) in point.tangent.iter().zip(tangents) {
-            apply(row, direction, row.impulse, masses, a, b);
+        let rows = [
+            (c.normal, point.normal),
+            (t1, point.tangent[0]),
+            (t2, point.tangent[1]),
+        ];
+        for (direction, row) in rows {
+            apply(c, direction, point.arms(direction), row.impulse, a, b);
         }
     }
 }
@@ -73,14 +73,11 @@ pub(super) fn solve_contact_pair(
     b: &mut SolverBody,
 ) {
     let n = c.normal;
-    let masses = InverseMasses {
-        a: c.inverse_mass_a,
-        b: c.inverse_mass_b,
-    };
     let count = c.point_count as usize;
     let displacement =
         |body: &SolverBody, anchor: Vec3| body.delta_position + body.delta_rotation * anchor;
-    for point in &mut c.points[..count] {
+    for k in 0..count {
+        let point = &mut c.points[k];
         // Current separation from the bodies' motion during the step (the Jacobian stays fixed),
         // or the one kept from the last sweep when the bodies have not moved since.
         if sweep.moved {
@@ -90,22 +87,25 @@ pub(super) fn solve_contact_pair(
         let separation = point.separation;
         let (bias, mass_scale, impulse_scale) = bias_terms(separation, c.softness, sweep);
         // Non-penetration: normal velocity ≥ −bias, accumulated impulse ≥ 0.
-        let velocity = row_velocity(point, n, a, b);
-        let row = &point.normal;
+        let arms = point.arms(n);
+        let velocity = row_velocity(n, arms, a, b);
+        let row = &mut point.normal;
         let impulse = -row.mass * mass_scale * (velocity + bias) - impulse_scale * row.impulse;
         let total = (row.impulse + impulse).max(0.0);
         let delta = total - row.impulse;
-        point.normal.impulse = total;
+        row.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(&point.normal, n, delta, masses, a, b);
+        apply(c, n, arms, delta, a, b);
     }
     // Friction: both tangent rows from the same velocities, then the impulse clamped to the
     // friction circle |λ_t| ≤ μ λ_n (clamping each row alone would allow √2 μ λ_n diagonally).
     let friction = c.friction;
     let [t1, t2] = c.tangents();
-    for point in &mut c.points[..count] {
-        let (velocity1, velocity2) = (row_velocity(point, t1, a, b), row_velocity(point, t2, a, b));
-        let [row1, row2] = &mut point.tangent;
+    for k in 0..count {
+        let point = c.points[k];
+        let (arms1, arms2) = (point.arms(t1), point.arms(t2));
+        let (velocity1, velocity2) = (row_velocity(t1, arms1, a, b), row_velocity(t2, arms2, a, b));
+        let [row1, row2] = point.tangent;
         let want1 = row1.impulse - velocity1 * row1.mass;
         let want2 = row2.impulse - velocity2 * row2.mass;
         let limit = friction * point.normal.impulse;
@@ -116,10 +116,10 @@ pub(super) fn solve_contact_pair(
             1.0
         };
         let (total1, total2) = (want1 * scale, want2 * scale);
-        apply(row1, t1, total1 - row1.impulse, masses, a, b);
-        apply(row2, t2, total2 - row2.impulse, masses, a, b);
-        row1.impulse = total1;
-        row2.impulse = total2;
+        apply(c, t1, arms1, total1 - row1.impulse, a, b);
+        apply(c, t2, arms2, total2 - row2.impulse, a, b);
+        c.points[k].tangent[0].impulse = total1;
+        c.points[k].tangent[1].impulse = total2;
     }
 }
 
@@ -144,23 +144,21 @@ pub(super) fn restitution_pair(
         return;
     }
     let n = c.normal;
-    let masses = InverseMasses {
-        a: c.inverse_mass_a,
-        b: c.inverse_mass_b,
-    };
     let restitution = c.restitution;
-    for point in &mut c.points[..c.point_count as usize] {
+    for k in 0..c.point_count as usize {
+        let point = &mut c.points[k];
         if point.approach_velocity > -threshold || point.max_normal_impulse == 0.0 {
             continue;
         }
-        let velocity = row_velocity(point, n, a, b);
-        let row = &point.normal;
+        let arms = point.arms(n);
+        let velocity = row_velocity(n, arms, a, b);
+        let row = &mut point.normal;
         let total =
             (row.impulse - (velocity + restitution * point.approach_velocity) * row.mass).max(0.0);
         let delta = total - row.impulse;
-        point.normal.impulse = total;
+        row.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(&point.normal, n, delta, masses, a, b);
+        apply(c, n, arms, delta, a, b);
     }
 }
 
@@ -168,6 +166,7 @@ pub(super) fn restitution_pair(
 mod tests {
     use super::*;
     use crate::collision::dbvt::tests::TestRng;
+    use crate::math::SymmetricMat3;
     use crate::stages::constraints::lanes::impulse_sums;
 
     /// The device's warm start by body applies a constraint's impulse sums; the batch sweeps
@@ -186,11 +185,17 @@ mod tests {
                 inverse_mass_b: rng.range(0.0, 2.0),
                 ..ContactConstraint::default()
             };
+            let inertia = |rng: &mut TestRng| SymmetricMat3 {
+                diagonal: rng.vec3(0.0, 2.0),
+                off_diagonal: rng.vec3(-0.5, 0.5),
+            };
+            c.inverse_inertia_a = inertia(&mut rng);
+            c.inverse_inertia_b = inertia(&mut rng);
             for point in &mut c.points[..c.point_count as usize] {
+                point.anchor_a = rng.vec3(-1.0, 1.0);
+                point.anchor_b = rng.vec3(-1.0, 1.0);
                 let [tangent1, tangent2] = &mut point.tangent;
                 for row in [&mut point.normal, tangent1, tangent2] {
-                    row.angular_a = rng.vec3(-1.0, 1.0);
-                    row.angular_b = rng.vec3(-1.0, 1.0);
                     row.impulse = rng.range(-3.0, 3.0);
                 }
             }

@@ -67,24 +67,29 @@ fn store_body(index: u32, body: SolverBody) {
 // tests/engine/gpu_solver.rs in 401 s instead of 1.9 s.
 alias BodyPair = array<SolverBody, 2>;
 
-// How fast A moves away from B along `direction` at a point with arms `anchor_a` and
-// `anchor_b` (m/s). The rows keep no r × d: two cross products here cost less than reading
-// them (the constraint is 704 bytes, its impulse sums included, instead of 1088).
-fn row_velocity(direction: vec3<f32>, anchor_a: vec3<f32>, anchor_b: vec3<f32>, pair: BodyPair)
-    -> f32 {
-    return dot(direction, pair[0].linear_velocity - pair[1].linear_velocity)
-        + dot(cross(anchor_a, direction), pair[0].angular_velocity)
-        - dot(cross(anchor_b, direction), pair[1].angular_velocity);
+// The moments of a row's direction d at a point, r × d for each side: [0] A's, [1] B's.
+alias Arms = array<vec3<f32>, 2>;
+
+fn arms_of(point: PointRows, direction: vec3<f32>) -> Arms {
+    return Arms(cross(point.anchor_a, direction), cross(point.anchor_b, direction));
 }
 
-// `impulse` along a row: +impulse to A, −impulse to B.
-fn apply(row: Row, direction: vec3<f32>, impulse: f32, mass_a: f32, mass_b: f32,
-         pair: BodyPair) -> BodyPair {
+// How fast A moves away from B along `direction` at a point with moments `arms` (m/s).
+fn row_velocity(direction: vec3<f32>, arms: Arms, pair: BodyPair) -> f32 {
+    return dot(direction, pair[0].linear_velocity - pair[1].linear_velocity)
+        + dot(arms[0], pair[0].angular_velocity) - dot(arms[1], pair[1].angular_velocity);
+}
+
+// `impulse` along a row of direction `direction` and moments `arms`: +impulse to A, −impulse
+// to B. The rows keep no I⁻¹(r × d): three multiply-adds a component cost less than reading
+// them (lanes.wgsl; contact.rs says why).
+fn apply(h: ConstraintHeader, direction: vec3<f32>, arms: Arms, impulse: f32, pair: BodyPair)
+    -> BodyPair {
     var out = pair;
-    out[0].linear_velocity += direction * (impulse * mass_a);
-    out[0].angular_velocity += row.angular_a * impulse;
-    out[1].linear_velocity -= direction * (impulse * mass_b);
-    out[1].angular_velocity -= row.angular_b * impulse;
+    out[0].linear_velocity += direction * (impulse * h.mass_a);
+    out[0].angular_velocity += symmetric_mul(h.inertias[0], arms[0]) * impulse;
+    out[1].linear_velocity -= direction * (impulse * h.mass_b);
+    out[1].angular_velocity -= symmetric_mul(h.inertias[1], arms[1]) * impulse;
     return out;
 }
 
@@ -99,21 +104,21 @@ fn apply(row: Row, direction: vec3<f32>, impulse: f32, mass_a: f32, mass_b: f32,
 // 100 µs instead of a few. The order of operations is the CPU's (contact.rs): points 0 to
 // count − 1, normal rows, then friction rows.
 
-// The rows and state of one point as the sweeps read and write them.
+// The rows and state of one point as the sweeps read and write them: its four words
+// (lanes.wgsl).
 struct PointRows {
-    normal: Row,
-    tangent1: Row,
-    tangent2: Row,
     anchor_a: vec3<f32>,
     adjusted_separation: f32,
     anchor_b: vec3<f32>,
     separation: f32,
-    max_normal_impulse: f32,
+    // The rows' masses: normal, tangent 1, tangent 2.
+    masses: vec3<f32>,
+    // The rows' impulses (normal, tangents) and the largest normal impulse.
+    impulses: vec4<f32>,
 }
 
 fn no_point() -> PointRows {
-    let row = Row(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0);
-    return PointRows(row, row, row, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, 0.0);
+    return PointRows(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec4<f32>(0.0));
 }
 
 // Body A, body B, the pair slot and the point count of constraint `index`.
@@ -121,32 +126,16 @@ fn load_ids(index: u32) -> vec4<u32> {
     return bitcast<vec4<u32>>(contacts[lane_word(index, HEADER_IDS)]);
 }
 
-// Row `row` (0: normal, 1, 2: the tangents) of point `k` of constraint `index`, from its
-// words (lanes.wgsl): angular_a, angular_b, the row's mass, and the point's impulses.
-fn point_row(index: u32, k: u32, row: u32, masses: vec4<f32>, impulses: vec4<f32>) -> Row {
-    let a = contacts[point_word(index, k, 2u * row)];
-    let b = contacts[point_word(index, k, 2u * row + 1u)];
-    return Row(a.xyz, masses[row], b.xyz, impulses[row]);
-}
-
-// The masses of point `k`'s rows, lanes 0..2 (the w of its first three words).
-fn point_masses(index: u32, k: u32) -> vec4<f32> {
-    return vec4<f32>(contacts[point_word(index, k, 0u)].w, contacts[point_word(index, k, 1u)].w,
-        contacts[point_word(index, k, 2u)].w, 0.0);
-}
-
 // Point `k` of constraint `index`, or no point past its count (then never used).
 fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     if k >= count {
         return no_point();
     }
-    let masses = point_masses(index, k);
-    let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
     let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)];
     let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)];
-    return PointRows(point_row(index, k, 0u, masses, impulses),
-        point_row(index, k, 1u, masses, impulses), point_row(index, k, 2u, masses, impulses),
-        anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, impulses.w);
+    let masses = contacts[point_word(index, k, POINT_MASSES)];
+    let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
+    return PointRows(anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, masses.xyz, impulses);
 }
 
 // Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal
@@ -156,7 +145,8 @@ fn store_impulses(index: u32, k: u32, normal: f32, tangent1: f32, tangent2: f32,
         vec4<f32>(normal, tangent1, tangent2, max_normal);
 }
 
-// Stores what a solve sweep changed of point `k`: its separation (when recomputed) and impulses.
+// Stores what a solve sweep changed of point `k`: its separation (when recomputed) and its
+// impulses.
 fn store_point(index: u32, k: u32, count: u32, point: PointRows) {
     if k >= count {
         return;
@@ -164,8 +154,7 @@ fn store_point(index: u32, k: u32, count: u32, point: PointRows) {
     if params.moved != 0u {
         contacts[point_word(index, k, POINT_ANCHOR_B)].w = point.separation;
     }
-    store_impulses(index, k, point.normal.impulse, point.tangent1.impulse,
-        point.tangent2.impulse, point.max_normal_impulse);
+    contacts[point_word(index, k, POINT_IMPULSES)] = point.impulses;
 }
 
 // The manifold-wide data of a constraint.
@@ -178,6 +167,8 @@ struct ConstraintHeader {
     friction: f32,
     restitution: f32,
     softness: Softness,
+    // The world-frame inverse inertias, A's and B's.
+    inertias: array<SymmetricMat3, 2>,
 }
 
 fn load_header(index: u32) -> ConstraintHeader {
@@ -185,8 +176,11 @@ fn load_header(index: u32) -> ConstraintHeader {
     let tangent1 = contacts[lane_word(index, HEADER_TANGENT1)];
     let tangent2 = contacts[lane_word(index, HEADER_TANGENT2)];
     let masses = contacts[lane_word(index, HEADER_MASSES)];
+    let inertias = inertias_of(array<vec4<f32>, 3>(contacts[lane_word(index, HEADER_INERTIA)],
+        contacts[lane_word(index, HEADER_INERTIA + 1u)],
+        contacts[lane_word(index, HEADER_INERTIA + 2u)]));
     return ConstraintHeader(normal.xyz, tangent1.xyz, tangent2.xyz, tangent2.w, masses.x,
-        normal.w, tangent1.w, Softness(masses.y, masses.z, masses.w));
+        normal.w, tangent1.w, Softness(masses.y, masses.z, masses.w), inertias);
 }
 
 fn warm_start_contact(index: u32) {
@@ -197,9 +191,10 @@ fn warm_start_contact(index: u32) {
 }
 
 fn warm_start_point(h: ConstraintHeader, point: PointRows, pair: BodyPair) -> BodyPair {
-    var out = apply(point.normal, h.normal, point.normal.impulse, h.mass_a, h.mass_b, pair);
-    out = apply(point.tangent1, h.tangent1, point.tangent1.impulse, h.mass_a, h.mass_b, out);
-    return apply(point.tangent2, h.tangent2, point.tangent2.impulse, h.mass_a, h.mass_b, out);
+    let impulses = point.impulses;
+    var out = apply(h, h.normal, arms_of(point, h.normal), impulses.x, pair);
+    out = apply(h, h.tangent1, arms_of(point, h.tangent1), impulses.y, out);
+    return apply(h, h.tangent2, arms_of(point, h.tangent2), impulses.z, out);
 }
 
 // The row functions take the two bodies and return them moved, wherever they come from: the
@@ -263,27 +258,29 @@ fn solve_normal(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Body
         (*point).separation = separation;
     }
     let terms = bias_terms(separation, h.softness);
-    let row = (*point).normal;
-    let velocity = row_velocity(h.normal, (*point).anchor_a, (*point).anchor_b, pair);
-    let impulse = -row.mass * terms.y * (velocity + terms.x) - terms.z * row.impulse;
-    let total = max(row.impulse + impulse, 0.0);
-    let delta = total - row.impulse;
-    (*point).normal.impulse = total;
-    (*point).max_normal_impulse = max((*point).max_normal_impulse, total);
-    return apply(row, h.normal, delta, h.mass_a, h.mass_b, pair);
+    let arms = arms_of(*point, h.normal);
+    let velocity = row_velocity(h.normal, arms, pair);
+    let mass = (*point).masses.x;
+    let old = (*point).impulses.x;
+    let impulse = -mass * terms.y * (velocity + terms.x) - terms.z * old;
+    let total = max(old + impulse, 0.0);
+    let delta = total - old;
+    (*point).impulses.x = total;
+    (*point).impulses.w = max((*point).impulses.w, total);
+    return apply(h, h.normal, arms, delta, pair);
 }
 
 // The bodies with one point's friction rows solved, clamped to the circle |λ_t| ≤ μ λ_n (see
 // contact.rs); `point` gets its new tangent impulses.
 fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: BodyPair)
     -> BodyPair {
-    let row1 = (*point).tangent1;
-    let row2 = (*point).tangent2;
-    let anchor_a = (*point).anchor_a;
-    let anchor_b = (*point).anchor_b;
-    let want1 = row1.impulse - row_velocity(h.tangent1, anchor_a, anchor_b, pair) * row1.mass;
-    let want2 = row2.impulse - row_velocity(h.tangent2, anchor_a, anchor_b, pair) * row2.mass;
-    let limit = h.friction * (*point).normal.impulse;
+    let arms1 = arms_of(*point, h.tangent1);
+    let arms2 = arms_of(*point, h.tangent2);
+    let old1 = (*point).impulses.y;
+    let old2 = (*point).impulses.z;
+    let want1 = old1 - row_velocity(h.tangent1, arms1, pair) * (*point).masses.y;
+    let want2 = old2 - row_velocity(h.tangent2, arms2, pair) * (*point).masses.z;
+    let limit = h.friction * (*point).impulses.x;
     let length_squared = want1 * want1 + want2 * want2;
     var scale = 1.0;
     if length_squared > limit * limit {
@@ -291,10 +288,10 @@ fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Bo
     }
     let total1 = want1 * scale;
     let total2 = want2 * scale;
-    var out = apply(row1, h.tangent1, total1 - row1.impulse, h.mass_a, h.mass_b, pair);
-    out = apply(row2, h.tangent2, total2 - row2.impulse, h.mass_a, h.mass_b, out);
-    (*point).tangent1.impulse = total1;
-    (*point).tangent2.impulse = total2;
+    var out = apply(h, h.tangent1, arms1, total1 - old1, pair);
+    out = apply(h, h.tangent2, arms2, total2 - old2, out);
+    (*point).impulses.y = total1;
+    (*point).impulses.z = total2;
     return out;
 }
 
@@ -349,21 +346,22 @@ fn solve_contact_pair(index: u32, start: BodyPair, store_sums: bool) -> BodyPair
         if count > 3u {
             sums = add_point(h, p3, sums);
         }
-        contacts[lane_word(index, SUMS_WORD)] = vec4<f32>(sums[0], 0.0);
-        contacts[lane_word(index, SUMS_WORD + 1u)] = vec4<f32>(sums[1], h.mass_a);
-        contacts[lane_word(index, SUMS_WORD + 2u)] = vec4<f32>(sums[2], h.mass_b);
+        let words = sums_words(sums, h.mass_a, h.mass_b);
+        contacts[lane_word(index, SUMS_WORD)] = words[0];
+        contacts[lane_word(index, SUMS_WORD + 1u)] = words[1];
+        contacts[lane_word(index, SUMS_WORD + 2u)] = words[2];
     }
     return pair;
 }
 
 // `sums` with a point's three rows, in the warm start's order.
 fn add_point(h: ConstraintHeader, point: PointRows, sums: ImpulseSums) -> ImpulseSums {
-    var out = add_row(sums, h.normal, point.normal.angular_a, point.normal.angular_b,
-        point.normal.impulse);
-    out = add_row(out, h.tangent1, point.tangent1.angular_a, point.tangent1.angular_b,
-        point.tangent1.impulse);
-    return add_row(out, h.tangent2, point.tangent2.angular_a, point.tangent2.angular_b,
-        point.tangent2.impulse);
+    let normal = arms_of(point, h.normal);
+    let tangent1 = arms_of(point, h.tangent1);
+    let tangent2 = arms_of(point, h.tangent2);
+    var out = add_row(sums, h.normal, normal[0], normal[1], h.inertias, point.impulses.x);
+    out = add_row(out, h.tangent1, tangent1[0], tangent1[1], h.inertias, point.impulses.y);
+    return add_row(out, h.tangent2, tangent2[0], tangent2[1], h.inertias, point.impulses.z);
 }
 
 fn restitution_contact(index: u32) {
@@ -385,20 +383,19 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     var pair = start;
     let count = load_ids(index).w;
     for (var k = 0u; k < count; k++) {
-        let approach = contacts[point_word(index, k, POINT_APPROACH)].w;
-        let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
-        let max_impulse = impulses.w;
-        if approach > -params.restitution_threshold || max_impulse == 0.0 {
+        let point = load_point(index, k, count);
+        let approach = contacts[point_word(index, k, POINT_MASSES)].w;
+        let impulses = point.impulses;
+        if approach > -params.restitution_threshold || impulses.w == 0.0 {
             continue;
         }
-        let row = point_row(index, k, 0u, point_masses(index, k), impulses);
-        let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)].xyz;
-        let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)].xyz;
-        let velocity = row_velocity(h.normal, anchor_a, anchor_b, pair);
-        let total = max(row.impulse - (velocity + h.restitution * approach) * row.mass, 0.0);
-        let delta = total - row.impulse;
-        store_impulses(index, k, total, impulses.y, impulses.z, max(max_impulse, total));
-        pair = apply(row, h.normal, delta, h.mass_a, h.mass_b, pair);
+        let arms = arms_of(point, h.normal);
+        let velocity = row_velocity(h.normal, arms, pair);
+        let total = max(impulses.x - (velocity + h.restitution * approach) * point.masses.x,
+            0.0);
+        let delta = total - impulses.x;
+        store_impulses(index, k, total, impulses.y, impulses.z, max(impulses.w, total));
+        pair = apply(h, h.normal, arms, delta, pair);
     }
     return pair;
 }
