@@ -8,9 +8,12 @@
 # NAME (say `base`, or a variant's name) makes .devbin/tumble-NAME.gz and
 # .devbin/kernel_stats-NAME.gz, so that several builds travel in one call for an A/B (BINS in
 # pile-on-device.sh and device-check.sh); without it, .devbin/tumble.gz and the commit.
-# COMMIT builds that commit instead of the working tree, in a git worktree under /tmp that
-# shares this checkout's target directory (only the crates that differ build again), so
-# that each of a series of commits can be timed alone.
+# COMMIT builds that commit instead of the working tree, in a git worktree under /tmp with a
+# target directory of its own under this checkout's (target/worktree; only the crates that
+# differ build again from one commit to the next), so that each of a series of commits can be
+# timed alone. Not this checkout's target directory: cargo keeps a binary it finds fresh
+# where it is, so a working-tree build after a worktree's could leave the worktree's binary
+# in target/release (it did, in session 22: a kernel_stats build without its change).
 # Gzipped, a build is 6.6 MB instead of 16 (and kernel_stats 3.2 MB): five fit in the 64 MiB
 # a call carries. NO_STATS=1 leaves kernel_stats out, for calls that carry more builds.
 set -euo pipefail
@@ -20,6 +23,7 @@ target=${CARGO_TARGET_DIR:-$root/target}
 suffix=${1:+-$1}
 source_dir=$root
 if [ -n "${2:-}" ]; then
+  target=$target/worktree
   source_dir=/tmp/devbin-$(git rev-parse --short "$2")
   if [ ! -d "$source_dir" ]; then
     git worktree add --detach "$source_dir" "$2" > /dev/null
