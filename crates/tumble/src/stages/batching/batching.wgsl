@@ -157,13 +157,30 @@ fn claim_constraint(i: u32, round: u32) {
     }
 }
 
+// The claim dispatch's threads cover the constraints and the bodies: thread `i` claims for
+// constraint i and clears body i's locks in the half round + 1 claims, which no kernel of this
+// round reads or writes (round − 1's commit was the last to read it). Body by body and
+// coalesced, once a body: each commit cleared its bodies' slots instead, a body's once for
+// each of its constraints still unbatched (about five a box on a pile), with scattered stores.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn claim(
     @builtin(local_invocation_id) id: vec3<u32>,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    claim_one(thread_index(id, workgroup, groups), params.round);
+    let i = thread_index(id, workgroup, groups);
+    claim_one(i, params.round);
+    if i < params.body_count && !all_batched() {
+        let next_half = params.body_count - (params.round % 2u) * params.body_count;
+        clear_locks(next_half, i);
+    }
+}
+
+// Body `body`'s locks in the half that starts at body `half`: free for the next round's claims.
+fn clear_locks(half: u32, body: u32) {
+    for (var slot = 0u; slot < LOCK_SLOTS; slot++) {
+        atomicStore(&locks[(half + body) * LOCK_SLOTS + slot], NO_LOCK);
+    }
 }
 
 // The lowest color in neither mask, or MAX_COLORS when all 64 are taken.
@@ -178,10 +195,13 @@ fn lowest_free_color(used: vec2<u32>) -> u32 {
 }
 
 // Round `round`'s commit by constraint `i`: batched, with its tentative color, when it holds
-// all its bodies' locks for that color. Winners on one body have different colors.
-fn commit_one(i: u32, round: u32) {
+// all its bodies' locks for that color (whether it did is returned; the caller counts it in
+// `tally.batched`). Winners on one body have different colors. With `clear_next`, it clears
+// its bodies' locks in the next round's half (`rest_rounds`, whose rounds have no claim
+// dispatch to do it).
+fn commit_one(i: u32, round: u32, clear_next: bool) -> bool {
     if all_batched() || i >= tally.count || colors[i] != UNBATCHED {
-        return;
+        return false;
     }
     let half = (round % 2u) * params.body_count;
     let next_half = params.body_count - half;
@@ -192,14 +212,13 @@ fn commit_one(i: u32, round: u32) {
     for (var k = 0u; k < 2u; k++) {
         if pair[k] != STATIC_BODY {
             won = won && atomicLoad(&locks[lock_index(half, pair[k], color)]) == p;
-            // Next round's claims on this body may take any slot.
-            for (var slot = 0u; slot < LOCK_SLOTS; slot++) {
-                atomicStore(&locks[(next_half + pair[k]) * LOCK_SLOTS + slot], NO_LOCK);
+            if clear_next {
+                clear_locks(next_half, pair[k]);
             }
         }
     }
     if !won {
-        return;
+        return false;
     }
     // Both batchers record each body's colors: the colors batcher chooses by them, and the
     // solver's warm start finds a body's constraints by them (`adjacency.wgsl`).
@@ -211,8 +230,13 @@ fn commit_one(i: u32, round: u32) {
         }
     }
     colors[i] = color;
-    atomicAdd(&tally.batched, 1u);
+    return true;
 }
+
+// The commit's winners of one workgroup, added to `tally.batched` once: a global atomic a
+// winner made the commits of a pile's first rounds wait on one address (hundreds of thousands
+// of adds on it a round).
+var<workgroup> group_batched: atomic<u32>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn commit(
@@ -220,7 +244,27 @@ fn commit(
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    commit_one(thread_index(id, workgroup, groups), params.round);
+    if id.x == 0u {
+        atomicStore(&group_batched, 0u);
+    }
+    workgroupBarrier();
+    if commit_one(thread_index(id, workgroup, groups), params.round, false) {
+        atomicAdd(&group_batched, 1u);
+    }
+    workgroupBarrier();
+    if id.x == 0u {
+        let won = atomicLoad(&group_batched);
+        if won > 0u {
+            atomicAdd(&tally.batched, won);
+        }
+    }
+}
+
+// Constraint `i`'s commit in `rest_rounds`, counted at once (one workgroup: few adds).
+fn commit_and_count(i: u32, round: u32) {
+    if commit_one(i, round, true) {
+        atomicAdd(&tally.batched, 1u);
+    }
 }
 
 var<workgroup> rest_done: u32;
@@ -289,7 +333,7 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
         }
         storageBarrier();
         for (var j = local; j < listed; j += WORKGROUP_SIZE) {
-            commit_one(rest_list[j], round);
+            commit_and_count(rest_list[j], round);
         }
         storageBarrier();
     }
@@ -309,7 +353,7 @@ fn rest_rounds_over_all(local: u32) {
         }
         storageBarrier();
         for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
-            commit_one(i, round);
+            commit_and_count(i, round);
         }
         storageBarrier();
     }

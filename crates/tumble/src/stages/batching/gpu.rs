@@ -252,7 +252,8 @@ impl GpuBatching {
         let start_groups = workgroups_for(capacity.max(body_count), WORKGROUP_SIZE);
         let mut rounds = vec![start.dispatch(bind(&start, 0), start_groups)];
         for round in 0..MAX_ROUNDS {
-            rounds.push(claim.dispatch(bind(&claim, round), groups));
+            // A thread a constraint and a body (the claims clear the bodies' next locks).
+            rounds.push(claim.dispatch(bind(&claim, round), start_groups));
             rounds.push(commit.dispatch(bind(&commit, round), groups));
         }
         Dispatches {
