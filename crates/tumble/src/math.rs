@@ -166,8 +166,8 @@ pub fn tangent_basis(n: Vec3) -> (Vec3, Vec3) {
 
 /// A symmetric 3×3 matrix by its six distinct entries: a body's world-frame inverse inertia
 /// in 24 bytes instead of [`Mat3`]'s 36. The contact rows keep both bodies' (see
-/// `stages::constraints::contact`), and WGSL's twin is `array<vec3<f32>, 2>`
-/// (`contact_constraint.wgsl`), multiplied in the same order.
+/// `stages::constraints::contact`), and WGSL's twin is `array<vec3<f32>, 2>` (`lanes.wgsl`),
+/// multiplied in the same order.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SymmetricMat3 {

@@ -68,8 +68,8 @@ pub fn lay_out(constraints: &[ContactConstraint], words: &mut Vec<Word>) {
     }
 }
 
-/// The constraints `words` holds back into `constraints` (as many as it has; the points'
-/// padding comes back zero).
+/// The constraints `words` holds back into `constraints` (as many as it has; the points past
+/// each one's count come back zero).
 pub fn read_back(words: &[Word], constraints: &mut [ContactConstraint]) {
     for (index, constraint) in constraints.iter_mut().enumerate() {
         let mut own = [[0; 4]; WORDS];

@@ -33,8 +33,9 @@ const POINT_ANCHOR_B: u32 = 1u;
 const POINT_MASSES: u32 = 2u;
 const POINT_IMPULSES: u32 = 3u;
 
-// math.rs's SymmetricMat3: [0] the diagonal (xx, yy, zz), [1] the rest (xy, xz, yz). An array,
-// not a struct: WGSL would pad each vec3 of a struct to 16 bytes.
+// math.rs's SymmetricMat3: [0] the diagonal (xx, yy, zz), [1] the rest (xy, xz, yz). It lives
+// in registers; in memory its 24 bytes are packed into the header's words (`inertias_of`).
+// An array, not a struct: no struct without a Rust twin of the same layout (as ImpulseSums).
 alias SymmetricMat3 = array<vec3<f32>, 2>;
 
 // SymmetricMat3::mul_vec3, in its order.

@@ -10,7 +10,8 @@
 
 // Constraint `index`'s warm start on its side `side` (0: A, 1: B), the body of that side:
 // the impulse sums the rows' build or the last relax sweep left (lanes.wgsl), two words where
-// the rows are two words a point and five of the header. The constraints come in any order
+// applying the rows to one side would read two a point (its anchor, the impulses) and five or
+// six of the header (the directions, its inertia, its mass). The constraints come in any order
 // here, a thread reading words of 32 different blocks, so each word read is a sector of its
 // own. The sums round differently from the rows applied one by one (the batch sweeps' warm
 // start, the CPU's).
