@@ -423,15 +423,11 @@ fn contact_constraint_structs_match_rust() {
 /// The Rust layouts of `contact_constraint.wgsl`'s structs, which the solver includes.
 fn contact_constraint_layouts() -> Vec<Layout> {
     use tumble::pipeline::config::Softness;
-    use tumble::stages::constraints::Row;
-    vec![
-        rust_layout!(Softness {
-            bias_rate,
-            mass_scale,
-            impulse_scale
-        }),
-        rust_layout!(Row { mass, impulse }),
-    ]
+    vec![rust_layout!(Softness {
+        bias_rate,
+        mass_scale,
+        impulse_scale
+    })]
 }
 
 #[test]
@@ -544,13 +540,7 @@ fn batched_impulses_match_rust() {
             }),
             rust_layout!(BatchedJointImpulses { point, angular }),
         ],
-        &[
-            "Softness",
-            "Row",
-            "JointFrame",
-            "JointConstraint",
-            "JointSlot",
-        ],
+        &["Softness", "JointFrame", "JointConstraint", "JointSlot"],
     );
 }
 
@@ -559,11 +549,7 @@ fn batched_impulses_match_rust() {
 #[test]
 fn pair_impulses_structs_match_rust() {
     use tumble::stages::solver::batched::pair_impulses_wgsl;
-    check_with_gpu_only(
-        pair_impulses_wgsl(),
-        pair_contact_layouts(),
-        &["Softness", "Row"],
-    );
+    check_with_gpu_only(pair_impulses_wgsl(), pair_contact_layouts(), &["Softness"]);
 }
 
 /// The parameter block of the body kernels (the solver bodies' preparation and the
@@ -586,7 +572,6 @@ fn body_kernel_parameters_match_rust() {
                 "BodyMass",
                 "ColliderData",
                 "Softness",
-                "Row",
                 "SolverBody",
             ],
         );
@@ -613,7 +598,6 @@ fn joint_row_parameters_match_rust() {
             "BodyMass",
             "ColliderData",
             "Softness",
-            "Row",
             "JointFrame",
             "JointConstraint",
             "JointSlot",
@@ -649,7 +633,6 @@ fn row_and_batching_parameters_match_rust() {
             "ManifoldCache",
             "PairContact",
             "Softness",
-            "Row",
         ],
     );
     // Tally is three u32 words on the host ([u32; 3]: batched, count, rounds).

@@ -11,12 +11,14 @@
 //!   v_a += d Δλ/m_a,  ω_a += I_a⁻¹(r_a × d) Δλ,  v_b −= d Δλ/m_b,  ω_b −= I_b⁻¹(r_b × d) Δλ
 //! ```
 //!
-//! A constraint keeps both bodies' world-frame inverse inertias (symmetric, 24 bytes each) and
-//! each row only its `1/K` and impulse; a sweep computes `r × d` from the point's arms and
-//! `I⁻¹(r × d)` from the inertia. Storing `I⁻¹(r × d)` per row instead (as Bullet's solver
-//! does) was 24 bytes a row, 72 a point: the sweeps, bound by what they load, read a two-point
-//! constraint in 16 words instead of 23, and a thread holds a point in 15 floats instead of 33
-//! (the solve kernel's registers limit how many warps a multiprocessor runs). The Jacobians are fixed at
+//! A constraint keeps both bodies' world-frame inverse inertias (symmetric, 24 bytes each). On
+//! the device a row is only its `1/K` and impulse: a sweep computes `r × d` from the point's
+//! arms and `I⁻¹(r × d)` from the inertia. Storing `I⁻¹(r × d)` per row there (as Bullet's
+//! solver does) was 24 bytes a row, 72 a point: the sweeps, bound by what they load, read a
+//! two-point constraint in 16 words instead of 23 (on an H100 the pile's sweeps took 2.60 ms
+//! a step instead of 2.85). The CPU keeps each row's `I⁻¹(r × d)` (`Row::angular_a`, computed
+//! by the same expression): its sweeps run from the cache and are bound by arithmetic, and
+//! computing it in every sweep made them 12% slower. The Jacobians are fixed at
 //! the start of the step (Box2D v3 does the same across its sub-steps); only the separation is
 //! tracked through the sub-steps, from the bodies' delta positions and rotations:
 //!
@@ -42,18 +44,24 @@ use crate::stages::pairs::pair_bodies;
 // tests/engine/gpu_layout.rs). Each vec3 shares its 16 bytes with a scalar (`anchor_a` +
 // `adjusted_separation`, ...) instead of padding wherever a scalar can fill the slot.
 
-/// One scalar constraint direction `d` at one contact point. 8 bytes.
+/// One scalar constraint direction `d` at one contact point. 32 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Row {
+    /// I_a⁻¹ (r_a × d), world frame: [`ContactConstraint::angular`] of the row's arms, kept
+    /// for the CPU's sweeps only. The device does not store it (see the module docs); its
+    /// read-back computes it again.
+    pub angular_a: Vec3,
     /// Effective mass 1/K (kg).
     pub mass: f32,
+    /// I_b⁻¹ (r_b × d), world frame, as `angular_a`.
+    pub angular_b: Vec3,
     /// Accumulated impulse (N·s).
     pub impulse: f32,
 }
-const _: () = assert!(size_of::<Row>() == 8);
+const _: () = assert!(size_of::<Row>() == 32);
 
-/// Rows and solver inputs of one contact point. 64 bytes.
+/// Rows and solver inputs of one contact point. 144 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ConstraintPoint {
@@ -72,8 +80,9 @@ pub struct ConstraintPoint {
     /// Largest normal impulse applied this step (N·s): restitution applies only to points
     /// that actually pushed.
     pub max_normal_impulse: f32,
+    pub _pad: [f32; 2],
 }
-const _: () = assert!(size_of::<ConstraintPoint>() == 64);
+const _: () = assert!(size_of::<ConstraintPoint>() == 144);
 
 impl ConstraintPoint {
     /// `r_a × d` and `r_b × d`, the arms' moments along `direction`.
@@ -87,7 +96,7 @@ impl ConstraintPoint {
 }
 
 /// The rows of one manifold: up to 4 points sharing a normal, bodies and material.
-/// 384 bytes.
+/// 704 bytes here, 432 on the device (`lanes.rs`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ContactConstraint {
@@ -114,7 +123,7 @@ pub struct ContactConstraint {
     pub inverse_inertia_b: SymmetricMat3,
     pub points: [ConstraintPoint; 4],
 }
-const _: () = assert!(size_of::<ContactConstraint>() == 384);
+const _: () = assert!(size_of::<ContactConstraint>() == 704);
 
 impl ContactConstraint {
     /// The two friction directions, in the order of the points' `tangent` rows.
@@ -268,7 +277,9 @@ fn build_constraint(
             let (angular_a, angular_b) = constraint.angular(arms);
             let k = mass_a + mass_b + arms.0.dot(angular_a) + arms.1.dot(angular_b);
             Row {
+                angular_a,
                 mass: if k > 0.0 { 1.0 / k } else { 0.0 },
+                angular_b,
                 impulse,
             }
         };

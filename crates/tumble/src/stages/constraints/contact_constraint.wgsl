@@ -1,7 +1,7 @@
-// Contact rows as the kernels hold them: the twins of Softness (pipeline/config.rs) and Row
-// (stages/constraints/contact.rs), whose docs give each field's meaning and unit
-// (tests/engine/gpu_layout.rs checks that the layouts agree). A ContactConstraint lies in device
-// memory as words in blocks of lanes (lanes.wgsl), not as a struct.
+// Contact rows as the kernels hold them: the twin of Softness (pipeline/config.rs), whose docs
+// give each field's meaning and unit (tests/engine/gpu_layout.rs checks that the layouts
+// agree). A ContactConstraint lies in device memory as words in blocks of lanes (lanes.wgsl),
+// not as a struct, and a row there is its mass and impulse alone (contact.rs says why).
 
 // Body index of a constraint's static side (STATIC_BODY in Rust).
 const STATIC_BODY: u32 = 0xffffffffu;
@@ -11,11 +11,4 @@ struct Softness {
     bias_rate: f32,
     mass_scale: f32,
     impulse_scale: f32,
-}
-
-// One scalar direction d at one point: 1/K and the impulse (the solver computes r × d from
-// the point's anchors, and I⁻¹(r × d) from the constraint's inverse inertias, lanes.wgsl).
-struct Row {
-    mass: f32,
-    impulse: f32,
 }

@@ -9,7 +9,7 @@
 //! constraints in 512 contiguous bytes. A constraint's words hold its fields as `lanes.wgsl`
 //! lists them: the header's in order, a point's arranged so that the four impulses a sweep
 //! writes share one word (one store instead of four). Laid out as an array of
-//! [`ContactConstraint`]s, the same access touched 32 cache lines 384 bytes apart: a memory instruction's worth of cache
+//! [`ContactConstraint`]s, the same access touched 32 cache lines 704 bytes apart: a memory instruction's worth of cache
 //! traffic 8 times over, on the loads that bound the solver's sweeps and the stores that bound
 //! the rows' build.
 //!
@@ -18,31 +18,29 @@
 //! in this layout (`rows.wgsl`), gathered into batch order in it (`gather_rows.wgsl`) and
 //! swept in it (`solver.wgsl`), all through `lanes.wgsl`'s index.
 
+use crate::collision::manifold::MAX_MANIFOLD_POINTS;
 use crate::gpu::kernel::Source;
 use crate::math::Vec3;
-use crate::stages::constraints::{ConstraintPoint, ContactConstraint, Row};
+use crate::stages::constraints::{ContactConstraint, Row};
 
 const WGSL: &str = include_str!("lanes.wgsl");
 
 /// Constraints a block: a warp of NVIDIA's, half a wave of AMD's, four of lavapipe's subgroups.
 pub const LANES: usize = 32;
-/// 16-byte words of a [`ContactConstraint`] as the struct has them.
-const STRUCT_WORDS: usize = size_of::<ContactConstraint>() / 16;
-/// Where the impulse sums lie, past the struct's words: see [`impulse_sums`].
-const SUMS_WORD: usize = STRUCT_WORDS;
-/// 16-byte words of a constraint on the device: the struct's, then the three of its
-/// [`impulse_sums`].
-pub const WORDS: usize = STRUCT_WORDS + 3;
-const _: () = assert!(size_of::<ContactConstraint>().is_multiple_of(16));
-const _: () = assert!(size_of::<ConstraintPoint>().is_multiple_of(16));
 const _: () = assert!(std::mem::offset_of!(ContactConstraint, points).is_multiple_of(16));
 /// Words of the header, which come in the struct's order.
 const HEADER_WORDS: usize = std::mem::offset_of!(ContactConstraint, points) / 16;
-/// Words of a point.
-const POINT_WORDS: usize = size_of::<ConstraintPoint>() / 16;
+/// Words of a point on the device: its fields but the rows' `I⁻¹(r × d)`, which the sweeps
+/// compute there (`Row::angular_a`).
+const POINT_WORDS: usize = 4;
+/// Where the impulse sums lie, past the points' words: see [`impulse_sums`].
+const SUMS_WORD: usize = HEADER_WORDS + MAX_MANIFOLD_POINTS * POINT_WORDS;
+/// 16-byte words of a constraint on the device: the header's, the points', then the three of
+/// its [`impulse_sums`].
+pub const WORDS: usize = SUMS_WORD + 3;
 // `lanes.wgsl` names the header's eight words and a point's four (and `constraint_words` below
 // fills them): a field added to either struct must be placed in both.
-const _: () = assert!(HEADER_WORDS == 8 && POINT_WORDS == 4);
+const _: () = assert!(HEADER_WORDS == 8 && WORDS == 27);
 
 /// 16 bytes of a constraint.
 pub type Word = [u32; 4];
@@ -120,10 +118,9 @@ pub fn impulse_sums(constraint: &ContactConstraint) -> [Vec3; 3] {
             (p.tangent[1], tangents[1]),
         ];
         for (row, direction) in rows {
-            let (row_a, row_b) = constraint.angular(p.arms(direction));
             linear += direction * row.impulse;
-            angular_a += row_a * row.impulse;
-            angular_b += row_b * row.impulse;
+            angular_a += row.angular_a * row.impulse;
+            angular_b += row.angular_b * row.impulse;
         }
     }
     [linear, angular_a, angular_b]
@@ -169,20 +166,29 @@ fn from_words(words: &[Word; WORDS]) -> ContactConstraint {
     let bytes: &mut [Word] = bytemuck::cast_slice_mut(std::slice::from_mut(&mut constraint));
     bytes[..HEADER_WORDS].copy_from_slice(&words[..HEADER_WORDS]);
     let count = constraint.point_count as usize;
+    // The header alone (its directions and inertias), for the rows' I⁻¹(r × d).
+    let header = constraint;
     for (k, p) in constraint.points.iter_mut().enumerate().take(count) {
         let point = &words[HEADER_WORDS + k * POINT_WORDS..][..POINT_WORDS];
-        let row = |r: usize| Row {
-            mass: lane(point[2], r),
-            impulse: lane(point[3], r),
-        };
-        p.normal = row(0);
-        p.tangent = [row(1), row(2)];
         p.anchor_a = xyz(point[0]);
         p.adjusted_separation = lane(point[0], 3);
         p.anchor_b = xyz(point[1]);
         p.separation = lane(point[1], 3);
         p.approach_velocity = lane(point[2], 3);
         p.max_normal_impulse = lane(point[3], 3);
+        let [t1, t2] = header.tangents();
+        let row = |r: usize, direction: Vec3| {
+            let (angular_a, angular_b) = header.angular(p.arms(direction));
+            Row {
+                angular_a,
+                mass: lane(point[2], r),
+                angular_b,
+                impulse: lane(point[3], r),
+            }
+        };
+        let normal = row(0, header.normal);
+        let tangent = [row(1, t1), row(2, t2)];
+        (p.normal, p.tangent) = (normal, tangent);
     }
     constraint
 }
@@ -201,15 +207,77 @@ pub fn with_lanes(source: Source) -> Source {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::stages::constraints::ConstraintPoint;
 
-    /// Constraint `index` with every byte telling which constraint and byte it is.
+    /// Constraint `index` with every byte telling which constraint and byte it is, but the
+    /// points' padding, which does not travel.
     fn numbered(index: usize) -> ContactConstraint {
         let mut constraint = ContactConstraint::default();
         let bytes: &mut [u8] = bytemuck::bytes_of_mut(&mut constraint);
         for (byte, value) in bytes.iter_mut().enumerate() {
             *value = (index * 7 + byte) as u8;
         }
+        for point in &mut constraint.points {
+            point._pad = [0.0; 2];
+        }
         constraint
+    }
+
+    /// `constraint` without its rows' I⁻¹(r × d), which do not travel either: the read-back
+    /// computes them from the header and the anchors (checked on finite values by
+    /// `the_rows_angular_terms_come_back_as_built`; from numbered bytes they are NaN as often
+    /// as not, whose payloads depend on how the compiler ordered the operands).
+    fn without_angular(mut constraint: ContactConstraint) -> ContactConstraint {
+        for point in &mut constraint.points {
+            let [tangent1, tangent2] = &mut point.tangent;
+            for row in [&mut point.normal, tangent1, tangent2] {
+                (row.angular_a, row.angular_b) = (Vec3::ZERO, Vec3::ZERO);
+            }
+        }
+        constraint
+    }
+
+    /// Random constraints with each row's I⁻¹(r × d) computed as the build does: the
+    /// read-back, which does not receive them, computes the same bits.
+    #[test]
+    fn the_rows_angular_terms_come_back_as_built() {
+        use crate::collision::dbvt::tests::TestRng;
+        use crate::math::SymmetricMat3;
+        let mut rng = TestRng::new(11);
+        let constraints: Vec<ContactConstraint> = (0..70)
+            .map(|index| {
+                let normal = rng.vec3(-1.0, 1.0).normalize();
+                let (tangent1, tangent2) = crate::math::tangent_basis(normal);
+                let mut inertia = || SymmetricMat3 {
+                    diagonal: rng.vec3(0.0, 2.0),
+                    off_diagonal: rng.vec3(-0.5, 0.5),
+                };
+                let mut c = ContactConstraint {
+                    point_count: index % 5,
+                    normal,
+                    tangent1,
+                    tangent2,
+                    inverse_inertia_a: inertia(),
+                    inverse_inertia_b: inertia(),
+                    ..ContactConstraint::default()
+                };
+                let header = c;
+                for point in &mut c.points[..c.point_count as usize] {
+                    (point.anchor_a, point.anchor_b) = (rng.vec3(-1.0, 1.0), rng.vec3(-1.0, 1.0));
+                    let [n, t1, t2] = [normal, tangent1, tangent2]
+                        .map(|direction| header.angular(point.arms(direction)));
+                    (point.normal.angular_a, point.normal.angular_b) = n;
+                    (point.tangent[0].angular_a, point.tangent[0].angular_b) = t1;
+                    (point.tangent[1].angular_a, point.tangent[1].angular_b) = t2;
+                }
+                c
+            })
+            .collect();
+        let mut words = Vec::new();
+        lay_out(&constraints, &mut words);
+        let mut back = vec![ContactConstraint::default(); constraints.len()];
+        read_back(&words, &mut back);
+        assert!(back == constraints);
     }
 
     #[test]
@@ -252,9 +320,10 @@ mod tests {
             let count = count as usize;
             // Bytes, not floats: the numbering makes some of them NaN.
             let bytes = |p: &[ConstraintPoint]| bytemuck::cast_slice::<_, u8>(p).to_vec();
-            assert!(bytes(&back[0].points[..count]) == bytes(&constraint.points[..count]));
+            let (back, constraint) = (without_angular(back[0]), without_angular(constraint));
+            assert!(bytes(&back.points[..count]) == bytes(&constraint.points[..count]));
             assert!(
-                back[0].points[count..]
+                back.points[count..]
                     .iter()
                     .all(|p| *p == ConstraintPoint::default()),
                 "{count} points"
@@ -272,7 +341,10 @@ mod tests {
             let mut back = vec![ContactConstraint::default(); count];
             read_back(&words, &mut back);
             // Bytes, not floats: the numbering makes some of them NaN.
-            let bytes = |c: &[ContactConstraint]| bytemuck::cast_slice::<_, u8>(c).to_vec();
+            let bytes = |c: &[ContactConstraint]| {
+                let c: Vec<_> = c.iter().copied().map(without_angular).collect();
+                bytemuck::cast_slice::<_, u8>(&c).to_vec()
+            };
             assert!(bytes(&back) == bytes(&constraints), "{count} constraints");
         }
     }

@@ -75,20 +75,19 @@ fn world_inverse_inertia(body: u32) -> SymmetricMat3 {
     return SymmetricMat3(vec3<f32>(m[0].x, m[1].y, m[2].z), vec3<f32>(m[1].x, m[2].x, m[2].y));
 }
 
-// The row along `direction` at a point with arms `r_a`, `r_b`: its effective mass 1/K.
-fn make_row(
+// The effective mass 1/K of the row along `direction` at a point with arms `r_a`, `r_b`.
+fn row_mass(
     direction: vec3<f32>,
     r_a: vec3<f32>,
     r_b: vec3<f32>,
     inertias: array<SymmetricMat3, 2>,
     inverse_masses: f32,
-    impulse: f32,
-) -> Row {
+) -> f32 {
     let arm_a = cross(r_a, direction);
     let arm_b = cross(r_b, direction);
     let k = inverse_masses + dot3(arm_a, symmetric_mul(inertias[0], arm_a))
         + dot3(arm_b, symmetric_mul(inertias[1], arm_b));
-    return Row(select(0.0, 1.0 / k, k > 0.0), impulse);
+    return select(0.0, 1.0 / k, k > 0.0);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -151,9 +150,9 @@ fn build(
         let r_a = point.position - center_a;
         let r_b = point.position - center_b;
         let masses_ab = mass_a + mass_b;
-        let n = make_row(normal, r_a, r_b, inertias, masses_ab, warm.normal);
-        let t1 = make_row(tangents[0], r_a, r_b, inertias, masses_ab, warm.tangent[0]);
-        let t2 = make_row(tangents[1], r_a, r_b, inertias, masses_ab, warm.tangent[1]);
+        let n = row_mass(normal, r_a, r_b, inertias, masses_ab);
+        let t1 = row_mass(tangents[0], r_a, r_b, inertias, masses_ab);
+        let t2 = row_mass(tangents[1], r_a, r_b, inertias, masses_ab);
         let approach = dot3(normal, va.linear - vb.linear)
             + dot3(cross(r_a, normal), va.angular) - dot3(cross(r_b, normal), vb.angular);
         let adjusted_separation = point.separation - dot3(normal, r_a - r_b);
@@ -161,15 +160,15 @@ fn build(
         constraints[point_word(place, i, POINT_ANCHOR_A)] = vec4<f32>(r_a, adjusted_separation);
         constraints[point_word(place, i, POINT_ANCHOR_B)] = vec4<f32>(r_b, point.separation);
         constraints[point_word(place, i, POINT_MASSES)] =
-            vec4<f32>(n.mass, t1.mass, t2.mass, approach);
+            vec4<f32>(n, t1, t2, approach);
         constraints[point_word(place, i, POINT_IMPULSES)] =
-            vec4<f32>(n.impulse, t1.impulse, t2.impulse, 0.0);
+            vec4<f32>(warm.normal, warm.tangent[0], warm.tangent[1], 0.0);
         sums = add_row(sums, normal, cross(r_a, normal), cross(r_b, normal), inertias,
-            n.impulse);
+            warm.normal);
         sums = add_row(sums, tangents[0], cross(r_a, tangents[0]), cross(r_b, tangents[0]),
-            inertias, t1.impulse);
+            inertias, warm.tangent[0]);
         sums = add_row(sums, tangents[1], cross(r_a, tangents[1]), cross(r_b, tangents[1]),
-            inertias, t2.impulse);
+            inertias, warm.tangent[1]);
     }
     let sum_words = sums_words(sums, mass_a, mass_b);
     constraints[lane_word(place, SUMS_WORD)] = sum_words[0];

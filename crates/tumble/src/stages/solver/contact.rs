@@ -2,7 +2,7 @@
 
 use super::{BodyAccess, SolverBody, Sweep, bias_terms};
 use crate::math::Vec3;
-use crate::stages::constraints::ContactConstraint;
+use crate::stages::constraints::{ContactConstraint, Row};
 
 /// How fast A moves away from B along `direction` at a point with moments `(r_a × d, r_b × d)`
 /// (m/s).
@@ -17,22 +17,22 @@ fn row_velocity(
         - arm_b.dot(b.angular_velocity)
 }
 
-/// Applies `impulse` along a row of direction `direction` and moments `arms` of `c`: +impulse
-/// to A, −impulse to B.
+/// Applies `impulse` along `row` of direction `direction` of `c`: +impulse to A, −impulse to
+/// B. The row's `I⁻¹(r × d)` is the one its build computed; the device computes the same
+/// product here (`solver.wgsl`'s `apply`).
 #[inline]
 fn apply(
     c: &ContactConstraint,
+    row: &Row,
     direction: Vec3,
-    arms: (Vec3, Vec3),
     impulse: f32,
     a: &mut SolverBody,
     b: &mut SolverBody,
 ) {
-    let (angular_a, angular_b) = c.angular(arms);
     a.linear_velocity += direction * (impulse * c.inverse_mass_a);
-    a.angular_velocity += angular_a * impulse;
+    a.angular_velocity += row.angular_a * impulse;
     b.linear_velocity -= direction * (impulse * c.inverse_mass_b);
-    b.angular_velocity -= angular_b * impulse;
+    b.angular_velocity -= row.angular_b * impulse;
 }
 
 pub(super) fn warm_start(access: BodyAccess, c: &mut ContactConstraint) {
@@ -53,7 +53,7 @@ pub(super) fn warm_start_pair(c: &ContactConstraint, a: &mut SolverBody, b: &mut
             (t2, point.tangent[1]),
         ];
         for (direction, row) in rows {
-            apply(c, direction, point.arms(direction), row.impulse, a, b);
+            apply(c, &row, direction, row.impulse, a, b);
         }
     }
 }
@@ -95,7 +95,8 @@ pub(super) fn solve_contact_pair(
         let delta = total - row.impulse;
         row.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(c, n, arms, delta, a, b);
+        let row = point.normal;
+        apply(c, &row, n, delta, a, b);
     }
     // Friction: both tangent rows from the same velocities, then the impulse clamped to the
     // friction circle |λ_t| ≤ μ λ_n (clamping each row alone would allow √2 μ λ_n diagonally).
@@ -116,8 +117,8 @@ pub(super) fn solve_contact_pair(
             1.0
         };
         let (total1, total2) = (want1 * scale, want2 * scale);
-        apply(c, t1, arms1, total1 - row1.impulse, a, b);
-        apply(c, t2, arms2, total2 - row2.impulse, a, b);
+        apply(c, &row1, t1, total1 - row1.impulse, a, b);
+        apply(c, &row2, t2, total2 - row2.impulse, a, b);
         c.points[k].tangent[0].impulse = total1;
         c.points[k].tangent[1].impulse = total2;
     }
@@ -158,7 +159,8 @@ pub(super) fn restitution_pair(
         let delta = total - row.impulse;
         row.impulse = total;
         point.max_normal_impulse = point.max_normal_impulse.max(total);
-        apply(c, n, arms, delta, a, b);
+        let row = point.normal;
+        apply(c, &row, n, delta, a, b);
     }
 }
 
@@ -191,11 +193,18 @@ mod tests {
             };
             c.inverse_inertia_a = inertia(&mut rng);
             c.inverse_inertia_b = inertia(&mut rng);
+            let header = c;
             for point in &mut c.points[..c.point_count as usize] {
                 point.anchor_a = rng.vec3(-1.0, 1.0);
                 point.anchor_b = rng.vec3(-1.0, 1.0);
+                let directions = [header.normal, header.tangent1, header.tangent2];
+                let angular = directions.map(|direction| header.angular(point.arms(direction)));
                 let [tangent1, tangent2] = &mut point.tangent;
-                for row in [&mut point.normal, tangent1, tangent2] {
+                for (row, (a, b)) in [&mut point.normal, tangent1, tangent2]
+                    .into_iter()
+                    .zip(angular)
+                {
+                    (row.angular_a, row.angular_b) = (a, b);
                     row.impulse = rng.range(-3.0, 3.0);
                 }
             }
