@@ -383,16 +383,17 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     var pair = start;
     let count = load_ids(index).w;
     for (var k = 0u; k < count; k++) {
-        let point = load_point(index, k, count);
-        let approach = contacts[point_word(index, k, POINT_MASSES)].w;
-        let impulses = point.impulses;
+        // The anchors only for a point that bounces (most do not).
+        let masses = contacts[point_word(index, k, POINT_MASSES)];
+        let approach = masses.w;
+        let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
         if approach > -params.restitution_threshold || impulses.w == 0.0 {
             continue;
         }
-        let arms = arms_of(point, h.normal);
+        let arms = Arms(cross(contacts[point_word(index, k, POINT_ANCHOR_A)].xyz, h.normal),
+            cross(contacts[point_word(index, k, POINT_ANCHOR_B)].xyz, h.normal));
         let velocity = row_velocity(h.normal, arms, pair);
-        let total = max(impulses.x - (velocity + h.restitution * approach) * point.masses.x,
-            0.0);
+        let total = max(impulses.x - (velocity + h.restitution * approach) * masses.x, 0.0);
         let delta = total - impulses.x;
         store_impulses(index, k, total, impulses.y, impulses.z, max(impulses.w, total));
         pair = apply(h, h.normal, arms, delta, pair);
