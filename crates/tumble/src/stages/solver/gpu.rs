@@ -85,6 +85,13 @@ pub const SMALL_BATCH: u32 = 128;
 /// 64, and 1.009 against 1.014 ms at falling-boxes' 3k: one warp a workgroup.
 pub const SOLVER_WORKGROUP: u32 = 32;
 
+/// Threads of the workgroup that walks a run of small contact-only batches (`solve_walk` and
+/// its twins in `solver.wgsl`). A walk is one workgroup on one multiprocessor, so its threads
+/// are all it has: with [`SOLVER_WORKGROUP`]'s 32 a batch of a hundred constraints took four
+/// rounds, each as long as a thread's chain of memory round trips. 256 is the most every
+/// WebGPU device runs; on an H100 the solve kernel's registers (161) leave room for 384.
+pub const WALK_WORKGROUP: u32 = 256;
+
 /// Mirrors `SolverParams` in `solver.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -121,6 +128,7 @@ fn solver_wgsl() -> Source {
 pub fn wgsl() -> Source {
     with_lanes(Source::new())
         .constant_u32("SOLVER_WORKGROUP", SOLVER_WORKGROUP)
+        .constant_u32("WALK_WORKGROUP", WALK_WORKGROUP)
         .constant_u32("NO_BATCH", NO_BATCH)
         .constant_u32("LAYOUT_USED_END", USED_END as u32)
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
@@ -387,6 +395,10 @@ struct SolverEncoder {
     warm_start: Kernel,
     solve: Kernel,
     restitution: Kernel,
+    /// Their twins for walks ([`WALK_WORKGROUP`]).
+    warm_start_walk: Kernel,
+    solve_walk: Kernel,
+    restitution_walk: Kernel,
     /// Warm start and solve for stages whose batches hold joints (see `sweep_mixed`), built
     /// at the first step with joints: with a cold Mesa shader cache, lavapipe's LLVM took
     /// more than 6 minutes over them (seconds once cached), which a world without joints
@@ -398,6 +410,15 @@ struct SolverEncoder {
     warm_start_bodies: Kernel,
     bound: Option<Bound>,
     dispatches: Vec<Dispatch>,
+}
+
+/// The kernels of one sweep: contact-only for a parallel batch or the overflow batch alone,
+/// contact-only for a walk, and the `_mixed` twin for stages whose batches hold joints.
+#[derive(Clone, Copy)]
+struct SweepKernels<'a> {
+    batch: &'a Kernel,
+    walk: &'a Kernel,
+    mixed: Option<&'a Kernel>,
 }
 
 /// The `_mixed` kernels of `solver.wgsl`.
@@ -427,6 +448,9 @@ impl GpuSolver {
                 warm_start: kernel("warm_start"),
                 solve: kernel("solve"),
                 restitution: kernel("restitution"),
+                warm_start_walk: kernel("warm_start_walk"),
+                solve_walk: kernel("solve_walk"),
+                restitution_walk: kernel("restitution_walk"),
                 mixed: None,
                 integrate_velocities: kernel("integrate_velocities"),
                 integrate_positions: kernel("integrate_positions"),
@@ -568,21 +592,34 @@ impl SolverEncoder {
         let body_group = bound.groups[stages.len() * VARIANTS].clone();
         let dispatches = &mut self.dispatches;
         dispatches.clear();
-        // A stage with joints runs the mixed twin of the contact-only kernel.
-        let sweep =
-            |dispatches: &mut Vec<Dispatch>, kernels: [Option<&Kernel>; 2], variant: Variant| {
-                for (stage, &(groups, joints)) in stage_sizes.iter().enumerate() {
-                    let kernel = kernels[joints as usize]
-                        .expect("the mixed kernels are built before a stage with joints");
-                    dispatches.push(kernel.dispatch(group(stage, variant), groups));
-                }
-            };
+        // A stage with joints runs the mixed twin of the contact-only kernel, a walk without
+        // joints the walk's.
+        let sweep = |dispatches: &mut Vec<Dispatch>, kernels: SweepKernels, variant: Variant| {
+            for (stage, &(groups, joints)) in stage_sizes.iter().enumerate() {
+                let kernel = match (joints, stages[stage].mode) {
+                    (true, _) => kernels
+                        .mixed
+                        .expect("the mixed kernels are built before a stage with joints"),
+                    (false, StageMode::Workgroup) => kernels.walk,
+                    (false, _) => kernels.batch,
+                };
+                dispatches.push(kernel.dispatch(group(stage, variant), groups));
+            }
+        };
         if stage_sizes.iter().any(|&(_, joints)| joints) && self.mixed.is_none() {
             self.mixed = Some(MixedKernels::new(&self.context));
         }
         let mixed = self.mixed.as_ref();
-        let warm_start = [Some(&self.warm_start), mixed.map(|m| &m.warm_start)];
-        let solve = [Some(&self.solve), mixed.map(|m| &m.solve)];
+        let warm_start = SweepKernels {
+            batch: &self.warm_start,
+            walk: &self.warm_start_walk,
+            mixed: mixed.map(|m| &m.warm_start),
+        };
+        let solve = SweepKernels {
+            batch: &self.solve,
+            walk: &self.solve_walk,
+            mixed: mixed.map(|m| &m.solve),
+        };
         // The warm start by body needs contacts alone in every stage.
         let by_body = bound
             .by_body
@@ -618,9 +655,13 @@ impl SolverEncoder {
             sweep(dispatches, solve, Variant::Relax);
         }
         if restitution {
-            // Joints do not bounce: the contact-only kernel everywhere.
-            let restitution = Some(&self.restitution);
-            sweep(dispatches, [restitution, restitution], Variant::Solve);
+            // Joints do not bounce: the contact-only kernels everywhere.
+            let restitution = SweepKernels {
+                batch: &self.restitution,
+                walk: &self.restitution_walk,
+                mixed: Some(&self.restitution),
+            };
+            sweep(dispatches, restitution, Variant::Solve);
         }
         encode_all(pass, dispatches);
         debug_assert_eq!(

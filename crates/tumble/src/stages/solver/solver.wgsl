@@ -13,8 +13,9 @@
 //     its thread 0 alone takes the overflow batch when the run holds it (overflow_batch:
 //     a device layout's batches are all walked, sizes unknown to the host);
 //   - sequential == 2: thread 0 alone solves the overflow batch in order, contacts first.
-// Dispatches whose batches hold no joint run the contact-only kernels (warm_start, solve);
-// the others their *_mixed twins (see sweep_mixed).
+// Dispatches whose batches hold no joint run the contact-only kernels (warm_start, solve,
+// restitution; a walk their *_walk twins, in a larger workgroup); the others their *_mixed
+// twins (see sweep_mixed).
 
 struct SolverParams {
     gravity: vec3<f32>,
@@ -426,7 +427,7 @@ fn apply_sweep(kind: u32, index: u32) {
 }
 
 // One sweep of this dispatch's batches' contacts (see the top of the file), by thread `local`
-// of its workgroup, `thread` of the dispatch's `threads`. For dispatches without joints, and
+// of its workgroup, `thread` of the dispatch's `threads` (a walk's workgroup is the dispatch). For dispatches without joints, and
 // for the restitution sweep (joints do not bounce). Every mode goes through the one loop
 // below, so the constraint's function is inlined once: with a loop a mode it was inlined four
 // times, which made the solve kernel four times as long (RADV's compiler, `kernel_stats`).
@@ -456,14 +457,11 @@ fn sweep(kind: u32, local: u32, thread: u32, threads: u32) {
             if thread != 0u {
                 end = index;
             }
-        } else if walk {
-            index += local;
-            step = SOLVER_WORKGROUP;
         } else {
-            // One batch, a constraint a thread; a dispatch sized for a device layout's
-            // expected size may have fewer threads than the batch has constraints: they take
-            // one more each, and more after that. Constraints of one batch share no body, so
-            // it changes no result.
+            // A constraint a thread. A walk's workgroup is the dispatch, its threads taking
+            // every `threads`-th constraint of each batch; so do those of a parallel dispatch
+            // sized for a device layout's expected size when the batch grew past it.
+            // Constraints of one batch share no body, so it changes no result.
             index += thread;
             step = threads;
         }
@@ -553,6 +551,24 @@ fn restitution(
 ) {
     sweep(RESTITUTION, local, flat_workgroup(workgroup, groups) * SOLVER_WORKGROUP + local,
         groups.x * groups.y * SOLVER_WORKGROUP);
+}
+
+// The walks of contact-only batches: a dispatch of one workgroup of WALK_WORKGROUP threads (a
+// walk's batches are small, so each is a round or two of its threads), where a parallel
+// batch's dispatch is many workgroups of SOLVER_WORKGROUP (gpu.rs says why each).
+@compute @workgroup_size(WALK_WORKGROUP)
+fn warm_start_walk(@builtin(local_invocation_index) local: u32) {
+    sweep(WARM_START, local, local, WALK_WORKGROUP);
+}
+
+@compute @workgroup_size(WALK_WORKGROUP)
+fn solve_walk(@builtin(local_invocation_index) local: u32) {
+    sweep(SOLVE, local, local, WALK_WORKGROUP);
+}
+
+@compute @workgroup_size(WALK_WORKGROUP)
+fn restitution_walk(@builtin(local_invocation_index) local: u32) {
+    sweep(RESTITUTION, local, local, WALK_WORKGROUP);
 }
 
 @compute @workgroup_size(SOLVER_WORKGROUP)
