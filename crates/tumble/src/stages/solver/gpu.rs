@@ -67,12 +67,12 @@ const ADJACENCY_BINDINGS: [Binding; 8] = [
 ];
 
 /// Batches with fewer constraints (contacts and joints) than this are walked in order by one
-/// workgroup, together with their small neighbours: a dispatch costs microseconds, a round of
-/// a workgroup's threads over a batch about as much. The CPU's threshold (2 blocks of 64) applied to the GPU, and
-/// measured there: on an H100, falling-boxes' solver kernels took 1.8–2.7 ms a step at 3k
-/// bodies and 3.1 ms at 30k with 128, 2.0 and 3.3 ms with 512, 3.2 and 6.8 ms with 2048 (a
-/// workgroup then walks batches of a thousand), the results bitwise the same (workgroups of 256
-/// then; not measured again with [`SOLVER_WORKGROUP`]).
+/// workgroup, together with their small neighbours: a dispatch costs microseconds, and so does
+/// a round of a walk's threads over a batch (3.3 µs a round of [`WALK_WORKGROUP`] on an H100,
+/// one constraint a thread). Measured there with walks of 256 threads (falling-boxes at 3k,
+/// the solver's kernels; the results bitwise the same): 0.622 ms a step with 128, 0.707 with
+/// 512 and 0.948 with 1024, against 0.705 when walks had 32 threads; on a settled pile of 100k
+/// 2.510, 2.488 and 2.725 ms against 2.584 (BENCHMARKS.md, session 23).
 pub const SMALL_BATCH: u32 = 128;
 
 /// Threads per workgroup of the kernels of `solver.wgsl`. A thread solves one constraint and
