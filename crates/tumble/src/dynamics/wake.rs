@@ -6,8 +6,8 @@
 //! sleeps: 0.6 ms a step of a settled pile of 100k boxes on 16 cores, 2.8 ms at 500k
 //! (BENCHMARKS.md, 2026-12-04). When the contacts stay on the device, [`GpuWakeCandidates`]
 //! makes the same list in the collision's submission (`wake.wgsl` flags the pairs, the
-//! compaction lists them in order), and the host reads back that list, a few thousand pairs,
-//! with the keys.
+//! compaction lists them in order, `wake_keys.wgsl` gathers their keys), and the host reads
+//! back that list, a few thousand pairs: it has no other key of the pairs then.
 
 use bytemuck::{Pod, Zeroable};
 
@@ -22,6 +22,14 @@ use crate::stages::narrowphase::summary::PairSummary;
 use crate::stages::pairs::pair_bodies;
 
 const WGSL: &str = include_str!("wake.wgsl");
+const KEYS_WGSL: &str = include_str!("wake_keys.wgsl");
+/// The candidates' count, the pairs' keys, the candidates' indices, their keys.
+const KEY_BINDINGS: [Binding; 4] = [
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
+];
 /// Count, keys, summaries, sleeping bits, flags, parameters.
 const BINDINGS: [Binding; 6] = [
     Binding::StorageRead,
@@ -72,6 +80,8 @@ fn wgsl() -> Source {
 /// The buffers the flag kernel binds (count, keys, summaries, sleeping bits, flags) and the
 /// pair slots it covers.
 type FlagKey = ([wgpu::Buffer; 5], usize);
+/// The buffers the key kernel binds (total, keys, candidates, their keys) and the slots.
+type KeysKey = ([wgpu::Buffer; 4], usize);
 
 /// [`wake_candidates`] on the device, over the broadphase's keys and the pairs' summaries.
 pub struct GpuWakeCandidates {
@@ -87,6 +97,10 @@ pub struct GpuWakeCandidates {
     candidates: GpuVec<u32>,
     total: GpuVec<u32>,
     cached: Option<(FlagKey, Dispatch, UniformSlots)>,
+    /// The candidates' keys, gathered by `keys_kernel`.
+    keys_kernel: Kernel,
+    keys: GpuVec<u64>,
+    keys_cached: Option<(KeysKey, Dispatch)>,
     /// Last step's candidate count.
     last: usize,
 }
@@ -109,6 +123,15 @@ impl GpuWakeCandidates {
             candidates: GpuVec::with_capacity(context, "wake candidates", 0)?,
             total: GpuVec::with_capacity(context, "wake candidate count", 0)?,
             cached: None,
+            keys_kernel: Kernel::new(
+                context,
+                "wake_candidate_keys",
+                &Source::new().snippet("wake_keys.wgsl", KEYS_WGSL),
+                "wake_candidate_keys",
+                &KEY_BINDINGS,
+            ),
+            keys: GpuVec::with_capacity(context, "wake candidate keys", 0)?,
+            keys_cached: None,
             last: 0,
         })
     }
@@ -129,7 +152,7 @@ impl GpuWakeCandidates {
     }
 
     /// Encodes the candidates among the first `count[0]` of `keys` (padded up to `slots`),
-    /// whose summaries are `summaries`, into a list of pair indices; after
+    /// whose summaries are `summaries`, into a list of their keys, in pair order; after
     /// [`Self::set_asleep`].
     pub fn encode(
         &mut self,
@@ -191,7 +214,39 @@ impl GpuWakeCandidates {
             &self.flags,
             &mut self.candidates,
             &mut self.total,
-        )
+        )?;
+        self.keys.resize(context, slots)?;
+        let key = (
+            [
+                self.total.buffer().clone(),
+                keys.buffer().clone(),
+                self.candidates.buffer().clone(),
+                self.keys.buffer().clone(),
+            ],
+            slots,
+        );
+        if self
+            .keys_cached
+            .as_ref()
+            .is_none_or(|(cached, _)| *cached != key)
+        {
+            let group = self.keys_kernel.bind(
+                context,
+                &[
+                    self.total.whole(),
+                    keys.whole(),
+                    self.candidates.whole(),
+                    self.keys.whole(),
+                ],
+            );
+            let dispatch =
+                (self.keys_kernel).dispatch(group, workgroups_for(slots, WORKGROUP_SIZE));
+            self.keys_cached = Some((key, dispatch));
+        }
+        if let Some((_, dispatch)) = &self.keys_cached {
+            encode_all(pass, std::slice::from_ref(dispatch));
+        }
+        Ok(())
     }
 
     /// One word on the device: how many candidates [`Self::encode`] listed. The caller reads
@@ -207,20 +262,19 @@ impl GpuWakeCandidates {
         context: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
     ) -> usize {
-        let staged = (self.last + CANDIDATE_SLACK).min(self.candidates.len());
-        self.candidates
-            .encode_download_prefix(context, encoder, staged);
+        let staged = (self.last + CANDIDATE_SLACK).min(self.keys.len());
+        self.keys.encode_download_prefix(context, encoder, staged);
         staged
     }
 
     /// After the submission of [`Self::encode_download`], which copied `staged` candidates,
-    /// and given their `count` ([`Self::total`] read back): the candidates' pair indices, in
-    /// pair order, into `out`. Copies the rest in a second submission when there were more.
+    /// and given their `count` ([`Self::total`] read back): the candidates' keys, in pair
+    /// order, into `out`. Copies the rest in a second submission when there were more.
     pub fn read(
         &mut self,
         context: &GpuContext,
         (staged, count): (usize, usize),
-        out: &mut Vec<u32>,
+        out: &mut Vec<u64>,
     ) -> Result<(), GpuError> {
         if count > staged {
             let mut encoder =
@@ -229,11 +283,11 @@ impl GpuWakeCandidates {
                     .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                         label: Some("wake candidates read-back"),
                     });
-            self.candidates
+            self.keys
                 .encode_download_prefix(context, &mut encoder, count);
             context.queue.submit([encoder.finish()]);
         }
-        self.candidates.read_download(context, out)?;
+        self.keys.read_download(context, out)?;
         out.truncate(count);
         self.last = count;
         Ok(())

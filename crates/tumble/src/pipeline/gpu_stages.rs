@@ -159,13 +159,14 @@ fn expected_pair_count(last: usize) -> usize {
     last + (last / 8).max(1024)
 }
 
-/// Copies the first `count` pair keys from the broadphase into `keys` and encodes the
-/// download of those and of the first `count` summaries.
+/// Copies the first `count` pair keys from the broadphase into `keys`, where the rows read
+/// them and the host fetches them when it needs them ([`GpuStages::read_pair_keys`]), and
+/// encodes the download of the first `count` summaries.
 fn encode_summary_downloads(
     context: &GpuContext,
     encoder: &mut wgpu::CommandEncoder,
     broadphase: &GpuBroadphase,
-    keys: &mut GpuVec<u64>,
+    keys: &GpuVec<u64>,
     summaries: Option<&mut GpuPairSummaries>,
     count: usize,
 ) {
@@ -173,7 +174,6 @@ fn encode_summary_downloads(
         let bytes = (count * size_of::<u64>()) as u64;
         encoder.copy_buffer_to_buffer(broadphase.keys().buffer(), 0, keys.buffer(), 0, bytes);
     }
-    keys.encode_download_prefix(context, encoder, count);
     if let Some(summaries) = summaries {
         summaries
             .summaries
@@ -251,6 +251,16 @@ pub(crate) enum RowsTo<'a> {
     Device { at_most: usize, link_islands: bool },
 }
 
+/// Last step's pairs, the host's pair cache, for [`GpuStages::collide`]: how many, their keys
+/// (`None` while only the device has them, which then holds the cache), their contacts and
+/// the cache's version.
+pub(crate) struct OldPairs<'a> {
+    pub count: usize,
+    pub keys: Option<&'a [u64]>,
+    pub contacts: &'a [PairContact],
+    pub version: u64,
+}
+
 /// What [`GpuStages::collide`] reads back besides the keys.
 pub(crate) enum CollideOutput<'a> {
     /// Every pair's contact, for the host's pair cache.
@@ -267,8 +277,9 @@ pub(crate) struct SummaryOutput<'a> {
     /// [`GpuStages::read_pair_summaries`] (where the step will likely not need them).
     pub summaries: Option<&'a mut Vec<PairSummary>>,
     /// Gets how many pairs were added and removed since last step's (the device's diff),
-    /// what [`PairCache::adopt_keys`](crate::stages::pairs::PairCache::adopt_keys) takes.
-    /// With none, the keys are last step's and do not come back: `keys` is left empty.
+    /// what [`PairCache::adopt_key_count`](crate::stages::pairs::PairCache::adopt_key_count)
+    /// takes. The keys stay on the device ([`GpuStages::read_pair_keys`]): `keys` is left as
+    /// it was.
     pub changes: &'a mut (usize, usize),
     /// Gets the pairs that touch, the rows they make and those that bounce, as the masses
     /// stand at the collision.
@@ -282,9 +293,9 @@ pub(crate) struct SummaryOutput<'a> {
 pub(crate) struct WakeQuery<'a> {
     /// [`Islands::asleep_bits`](crate::dynamics::island::Islands::asleep_bits).
     pub asleep: (&'a [u32], u64),
-    /// Gets the candidates' indices among the pairs, in pair order, and `listed` whether it
-    /// did (not when the tests ask for the host's pass).
-    pub candidates: &'a mut Vec<u32>,
+    /// Gets the candidates' keys, in pair order, and `listed` whether it did (not when the
+    /// tests ask for the host's pass).
+    pub candidates: &'a mut Vec<u64>,
     pub listed: &'a mut bool,
 }
 
@@ -756,6 +767,16 @@ impl GpuStages {
         Ok(contacts)
     }
 
+    /// The keys of last step's pairs, sorted, as a [`Self::collide`] that left the contacts
+    /// on the device left them there ([`CollideOutput::Summaries`]): the host's pair cache
+    /// holds their count only ([`PairCache::adopt_key_count`]) until a reader on the host
+    /// needs them. Reads like [`Self::read_pair_contacts`].
+    ///
+    /// [`PairCache::adopt_key_count`]: crate::stages::pairs::PairCache::adopt_key_count
+    pub fn read_pair_keys(&self) -> Result<Vec<u64>, GpuError> {
+        self.keys.read(&self.context)
+    }
+
     /// This step's end poses on the device, when it integrated here ([`DevicePoses`]).
     pub fn device_poses(&self) -> Option<DevicePoses<'_>> {
         self.integrated_this_step.then(|| DevicePoses {
@@ -888,7 +909,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         bodies: &BodyInputs,
         is_static: &[bool],
-        old: (&[u64], &[PairContact], u64),
+        old: OldPairs,
         skipped: &[u64],
         margin_dt: (f32, f32),
         keys: &mut Vec<u64>,
@@ -917,7 +938,7 @@ impl GpuStages {
         profiler: &mut Profiler,
         bodies: &BodyInputs,
         is_static: &[bool],
-        (old_keys, old_contacts, old_version): (&[u64], &[PairContact], u64),
+        old: OldPairs,
         skipped: &[u64],
         (margin, dt): (f32, f32),
         keys: &mut Vec<u64>,
@@ -933,7 +954,7 @@ impl GpuStages {
                 ..
             })
         );
-        let old_count = old_keys.len();
+        let (old_count, old_contacts, old_version) = (old.count, old.contacts, old.version);
         let wake_asleep = match &output {
             CollideOutput::Summaries(SummaryOutput {
                 wake: Some(query), ..
@@ -954,7 +975,7 @@ impl GpuStages {
         record_copy(profiler, COLLISION_PAIR_LISTS, elapsed_ms(start));
         // Padded with u64::MAX to the broadphase's capacity, so that the lookup's dispatch
         // keeps its size from step to step and is not built again.
-        let padded = old_keys.len().max(self.broadphase.capacity());
+        let padded = old_count.max(self.broadphase.capacity());
         // Last step's pairs are still on the device (the broadphase's keys, padded so, and
         // `contacts`) when the host's cache is the version they hold: the keys copied there,
         // in the first pass below, instead of uploaded, and the contacts' buffer made the old
@@ -974,6 +995,14 @@ impl GpuStages {
                 &self.old_keys,
             )?);
         } else {
+            let Some(old_keys) = old.keys.filter(|keys| keys.len() == old_count) else {
+                // The caller fetches the keys unless the device holds the cache
+                // ([`Self::holds_pair_cache`]): a bug, reported rather than guessed at.
+                return Err(GpuError::Readback {
+                    what: "pair keys",
+                    reason: "last step's pair keys are neither on the host nor here".into(),
+                });
+            };
             let start = Instant::now();
             self.padded_keys.clear();
             self.padded_keys.extend_from_slice(old_keys);
@@ -1134,7 +1163,7 @@ impl GpuStages {
                         context,
                         &mut encoder,
                         broadphase,
-                        &mut self.keys,
+                        &self.keys,
                         summaries_back.then_some(summaries),
                         count,
                     );
@@ -1143,19 +1172,11 @@ impl GpuStages {
                 *tally = self.row_tally.read(context)?;
                 self.pairs_computed = self.row_tally.computed();
                 // The pairs the lookup found among last step's are kept; the others were added,
-                // and last step's that it did not find were removed.
+                // and last step's that it did not find were removed. The keys stay here until
+                // the host asks ([`Self::read_pair_keys`]): a settled pile's change by a few
+                // pairs a step, and copying them all back took 1.7 ms a step at 500k bodies
+                // (30 MB, H100 host).
                 *changes = (count - tally.kept, old_count - tally.kept);
-                // No pair added or removed: the keys are last step's, which the host has (a
-                // settled pile's 4.7 MB at 100k bodies, mapped and copied for nothing). Else
-                // they come into `keys` as it is (last step's keys, which the cache handed back
-                // and whose length is about the count): emptied first, it would be zeroed whole
-                // before the copy, which took 0.2 ms a step on that pile (H100 host).
-                if *changes == (0, 0) {
-                    keys.clear();
-                } else {
-                    self.keys.read_download(context, keys)?;
-                    keys.truncate(count);
-                }
                 if let Some(out) = out {
                     self.summaries.summaries.read_download(context, out)?;
                     out.truncate(count);
@@ -1202,6 +1223,12 @@ impl GpuStages {
         self.summarized = summarize;
         self.summaries_left += usize::from(summarize && !summaries_back);
         Ok(())
+    }
+
+    /// How many pairs the last [`Self::collide`] found (their keys stay here:
+    /// [`Self::read_pair_keys`]).
+    pub fn pair_count(&self) -> usize {
+        self.keys.len()
     }
 
     /// How many pairs the pair functions computed in the last [`Self::collide`] (the others
@@ -2768,7 +2795,7 @@ mod tests {
             wake.read(&context, (staged, total), &mut listed).unwrap();
             let device: Vec<(u32, u32)> = listed
                 .iter()
-                .map(|&pair| crate::stages::pairs::pair_bodies(keys[pair as usize]))
+                .map(|&key| crate::stages::pairs::pair_bodies(key))
                 .collect();
             let asleep = |body: u32| bits[body as usize / 32] & (1 << (body % 32)) != 0;
             let touching = |pair: usize| summaries[pair].point_count > 0;
@@ -3098,11 +3125,7 @@ mod tests {
                 world.step();
                 asleep.push(world.stats().sleeping);
                 let scratch = &world.scratch;
-                listed.push(
-                    scratch
-                        .wake_listed
-                        .then_some(scratch.wake_pair_indices.len()),
-                );
+                listed.push(scratch.wake_listed.then_some(scratch.wake_pair_keys.len()));
             }
             let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
             let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
@@ -3473,9 +3496,13 @@ mod tests {
             .rotation(Quat::from_rotation_y(std::f32::consts::FRAC_PI_4));
         world.add_body(edge).unwrap();
         let (mut most_pairs, mut fewest_pairs) = (0, usize::MAX);
+        let mut keys_left = 0;
         for _ in 0..30 {
             world.step();
             assert!(world.contacts_on_device);
+            // No joint, nothing asleep: nothing on the host passes over the pairs, so the keys
+            // stay on the device once the pairs change, and the queries read them there.
+            keys_left += usize::from(!world.pairs.has_keys());
             most_pairs = most_pairs.max(world.pairs.len());
             fewest_pairs = fewest_pairs.min(world.pairs.len());
             for contact in world.pair_values() {
@@ -3494,6 +3521,10 @@ mod tests {
         }
         // The flying box's ground pair went, the edge's pair stayed.
         assert_eq!((most_pairs, fewest_pairs), (4, 3));
+        assert!(
+            keys_left > 0 && !world.pairs.has_keys(),
+            "{keys_left} steps"
+        );
         let points: Vec<u32> = world.contacts().map(|(_, _, c)| c.manifold.count).collect();
         assert_eq!(points, [4, 4, 2]);
     }
@@ -3737,7 +3768,12 @@ mod tests {
             &mut profiler,
             &bodies,
             &is_static,
-            (&old_keys, &old_contacts, world.pairs.version()),
+            OldPairs {
+                count: old_keys.len(),
+                keys: Some(&old_keys),
+                contacts: &old_contacts,
+                version: world.pairs.version(),
+            },
             &world.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut keys,

@@ -14,12 +14,12 @@ use crate::math::{Aabb, Mat3, Vec3};
 use crate::pipeline::config::Softness;
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
-    BatchLayout, BodyInputs, BodyState, CollideOutput, GpuStages, JointRowInputs, RowSlots, RowsTo,
-    SummaryOutput, WakeQuery,
+    BatchLayout, BodyInputs, BodyState, CollideOutput, GpuStages, JointRowInputs, OldPairs,
+    RowSlots, RowsTo, SummaryOutput, WakeQuery,
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
-use crate::pipeline::world::{StepStats, World};
+use crate::pipeline::world::{StepStats, World, fetch_pair_keys};
 use crate::profile::SpanKind;
 use crate::stages::batching::{Coloring, batch_order, color_constraints, group_by_batch};
 use crate::stages::constraints::tally::PairTally;
@@ -88,9 +88,8 @@ pub(crate) struct StepScratch {
     island_roots: Vec<u32>,
     /// The touching pairs with a sleeping body, which the wake walks ([`World::wake_touched`]).
     wake_candidates: Vec<(u32, u32)>,
-    /// Their indices among the pairs, when the collision listed them on the device this step
-    /// (`wake_listed`).
-    pub(crate) wake_pair_indices: Vec<u32>,
+    /// Their keys, when the collision listed them on the device this step (`wake_listed`).
+    pub(crate) wake_pair_keys: Vec<u64>,
     pub(crate) wake_listed: bool,
     batch_order: Vec<u32>,
     batched_impulses: Vec<BatchedImpulses>,
@@ -132,11 +131,12 @@ impl World {
         // Islands touched by an awake body, or joined to one, wake before their rows are built.
         if self.islands.sleeping_count() > 0 {
             self.profiler.begin("wake");
-            // The host's pass over every pair reads their summaries.
+            // The host's pass over every pair reads their summaries and keys.
             let fetched = if self.scratch.wake_listed {
                 Ok(())
             } else {
                 self.fetch_pair_summaries()
+                    .and_then(|()| self.fetch_pair_keys())
             };
             if fetched.is_ok() {
                 self.wake_touched();
@@ -217,7 +217,16 @@ impl World {
                     scratch.joint_row_slots.push(self.joints.len() as u32);
                     scratch.joint_row_bodies.push((drag.body_a, drag.body_b));
                 }
-                let slots = if self.children.is_empty() && gpu.narrowphase_output_is_pair_cache() {
+                let host_slots =
+                    !(self.children.is_empty() && gpu.narrowphase_output_is_pair_cache());
+                if host_slots {
+                    let fetched = fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys);
+                    if fetched.is_err() {
+                        profiler.end();
+                    }
+                    fetched?;
+                }
+                let slots = if !host_slots {
                     // The GPU narrowphase's output is the pair cache: no copy, no upload.
                     RowSlots::Narrowphase
                 } else {
@@ -288,15 +297,16 @@ impl World {
                     && config.solver == SolverKind::Pgs
                     && gpu.lays_out_batches();
                 // The host counts the rows itself, or summarizes them, from the pairs'
-                // summaries: read back before the rows are submitted, whose kernels the read's
-                // wait would otherwise wait for.
+                // summaries and keys: read back before the rows are submitted, whose kernels
+                // the read's wait would otherwise wait for.
                 if chained && self.contacts_on_device && (!device_layout || scratch.woke) {
                     let fetched = fetch_pair_summaries(
                         gpu,
                         profiler,
                         (self.pairs.len(), &mut self.pair_summaries),
                         &mut self.pair_summaries_fresh,
-                    );
+                    )
+                    .and_then(|()| fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys));
                     if fetched.is_err() {
                         profiler.end();
                     }
@@ -315,7 +325,8 @@ impl World {
                 }
                 built?;
                 if chained && self.contacts_on_device {
-                    let rows = DeviceRows {
+                    // Only where the keys were fetched above.
+                    let rows = || DeviceRows {
                         keys: self.pairs.keys(),
                         summaries: &self.pair_summaries,
                         masses: &self.masses,
@@ -330,13 +341,20 @@ impl World {
                             rows: tally.rows,
                             bounces: tally.bouncing > 0,
                         };
-                        row_tally = Some(if scratch.woke { rows.tally() } else { counted });
+                        row_tally = Some(if scratch.woke {
+                            rows().tally()
+                        } else {
+                            counted
+                        });
                         debug_assert!(
-                            scratch.woke || !self.pair_summaries_fresh || rows.tally() == counted,
+                            scratch.woke
+                                || !self.pair_summaries_fresh
+                                || !self.pairs.has_keys()
+                                || rows().tally() == counted,
                             "the device's tally of the rows is not the host's"
                         );
                     } else {
-                        rows.summarize(&mut scratch.row_parts, &mut scratch.row_summaries);
+                        rows().summarize(&mut scratch.row_parts, &mut scratch.row_summaries);
                     }
                 }
                 let rows = row_tally.map_or(scratch.row_summaries.len(), |t: RowTally| t.rows);
@@ -533,24 +551,26 @@ impl World {
             && !linked_on_device
             && self.gpu.is_some()
             && self.devices.get(Stage::Solver) == Executor::Gpu;
-        // The host's links read the pairs' summaries.
+        // The host's links read the pairs' summaries and keys.
         if link_now
             && self.contacts_on_device
             && let Some(gpu) = &mut self.gpu
         {
             let summaries = (self.pairs.len(), &mut self.pair_summaries);
             let fresh = &mut self.pair_summaries_fresh;
-            let fetched = fetch_pair_summaries(gpu, profiler, summaries, fresh);
+            let fetched = fetch_pair_summaries(gpu, profiler, summaries, fresh)
+                .and_then(|()| fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys));
             if fetched.is_err() {
                 profiler.end();
             }
             fetched?;
         }
-        let pair_edges = PairEdges {
+        // The keys only where they were fetched above, for the host's links.
+        let pair_edges = link_now.then(|| PairEdges {
             keys: self.pairs.keys(),
             values: self.pairs.values(),
             summaries: self.contacts_on_device.then_some(&self.pair_summaries[..]),
-        };
+        });
         // With the collision's tally fresh, nothing needs the rows' summaries.
         if let Some(tally) = row_tally.filter(|_| !scratch.woke) {
             scratch.unsummarized_rows = tally.rows;
@@ -572,8 +592,8 @@ impl World {
         let row_parts = &mut scratch.row_parts;
         let host_work = || {
             let start = Instant::now();
-            if link_now {
-                link_contacts(islands, &pair_edges, masses, edge_parts, edges);
+            if let Some(pair_edges) = &pair_edges {
+                link_contacts(islands, pair_edges, masses, edge_parts, edges);
             }
             let linked = Instant::now();
             if let Some(rows) = &device_rows {
@@ -848,6 +868,15 @@ impl World {
     /// Stages 1 to 4 in one GPU submission; the pair cache then takes the GPU's keys and
     /// contacts, and the host computes the pairs the GPU has no kernel for.
     fn collide_in_one_submission(&mut self, device_contacts: bool) -> Result<(), GpuError> {
+        let version = self.pairs.version();
+        if !self
+            .gpu
+            .as_ref()
+            .is_some_and(|gpu| gpu.holds_pair_cache(version))
+        {
+            // The cache goes up from the host, keys included.
+            self.fetch_pair_keys()?;
+        }
         let config = self.config;
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
@@ -874,7 +903,7 @@ impl World {
         // While bodies sleep, the device lists the wake test's candidates with the pairs.
         let wake = (device_contacts && self.islands.sleeping_count() > 0).then(|| WakeQuery {
             asleep: self.islands.asleep_bits(),
-            candidates: &mut scratch.wake_pair_indices,
+            candidates: &mut scratch.wake_pair_keys,
             listed: &mut scratch.wake_listed,
         });
         // Where the batches will be laid out on the device (no joint rows, the PGS solver) and
@@ -891,7 +920,12 @@ impl World {
             profiler,
             &bodies,
             &scratch.is_static,
-            (self.pairs.keys(), self.pairs.values(), self.pairs.version()),
+            OldPairs {
+                count: self.pairs.len(),
+                keys: self.pairs.has_keys().then(|| self.pairs.keys()),
+                contacts: self.pairs.values(),
+                version: self.pairs.version(),
+            },
             &self.jointed_pairs,
             (config.contact_margin, config.dt),
             &mut scratch.pair_keys,
@@ -920,9 +954,11 @@ impl World {
         scratch.pairs_computed = gpu.pairs_computed();
         if device_contacts {
             scratch.tally_fresh = true;
-            // The contacts are the device's, and so is the diff: the keys only move here.
-            let (keys, changes) = (&mut scratch.pair_keys, scratch.pair_changes);
-            profiler.scope("pairs", || self.pairs.adopt_keys(keys, changes));
+            // The contacts are the device's, and so are the diff and the keys: they stay there
+            // until the host needs them (`World::fetch_pair_keys`).
+            let (count, changes) = (gpu.pair_count(), scratch.pair_changes);
+            profiler.scope("pairs", || self.pairs.adopt_key_count(count, changes));
+            self.device_keys = OnceLock::new();
         } else {
             profiler.scope("pairs", || self.pairs.update(&scratch.pair_keys));
         }
@@ -1123,13 +1159,14 @@ impl World {
     fn wake_touched(&mut self) {
         // The touching pairs with a sleeping body, the only ones that can wake one, then or
         // after a wake: listed by the collision on the device, or a pass over every pair.
-        let (keys, values) = (self.pairs.keys(), self.pairs.values());
         let mut candidates = std::mem::take(&mut self.scratch.wake_candidates);
         if self.scratch.wake_listed {
-            let pairs = self.scratch.wake_pair_indices.iter();
+            let keys = self.scratch.wake_pair_keys.iter();
             candidates.clear();
-            candidates.extend(pairs.map(|&pair| pair_bodies(keys[pair as usize])));
+            candidates.extend(keys.map(|&key| pair_bodies(key)));
         } else {
+            // The step fetched the keys for this pass.
+            let (keys, values) = (self.pairs.keys(), self.pairs.values());
             let summaries = self.contacts_on_device.then_some(&self.pair_summaries);
             let touching = |pair: usize| match summaries {
                 Some(summaries) => summaries[pair].point_count > 0,
@@ -1192,9 +1229,9 @@ impl World {
             let read = gpu.read_island_links(&mut self.profiler, roots);
             linked = read.unwrap_or(false) && self.islands.adopt_links(roots);
         }
-        if !linked && self.fetch_pair_summaries().is_err() {
-            // Nor can the host link them without the pairs' summaries: no island falls asleep
-            // this step.
+        if !linked && (self.fetch_pair_summaries().is_err() || self.fetch_pair_keys().is_err()) {
+            // Nor can the host link them without the pairs' summaries and keys: no island
+            // falls asleep this step.
             return;
         }
         let scratch = &mut self.scratch;
@@ -1529,6 +1566,7 @@ fn collect_stats(
         // The host's passes, where it has what they read.
         debug_assert!(
             matches!(contacts, PairContacts::OnDevice)
+                || !pairs.has_keys()
                 || counted
                     == host_stats(
                         stats.clone(),

@@ -183,6 +183,11 @@ pub struct World {
     /// where the step will likely not read them (`World::fetch_pair_summaries`).
     pub(crate) pair_summaries_fresh: bool,
     pub(crate) device_contacts: OnceLock<Vec<PairContact>>,
+    /// With the contacts, the pairs' keys stay on the device too: `pairs` holds their count
+    /// ([`PairCache::adopt_key_count`]) until [`World::fetch_pair_keys`] brings them over, and
+    /// the contact queries read them through `device_keys`, at their first call after the
+    /// step.
+    pub(crate) device_keys: OnceLock<Vec<u64>>,
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
     pub(crate) host_shapes: usize,
@@ -238,6 +243,7 @@ impl World {
             pair_summaries: Vec::new(),
             pair_summaries_fresh: false,
             device_contacts: OnceLock::new(),
+            device_keys: OnceLock::new(),
             host_shapes: 0,
             may_bounce: false,
             bodies_version: 0,
@@ -973,8 +979,7 @@ impl World {
     /// When the last step left the contacts on the device, the first call after it reads them
     /// back (an empty list if that read-back fails: the next step reports the device's error).
     pub fn contacts(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, &PairContact)> + '_ {
-        self.pairs
-            .keys()
+        self.pair_keys()
             .iter()
             .zip(self.pair_values())
             .filter(|(_, c)| c.manifold.count > 0)
@@ -989,8 +994,7 @@ impl World {
     /// Batches are numbered as in [`StepStats::batch_histogram`] (the last one is the
     /// sequential overflow batch when there is one).
     pub fn contact_batches(&self) -> impl Iterator<Item = (BodyHandle, BodyHandle, u32)> + '_ {
-        self.pairs
-            .keys()
+        self.pair_keys()
             .iter()
             .zip(self.pair_values())
             .zip(
@@ -1056,10 +1060,36 @@ impl World {
         })
     }
 
-    /// Brings the pairs' contacts to the host's pair cache when the last step left them on the
-    /// device (every stage on the GPU). The step does this itself when a stage on the host
-    /// needs them; a caller rarely has to.
+    /// The pairs' keys in pair order, wherever they are: the host's pair cache, or the
+    /// device's when the last step left them there (read back at the first call after it; an
+    /// empty list if that read fails: the next step reports the device's error).
+    pub(crate) fn pair_keys(&self) -> &[u64] {
+        if self.pairs.has_keys() {
+            return self.pairs.keys();
+        }
+        self.device_keys.get_or_init(|| {
+            self.gpu
+                .as_ref()
+                .and_then(|gpu| gpu.read_pair_keys().ok())
+                .unwrap_or_default()
+        })
+    }
+
+    /// Brings the pairs' keys to the host's pair cache when the last step left them on the
+    /// device, as it leaves them with the contacts: for the rarer steps that pass over the
+    /// pairs on the host (an island woken, the host's links).
+    pub(crate) fn fetch_pair_keys(&mut self) -> Result<(), GpuError> {
+        match &self.gpu {
+            Some(gpu) => fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys),
+            None => Ok(()),
+        }
+    }
+
+    /// Brings the pairs' contacts (and their keys) to the host's pair cache when the last step
+    /// left them on the device (every stage on the GPU). The step does this itself when a
+    /// stage on the host needs them; a caller rarely has to.
     pub fn sync_contacts(&mut self) -> Result<(), GpuError> {
+        self.fetch_pair_keys()?;
         if !self.contacts_on_device {
             return Ok(());
         }
@@ -1168,4 +1198,29 @@ impl World {
             _ => Err(BodyError::StaleHandle),
         }
     }
+}
+
+/// [`World::fetch_pair_keys`] on the world's parts, for a step that holds others borrowed:
+/// the keys from `device_keys` when a query read them already, else from `gpu`.
+pub(crate) fn fetch_pair_keys(
+    gpu: &GpuStages,
+    pairs: &mut PairCache<PairContact>,
+    device_keys: &mut OnceLock<Vec<u64>>,
+) -> Result<(), GpuError> {
+    if pairs.has_keys() {
+        return Ok(());
+    }
+    let keys = match device_keys.take() {
+        Some(keys) if keys.len() == pairs.len() => keys,
+        _ => gpu.read_pair_keys()?,
+    };
+    if keys.len() != pairs.len() {
+        // Not one key per pair: a bug, reported rather than adopted.
+        return Err(GpuError::Readback {
+            what: "pair keys",
+            reason: format!("{} keys for {} pairs", keys.len(), pairs.len()),
+        });
+    }
+    pairs.fetched_keys(keys);
+    Ok(())
 }

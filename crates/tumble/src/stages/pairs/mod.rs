@@ -50,6 +50,9 @@ pub struct PairCache<T> {
     /// Bumped by every method that may change keys or values, so that a copy of the cache
     /// elsewhere (the GPU step's) can tell whether it is still the same.
     version: u64,
+    /// The pair count while the keys are elsewhere ([`Self::adopt_key_count`]): `keys` is then
+    /// stale until [`Self::fetched_keys`].
+    elsewhere: Option<usize>,
 }
 
 impl<T: Default> PairCache<T> {
@@ -66,6 +69,7 @@ impl<T: Default> PairCache<T> {
             new_keys.windows(2).all(|window| window[0] < window[1]),
             "pair keys must be sorted ascending and unique"
         );
+        self.assert_keys_here();
         self.version += 1;
         self.next_keys.clear();
         self.next_values.clear();
@@ -113,6 +117,10 @@ impl<T: Default> PairCache<T> {
             "pair keys must be sorted ascending and unique"
         );
         self.version += 1;
+        if self.elsewhere.take().is_some() {
+            // Last step's keys are not here to diff against: every pair counts as added.
+            self.keys.clear();
+        }
         diff_sorted(&self.keys, new_keys, &mut self.added, &mut self.removed);
         // Megabytes in a large pile (30 MB at 500k bodies): on every core.
         self.keys.resize(new_keys.len(), 0);
@@ -135,6 +143,7 @@ impl<T: Default> PairCache<T> {
         if changes == (0, 0) {
             return;
         }
+        self.assert_keys_here();
         debug_assert!(
             sorted_unique(new_keys),
             "pair keys must be sorted ascending and unique"
@@ -143,8 +152,56 @@ impl<T: Default> PairCache<T> {
         self.values.resize_with(self.keys.len(), T::default);
     }
 
-    /// This step's pair keys, sorted ascending.
+    /// [`Self::adopt_keys`] for keys that stay where they were diffed (the GPU step's device,
+    /// which copies 30 MB of them for a pile of 500k bodies): the cache holds `len` pairs, the
+    /// values resized to them, but not their keys until [`Self::fetched_keys`] hands them
+    /// over. Until then [`Self::keys`] and what reads the keys panic: the caller fetches them
+    /// first ([`Self::has_keys`]).
+    pub fn adopt_key_count(&mut self, len: usize, changes: (usize, usize)) {
+        self.version += 1;
+        self.added.clear();
+        self.removed.clear();
+        self.changes = changes;
+        if changes == (0, 0) && self.len() == len {
+            // The same keys: those here, if they are.
+            return;
+        }
+        self.elsewhere = Some(len);
+        self.values.resize_with(len, T::default);
+    }
+
+    /// Whether the keys are here ([`Self::adopt_key_count`] leaves them elsewhere).
+    pub fn has_keys(&self) -> bool {
+        self.elsewhere.is_none()
+    }
+
+    /// The keys that [`Self::adopt_key_count`] left elsewhere, fetched: one per pair, sorted
+    /// ascending and unique (checked in debug builds). Changes no pair, so not the version.
+    pub fn fetched_keys(&mut self, keys: Vec<u64>) {
+        assert_eq!(
+            Some(keys.len()),
+            self.elsewhere,
+            "the fetched keys are the pairs' held elsewhere"
+        );
+        debug_assert!(
+            sorted_unique(&keys),
+            "pair keys must be sorted ascending and unique"
+        );
+        self.elsewhere = None;
+        self.keys = keys;
+    }
+
+    fn assert_keys_here(&self) {
+        assert!(
+            self.elsewhere.is_none(),
+            "the pair keys are elsewhere (adopt_key_count): fetch them first"
+        );
+    }
+
+    /// This step's pair keys, sorted ascending. Panics while they are elsewhere
+    /// ([`Self::adopt_key_count`]).
     pub fn keys(&self) -> &[u64] {
+        self.assert_keys_here();
         &self.keys
     }
 
@@ -161,6 +218,7 @@ impl<T: Default> PairCache<T> {
     /// Keys and values together, the values writable (the narrowphase reads one, writes the
     /// other).
     pub fn keys_and_values_mut(&mut self) -> (&[u64], &mut [T]) {
+        self.assert_keys_here();
         self.version += 1;
         (&self.keys, &mut self.values)
     }
@@ -173,6 +231,7 @@ impl<T: Default> PairCache<T> {
     /// Sets the value of `key`, adding the pair if it is not cached (keeps the keys sorted).
     /// For restoring saved state between steps; a step's pairs come from [`Self::update`].
     pub fn insert(&mut self, key: u64, value: T) {
+        self.assert_keys_here();
         self.version += 1;
         match self.keys.binary_search(&key) {
             Ok(index) => self.values[index] = value,
@@ -199,11 +258,11 @@ impl<T: Default> PairCache<T> {
     }
 
     pub fn len(&self) -> usize {
-        self.keys.len()
+        self.elsewhere.unwrap_or(self.keys.len())
     }
 
     pub fn is_empty(&self) -> bool {
-        self.keys.is_empty()
+        self.len() == 0
     }
 }
 
@@ -331,6 +390,52 @@ mod tests {
         assert_eq!(cache.keys(), [pair_key(0, 1), pair_key(2, 3)]);
         cache.update(&[pair_key(2, 3)]);
         assert_eq!(cache.values(), [32]);
+    }
+
+    /// Keys left elsewhere: the count and changes are the cache's at once, the keys once
+    /// fetched; no key is read in between, and a cache diffed against keys it does not have
+    /// counts every pair as added.
+    #[test]
+    fn keys_left_elsewhere_come_back_when_fetched() {
+        let mut cache = PairCache::<u32>::new();
+        cache.update(&[1, 4, 9]);
+        let version = cache.version();
+        cache.adopt_key_count(4, (2, 1));
+        assert!(!cache.has_keys());
+        assert_eq!(
+            (cache.len(), cache.changes(), cache.values().len()),
+            (4, (2, 1), 4)
+        );
+        assert!(cache.version() > version);
+        let fetched = cache.version();
+        cache.fetched_keys(vec![0, 4, 5, 9]);
+        assert!(cache.has_keys());
+        assert_eq!(cache.keys(), [0, 4, 5, 9]);
+        assert_eq!(cache.version(), fetched, "fetching changes no pair");
+        // No change: the keys here stay.
+        cache.adopt_key_count(4, (0, 0));
+        assert_eq!(cache.keys(), [0, 4, 5, 9]);
+        cache.adopt_key_count(2, (0, 2));
+        assert_eq!(cache.len(), 2);
+        cache.update_keys(&[3, 4]);
+        assert_eq!((cache.added(), cache.removed()), (&[3, 4][..], &[][..]));
+        assert!(cache.has_keys());
+    }
+
+    #[test]
+    #[should_panic(expected = "fetch them first")]
+    fn keys_left_elsewhere_are_not_read() {
+        let mut cache = PairCache::<u32>::new();
+        cache.adopt_key_count(3, (3, 0));
+        let _ = cache.keys();
+    }
+
+    #[test]
+    #[should_panic(expected = "the fetched keys are the pairs' held elsewhere")]
+    fn fetched_keys_are_one_per_pair() {
+        let mut cache = PairCache::<u32>::new();
+        cache.adopt_key_count(3, (3, 0));
+        cache.fetched_keys(vec![1, 2]);
     }
 
     #[test]
