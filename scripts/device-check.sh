@@ -58,3 +58,11 @@ if [ -x .devbin/libtest/tumble-lib ]; then
   timeout 240 .devbin/libtest/tumble-lib --test-threads 1 > "$out/libtests.txt" 2>&1
   grep -E "^test result|FAILED|panicked" "$out/libtests.txt" | head -20
 fi
+# Last, the medians again: the device tool brings back the tail of stdout only, and with
+# several builds the profiles above push the head out (session 23 lost the pile's medians).
+echo "== summary: falling-boxes at 3k (ms_per_step, builds in order, two rounds), the pile's medians"
+grep -oE '"ms_per_step":[0-9.]+' "$out/falling-3k.txt" | cut -d: -f2 | tr '\n' ' '
+echo
+grep -A1 -E "^=== .*: median" "$out/pile.txt" | grep -oE "^=== [^:]+|\"ms_per_step\":[0-9.]+" |
+  tr '\n' ' '
+echo
