@@ -3529,6 +3529,53 @@ mod tests {
         assert_eq!(points, [4, 4, 2]);
     }
 
+    /// Keys left on the device come back where the host needs them: the contact queries read
+    /// them, removing a body and switching the stages to the CPU fetch them, and the CPU's
+    /// steps then go on from the same pairs, impulses included.
+    #[test]
+    fn keys_left_on_the_device_come_back_when_the_host_needs_them() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = awake_gpu_world_on_a_plane(&context);
+        let cube = |x: f32| {
+            BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(Vec3::new(x, 1.5, 0.0))
+        };
+        let handles: Vec<_> = (0..4)
+            .map(|i| world.add_body(cube(1.5 * i as f32)).unwrap())
+            .collect();
+        let mut steps = 0;
+        while world.pairs.has_keys() {
+            world.step();
+            steps += 1;
+            assert!(steps < 60, "the keys never stayed on the device");
+        }
+        let queried: Vec<_> = world.contacts().map(|(a, b, c)| (a, b, *c)).collect();
+        assert_eq!(queried.len(), 4, "each cube on the plane");
+        world.remove_body(handles[3]).unwrap();
+        assert!(world.pairs.has_keys(), "the removal read the pairs");
+        world
+            .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Cpu))
+            .unwrap();
+        // The removed body's pair (the last by key) goes at the next step, its cache at once.
+        let kept: Vec<_> = world.contacts().map(|(a, b, c)| (a, b, *c)).collect();
+        assert_eq!((kept.len(), &kept[..3]), (4, &queried[..3]));
+        assert_eq!(
+            kept[3].2.cache,
+            crate::stages::narrowphase::ManifoldCache::default()
+        );
+        for _ in 0..5 {
+            world.step();
+        }
+        let after: Vec<_> = world.contacts().map(|(a, b, _)| (a, b)).collect();
+        assert_eq!(after.len(), 3);
+        assert!(
+            after
+                .iter()
+                .all(|&(a, b)| a != handles[3] && b != handles[3])
+        );
+    }
+
     /// Bodies falling asleep keep the step on the one-submission path, their resting pairs
     /// going down with the bodies: the contacts stay on the device, and the run stays bitwise
     /// the one that brings them back every step.
