@@ -94,6 +94,8 @@ const JOINT_ROWS_KERNEL: SpanPath = &["constraints", "joint kernel"];
 const ISLAND_LINKS_KERNEL: SpanPath = &["constraints", "kernels: island links"];
 /// The pairs' summaries read back after the collision, when a step needs them after all.
 const SUMMARIES_DOWNLOAD: SpanPath = &["pair summaries to cpu"];
+/// The pairs' keys read back, when a step passes over the pairs on the host after all.
+const PAIR_KEYS_DOWNLOAD: SpanPath = &["pair keys to cpu"];
 /// Their roots' read-back, which the sleep waits for.
 const ISLAND_LINKS_DOWNLOAD: SpanPath = &["sleep", "copy links to cpu"];
 const BATCHING: StageSpans = StageSpans {
@@ -775,6 +777,14 @@ impl GpuStages {
     /// [`PairCache::adopt_key_count`]: crate::stages::pairs::PairCache::adopt_key_count
     pub fn read_pair_keys(&self) -> Result<Vec<u64>, GpuError> {
         self.keys.read(&self.context)
+    }
+
+    /// [`Self::read_pair_keys`] for a step that needs them, timed in `profiler`.
+    pub fn fetch_pair_keys(&self, profiler: &mut Profiler) -> Result<Vec<u64>, GpuError> {
+        let start = Instant::now();
+        let keys = self.read_pair_keys()?;
+        record_copy(profiler, PAIR_KEYS_DOWNLOAD, elapsed_ms(start));
+        Ok(keys)
     }
 
     /// This step's end poses on the device, when it integrated here ([`DevicePoses`]).

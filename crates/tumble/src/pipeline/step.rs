@@ -220,7 +220,8 @@ impl World {
                 let host_slots =
                     !(self.children.is_empty() && gpu.narrowphase_output_is_pair_cache());
                 if host_slots {
-                    let fetched = fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys);
+                    let fetched =
+                        fetch_pair_keys(gpu, profiler, &mut self.pairs, &mut self.device_keys);
                     if fetched.is_err() {
                         profiler.end();
                     }
@@ -306,7 +307,9 @@ impl World {
                         (self.pairs.len(), &mut self.pair_summaries),
                         &mut self.pair_summaries_fresh,
                     )
-                    .and_then(|()| fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys));
+                    .and_then(|()| {
+                        fetch_pair_keys(gpu, profiler, &mut self.pairs, &mut self.device_keys)
+                    });
                     if fetched.is_err() {
                         profiler.end();
                     }
@@ -558,8 +561,9 @@ impl World {
         {
             let summaries = (self.pairs.len(), &mut self.pair_summaries);
             let fresh = &mut self.pair_summaries_fresh;
-            let fetched = fetch_pair_summaries(gpu, profiler, summaries, fresh)
-                .and_then(|()| fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys));
+            let fetched = fetch_pair_summaries(gpu, profiler, summaries, fresh).and_then(|()| {
+                fetch_pair_keys(gpu, profiler, &mut self.pairs, &mut self.device_keys)
+            });
             if fetched.is_err() {
                 profiler.end();
             }

@@ -1080,7 +1080,10 @@ impl World {
     /// pairs on the host (an island woken, the host's links).
     pub(crate) fn fetch_pair_keys(&mut self) -> Result<(), GpuError> {
         match &self.gpu {
-            Some(gpu) => fetch_pair_keys(gpu, &mut self.pairs, &mut self.device_keys),
+            Some(gpu) => {
+                let (pairs, device_keys) = (&mut self.pairs, &mut self.device_keys);
+                fetch_pair_keys(gpu, &mut self.profiler, pairs, device_keys)
+            }
             None => Ok(()),
         }
     }
@@ -1201,9 +1204,11 @@ impl World {
 }
 
 /// [`World::fetch_pair_keys`] on the world's parts, for a step that holds others borrowed:
-/// the keys from `device_keys` when a query read them already, else from `gpu`.
+/// the keys from `device_keys` when a query read them already, else from `gpu` (timed in
+/// `profiler`).
 pub(crate) fn fetch_pair_keys(
     gpu: &GpuStages,
+    profiler: &mut Profiler,
     pairs: &mut PairCache<PairContact>,
     device_keys: &mut OnceLock<Vec<u64>>,
 ) -> Result<(), GpuError> {
@@ -1212,7 +1217,7 @@ pub(crate) fn fetch_pair_keys(
     }
     let keys = match device_keys.take() {
         Some(keys) if keys.len() == pairs.len() => keys,
-        _ => gpu.read_pair_keys()?,
+        _ => gpu.fetch_pair_keys(profiler)?,
     };
     if keys.len() != pairs.len() {
         // Not one key per pair: a bug, reported rather than adopted.
