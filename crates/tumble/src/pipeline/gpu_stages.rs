@@ -152,11 +152,12 @@ fn next_batching_rounds(rounds: usize, listable_from: Option<usize>) -> usize {
     (dispatched + BATCHING_ROUND_SLACK).min(MAX_ROUNDS)
 }
 
-/// Pairs whose keys and summaries [`GpuStages::collide`] copies back with its kernels, from
-/// the `last` step's count: an eighth more, and at least 1024 more. At rest the pairs change by
-/// a few hundred a step (a settled pile of 100k boxes: 588k pairs, ±30), so this copies about
-/// 10% more than the pairs rather than the key buffers' whole capacity, up to twice the pairs;
-/// a step with more pairs copies them all again in a second submission.
+/// Pairs whose keys [`GpuStages::collide`] copies out of the broadphase's buffer, and whose
+/// summaries it copies back, with its kernels, from the `last` step's count: an eighth more,
+/// and at least 1024 more. At rest the pairs change by a few hundred a step (a settled pile of
+/// 100k boxes: 588k pairs, ±30), so this copies about 10% more than the pairs rather than the
+/// key buffers' whole capacity, up to twice the pairs; a step with more pairs copies them all
+/// again in a second submission.
 fn expected_pair_count(last: usize) -> usize {
     last + (last / 8).max(1024)
 }
@@ -898,10 +899,10 @@ impl GpuStages {
 
     /// Stages 1 to 4 in one submission: AABBs, broadphase, the pair diff against last step's
     /// pairs (the talk's persistent pairs, [`GpuPairDiff`]) and the narrowphase, with nothing
-    /// read back between them. `old_keys` and `old_contacts` are the pair cache after last
+    /// read back between them. `old` is the pair cache after last
     /// step (its contacts carry the solver's impulses, which live on the host); `keys` gets
-    /// this step's sorted pair keys (none when the output is summaries and no pair was added
-    /// or removed: see [`SummaryOutput::changes`]) and `contacts` their contacts,
+    /// this step's sorted pair keys (unless the output is summaries: they stay here, see
+    /// [`SummaryOutput::changes`]) and `contacts` their contacts,
     /// warm-started through the diff, as [`find_pairs`](Self::find_pairs) then
     /// [`update_contacts`](Self::update_contacts) would give them. Pairs the GPU narrowphase
     /// has no kernel for ([`gpu_pair`]) come back with last step's contact: the caller
@@ -1022,8 +1023,8 @@ impl GpuStages {
             record_copy(profiler, PAIR_UPLOAD, elapsed_ms(start));
         }
         self.broadphase.set_resting_pairs_from(&self.old_keys);
-        // The keys and summaries come back with the kernels (one wait for the stage), before
-        // the count is known: as many as last step had and some more (see
+        // The keys are copied out and the summaries come back with the kernels (one wait for
+        // the stage), before the count is known: as many as last step had and some more (see
         // `expected_pair_count`), a second copy bringing the rest when there are more.
         let mut staged = 0;
         let mut wake_staged = 0;

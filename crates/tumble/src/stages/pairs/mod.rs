@@ -45,7 +45,7 @@ pub struct PairCache<T> {
     added: Vec<u64>,
     removed: Vec<u64>,
     /// How many pairs the last update added and removed: the lengths of `added` and
-    /// `removed`, or what [`Self::adopt_keys`] was told.
+    /// `removed`, or what [`Self::adopt_key_count`] was told.
     changes: (usize, usize),
     /// Bumped by every method that may change keys or values, so that a copy of the cache
     /// elsewhere (the GPU step's) can tell whether it is still the same.
@@ -129,34 +129,13 @@ impl<T: Default> PairCache<T> {
         self.changes = (self.added.len(), self.removed.len());
     }
 
-    /// [`Self::update_keys`] for keys diffed elsewhere (the GPU step's, whose device counts
-    /// the changes, `(added, removed)`): takes `new_keys` by swapping it with the old keys,
-    /// which `new_keys` then holds, and passes over no key. [`Self::added`] and
-    /// [`Self::removed`] are then empty; [`Self::changes`] gives the counts. The keys must be
-    /// sorted ascending and unique (checked in debug builds). With no change the keys are the
-    /// cache's: `new_keys` is not read (the GPU step does not bring them back then).
-    pub fn adopt_keys(&mut self, new_keys: &mut Vec<u64>, changes: (usize, usize)) {
-        self.version += 1;
-        self.added.clear();
-        self.removed.clear();
-        self.changes = changes;
-        if changes == (0, 0) {
-            return;
-        }
-        self.assert_keys_here();
-        debug_assert!(
-            sorted_unique(new_keys),
-            "pair keys must be sorted ascending and unique"
-        );
-        std::mem::swap(&mut self.keys, new_keys);
-        self.values.resize_with(self.keys.len(), T::default);
-    }
-
-    /// [`Self::adopt_keys`] for keys that stay where they were diffed (the GPU step's device,
-    /// which copies 30 MB of them for a pile of 500k bodies): the cache holds `len` pairs, the
-    /// values resized to them, but not their keys until [`Self::fetched_keys`] hands them
-    /// over. Until then [`Self::keys`] and what reads the keys panic: the caller fetches them
-    /// first ([`Self::has_keys`]).
+    /// [`Self::update_keys`] for keys diffed and kept elsewhere (the GPU step's device, which
+    /// counts the changes, `(added, removed)`, and would copy 30 MB of keys for a pile of 500k
+    /// bodies): the cache holds `len` pairs, the values resized to them, but not their keys
+    /// until [`Self::fetched_keys`] hands them over. Until then [`Self::keys`] and what reads
+    /// the keys panic: the caller fetches them first ([`Self::has_keys`]). [`Self::added`] and
+    /// [`Self::removed`] are empty; [`Self::changes`] gives the counts. With no change the
+    /// keys are the cache's, here if they were.
     pub fn adopt_key_count(&mut self, len: usize, changes: (usize, usize)) {
         self.version += 1;
         self.added.clear();
@@ -455,43 +434,40 @@ mod tests {
         assert_ne!(keys_only.version(), version);
     }
 
-    /// Adopted keys are the cache's, with the counts it was told and its values resized; the
-    /// vector handed over gets the old keys, and both diffs count alike.
+    /// Adopted counts are the cache's, with the changes it was told and its values resized,
+    /// and the fetched keys are those of the diff that counted them.
     #[test]
-    fn adopt_keys_swaps_the_keys_and_keeps_the_counts_it_is_told() {
+    fn adopted_key_counts_keep_the_changes_they_are_told() {
         let steps: [&[u64]; 4] = [&[1, 4, 9], &[0, 4, 5, 9, 12], &[], &[3, 4]];
         let (mut full, mut adopted) = (PairCache::<u32>::new(), PairCache::<u32>::new());
         for keys in steps {
             full.update(keys);
-            let old = adopted.keys().to_vec();
             let version = adopted.version();
-            let mut new = keys.to_vec();
-            adopted.adopt_keys(&mut new, (full.added().len(), full.removed().len()));
-            assert_eq!((adopted.keys(), &new[..]), (full.keys(), &old[..]));
+            adopted.adopt_key_count(keys.len(), full.changes());
             assert_eq!(adopted.changes(), full.changes());
             assert!(adopted.added().is_empty() && adopted.removed().is_empty());
             assert_eq!(adopted.values().len(), keys.len());
             assert_ne!(adopted.version(), version);
+            adopted.fetched_keys(keys.to_vec());
+            assert_eq!(adopted.keys(), full.keys());
         }
         assert_eq!(full.changes(), (2, 0));
     }
 
-    /// No pair added or removed: the cache keeps its keys and values without reading the
-    /// vector handed over (the GPU step brings no keys back then), and still moves its version.
+    /// No pair added or removed: the cache keeps its keys and values, and still moves its
+    /// version.
     #[test]
-    fn adopting_no_change_keeps_the_keys_unread() {
+    fn adopting_no_change_keeps_the_keys_and_values() {
         let mut cache = PairCache::<u32>::new();
-        cache.adopt_keys(&mut vec![1, 4, 9], (3, 0));
+        cache.update(&[1, 4, 9]);
         cache.values_mut().copy_from_slice(&[10, 40, 90]);
         let version = cache.version();
-        let mut unread = Vec::new();
-        cache.adopt_keys(&mut unread, (0, 0));
+        cache.adopt_key_count(3, (0, 0));
         assert_eq!(
             (cache.keys(), cache.values()),
             (&[1, 4, 9][..], &[10, 40, 90][..])
         );
         assert_eq!(cache.changes(), (0, 0));
-        assert!(unread.is_empty());
         assert_ne!(cache.version(), version);
     }
 
