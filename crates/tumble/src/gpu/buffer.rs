@@ -222,7 +222,7 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             return Ok(out);
         }
         let bytes = Self::bytes(self.len);
-        let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
+        let staging = context.create_buffer(&wgpu::BufferDescriptor {
             label: Some(self.label),
             size: bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
@@ -277,7 +277,7 @@ impl<T: bytemuck::Pod> GpuVec<T> {
         }
         let size = Self::bytes(self.capacity);
         let staging = self.staging.get_or_insert_with(|| {
-            context.device.create_buffer(&wgpu::BufferDescriptor {
+            context.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(self.label),
                 size,
                 usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
@@ -403,7 +403,7 @@ fn create(
             limit,
         });
     }
-    Ok(context.device.create_buffer(&wgpu::BufferDescriptor {
+    Ok(context.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
         size: bytes.max(MIN_CAPACITY_BYTES),
         usage: wgpu::BufferUsages::STORAGE

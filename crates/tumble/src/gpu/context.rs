@@ -10,6 +10,7 @@
 //! the hardware allows them) and the optional features the kernels can use: timestamp queries
 //! for the GPU profiler and subgroups for faster variants. Baseline kernels need neither.
 
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
@@ -56,6 +57,8 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     pub info: Arc<wgpu::AdapterInfo>,
     pub(crate) pipelines: Arc<Mutex<PipelineCache>>,
+    /// Buffers and bind groups made on the device so far ([`Self::resources_made`]).
+    resources_made: Arc<AtomicU64>,
 }
 
 impl GpuContext {
@@ -96,6 +99,7 @@ impl GpuContext {
             queue,
             info: Arc::new(info),
             pipelines: Arc::default(),
+            resources_made: Arc::default(),
         })
     }
 
@@ -124,6 +128,7 @@ impl GpuContext {
             queue,
             info: Arc::new(info),
             pipelines: Arc::default(),
+            resources_made: Arc::default(),
         }
     }
 
@@ -165,6 +170,40 @@ impl GpuContext {
             "{} ({:?}, {:?})",
             self.info.name, self.info.backend, self.info.device_type
         )
+    }
+
+    /// How many buffers and bind groups the crate made on this device so far: vectors and
+    /// their growth, staging buffers, uniform blocks, a kernel's bindings made again. Commands
+    /// recorded ahead of their submission still read the buffers they would be recorded with
+    /// now if none was made since (no vector grew, no binding changed): see the solve that
+    /// `GpuStages` encodes during the collision's wait.
+    pub fn resources_made(&self) -> u64 {
+        self.resources_made.load(Ordering::Relaxed)
+    }
+
+    /// Makes a buffer, counted by [`Self::resources_made`].
+    pub(crate) fn create_buffer(&self, descriptor: &wgpu::BufferDescriptor) -> wgpu::Buffer {
+        self.resources_made.fetch_add(1, Ordering::Relaxed);
+        self.device.create_buffer(descriptor)
+    }
+
+    /// Makes a buffer with its contents, counted by [`Self::resources_made`].
+    pub(crate) fn create_buffer_init(
+        &self,
+        descriptor: &wgpu::util::BufferInitDescriptor,
+    ) -> wgpu::Buffer {
+        use wgpu::util::DeviceExt;
+        self.resources_made.fetch_add(1, Ordering::Relaxed);
+        self.device.create_buffer_init(descriptor)
+    }
+
+    /// Makes a bind group, counted by [`Self::resources_made`].
+    pub(crate) fn create_bind_group(
+        &self,
+        descriptor: &wgpu::BindGroupDescriptor,
+    ) -> wgpu::BindGroup {
+        self.resources_made.fetch_add(1, Ordering::Relaxed);
+        self.device.create_bind_group(descriptor)
     }
 
     pub fn has_timestamps(&self) -> bool {

@@ -16,8 +16,6 @@ use std::collections::{HashMap, HashSet};
 use std::hash::{DefaultHasher, Hash, Hasher};
 use std::sync::{Mutex, OnceLock};
 
-use wgpu::util::DeviceExt;
-
 use crate::gpu::context::GpuContext;
 use crate::gpu::profiler::DispatchTimer;
 
@@ -234,13 +232,11 @@ impl Kernel {
                 resource: wgpu::BindingResource::Buffer(buffer.clone()),
             })
             .collect();
-        context
-            .device
-            .create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &self.layout,
-                entries: &entries,
-            })
+        context.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &self.layout,
+            entries: &entries,
+        })
     }
 
     /// A dispatch of `workgroups` workgroups (split over x and y when there are more than one
@@ -367,13 +363,11 @@ impl UniformSlots {
             let start = slot * stride as usize;
             bytes[start..start + size as usize].copy_from_slice(bytemuck::bytes_of(block));
         }
-        let buffer = context
-            .device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: &bytes,
-                usage: wgpu::BufferUsages::UNIFORM,
-            });
+        let buffer = context.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: &bytes,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
         Self {
             buffer,
             stride,

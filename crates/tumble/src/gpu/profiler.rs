@@ -61,7 +61,7 @@ impl Timestamps {
     fn new(context: &GpuContext, label: &str, pairs: u32) -> Self {
         let bytes = u64::from(2 * pairs) * 8;
         let buffer = |what: &str, usage| {
-            context.device.create_buffer(&wgpu::BufferDescriptor {
+            context.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(&format!("{label} {what}")),
                 size: bytes,
                 usage,
@@ -168,6 +168,17 @@ impl GpuProfiler {
     /// Whether spans are measured (the adapter has timestamp queries).
     pub fn is_active(&self) -> bool {
         self.queries.is_some()
+    }
+
+    /// Whether each dispatch is timed ([`Self::time_each_dispatch`]).
+    pub fn times_dispatches(&self) -> bool {
+        self.dispatches.is_some()
+    }
+
+    /// Forgets the spans begun since the last [`Self::collect`]: their passes were recorded
+    /// into commands that will not be submitted.
+    pub fn discard(&mut self) {
+        self.spans.clear();
     }
 
     /// Timestamp writes for a pass measured as `path`, or `None` (no queries, or more spans

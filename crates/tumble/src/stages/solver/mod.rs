@@ -118,7 +118,7 @@ impl std::str::FromStr for SolverKind {
 }
 
 /// Solver settings for one step.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SolverSettings {
     pub dt: f32,
     pub substeps: u32,
