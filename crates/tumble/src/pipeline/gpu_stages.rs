@@ -134,8 +134,10 @@ const SOLVER_INTEGRATE_KERNEL: SpanPath = &["solver", "integrate kernel"];
 const SOLVER_LAYOUT_KERNEL: SpanPath = &["solver", "kernels: rows in batch order"];
 const SOLVER_IMPULSES_KERNEL: SpanPath = &["solver", "kernels: impulses out"];
 const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
-/// The solver's commands recorded during the collision's wait ([`SolveAhead`]).
-const SOLVER_ENCODED_AHEAD: SpanPath = &["collision", "solver encoded (during the wait)"];
+/// The batching's and the solver's commands recorded during the collision's wait
+/// ([`SolveAhead`]).
+const SOLVER_ENCODED_AHEAD: SpanPath =
+    &["collision", "batching and solver encoded (during the wait)"];
 /// Stages 1–4 in one submission ([`GpuStages::collide`]).
 const COLLISION: StageSpans = StageSpans {
     upload: &["collision", "copy bodies to gpu"],
@@ -287,6 +289,24 @@ struct SolvePlan {
 /// counts that change from step to step reach the kernels through buffers, not the commands.
 struct SolveAhead {
     plan: SolvePlan,
+    resources: u64,
+    commands: wgpu::CommandBuffer,
+}
+
+/// What a device layout's batching is recorded from besides the buffers it reads (see
+/// [`SolvePlan`]): whether there is a constraint, the bodies, the batcher and the rounds
+/// dispatched on their own.
+#[derive(Clone, Debug, PartialEq)]
+struct BatchingPlan {
+    any: bool,
+    body_count: usize,
+    batcher: Batcher,
+    rounds: usize,
+}
+
+/// A step's batching recorded with its solve during the collision's wait ([`SolveAhead`]).
+struct BatchingAhead {
+    plan: BatchingPlan,
     resources: u64,
     commands: wgpu::CommandBuffer,
 }
@@ -532,6 +552,11 @@ pub(crate) struct GpuStages {
     last_solve: Option<SolvePlan>,
     ahead_profiler: GpuProfiler,
     solves_encoded_ahead: usize,
+    /// The same for the batching, recorded with the solve.
+    batching_ahead: Option<BatchingAhead>,
+    last_batching: Option<BatchingPlan>,
+    ahead_batching_profiler: GpuProfiler,
+    batchings_encoded_ahead: usize,
     encodes_ahead: bool,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
@@ -652,6 +677,10 @@ impl GpuStages {
             // The solver's four passes.
             ahead_profiler: GpuProfiler::new(&context, 4),
             solves_encoded_ahead: 0,
+            batching_ahead: None,
+            last_batching: None,
+            ahead_batching_profiler: GpuProfiler::new(&context, 1),
+            batchings_encoded_ahead: 0,
             encodes_ahead: true,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
@@ -715,7 +744,7 @@ impl GpuStages {
     pub fn begin_step(&mut self) {
         // Recorded for a step that did not solve (a failed one, or one whose solve ran
         // elsewhere).
-        self.solve_ahead = None;
+        (self.solve_ahead, self.batching_ahead) = (None, None);
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
         self.integrated_this_step = false;
@@ -1582,27 +1611,80 @@ impl GpuStages {
         body_count: usize,
         batcher: Batcher,
     ) -> Result<(), GpuError> {
-        let context = &self.context;
+        // A handle of its own (reference-counted), for the recording below to borrow `self`.
+        let context = &self.context.clone();
+        let start = Instant::now();
         self.batched.size_for(context, count, 0)?;
-        let rounds = self.batching_rounds;
-        let (batching, layout) = (&mut self.batching, &mut self.layout);
-        let (order, bodies) = (self.batched.order(), (&self.rows.bodies, count));
-        let spans = (&BATCHING, BATCHING_SUBMIT);
-        submit_passes(
-            context,
-            &mut self.profiler,
-            profiler,
-            spans,
-            |encoder, timer| {
-                encode_pass(encoder, timer, BATCHING.kernel, |pass| {
-                    batching
-                        .encode_device_bodies(context, pass, bodies, body_count, batcher, rounds)?;
-                    layout.encode(context, pass, batching.tally(), &batching.colors, order)
-                })
-            },
-        )?;
+        let bodies = (&self.rows.bodies, count);
+        let any = self
+            .batching
+            .prepare_device_bodies(context, bodies, body_count)?;
+        let plan = BatchingPlan {
+            any,
+            body_count,
+            batcher,
+            rounds: self.batching_rounds,
+        };
+        // The commands recorded during the collision's wait, when they are this plan's and
+        // nothing was made since (see `SolveAhead`).
+        let resources = context.resources_made();
+        let ahead = self
+            .batching_ahead
+            .take()
+            .filter(|ahead| ahead.plan == plan && ahead.resources == resources);
+        let commands = match ahead {
+            Some(ahead) => {
+                self.batchings_encoded_ahead += 1;
+                ahead.commands
+            }
+            None => {
+                self.ahead_batching_profiler.discard();
+                let mut encoder =
+                    context
+                        .device
+                        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                            label: Some(BATCHING.kernel[0]),
+                        });
+                self.record_batching(&mut encoder, &plan, false)?;
+                encoder.finish()
+            }
+        };
+        profiler.record(BATCHING.encode, SpanKind::Cpu, elapsed_ms(start));
+        let start = Instant::now();
+        context.queue.submit([commands]);
+        profiler.record(BATCHING_SUBMIT, SpanKind::Cpu, elapsed_ms(start));
+        self.last_batching = Some(plan);
         self.laid_out_on_device = true;
         self.device_layouts += 1;
+        Ok(())
+    }
+
+    /// Records a device layout's batching (`plan`) into `encoder`, timed on the stages'
+    /// profiler or, `ahead`, on the one of the batching recorded ahead (resolved here).
+    fn record_batching(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        plan: &BatchingPlan,
+        ahead: bool,
+    ) -> Result<(), GpuError> {
+        let context = &self.context;
+        let (batching, layout) = (&mut self.batching, &mut self.layout);
+        let (order, bodies) = (self.batched.order(), &self.rows.bodies);
+        let timer = if ahead {
+            &mut self.ahead_batching_profiler
+        } else {
+            &mut self.profiler
+        };
+        encode_pass(encoder, timer, BATCHING.kernel, |pass| {
+            if plan.any {
+                let (count, batcher, rounds) = (plan.body_count, plan.batcher, plan.rounds);
+                batching.record_device_bodies(context, pass, bodies, count, batcher, rounds);
+            }
+            layout.encode(context, pass, batching.tally(), &batching.colors, order)
+        })?;
+        if ahead {
+            timer.resolve(encoder);
+        }
         Ok(())
     }
 
@@ -2002,6 +2084,7 @@ impl GpuStages {
         profiler.record(SOLVER.wait, SpanKind::Cpu, elapsed_ms(start));
         self.profiler.collect(context, profiler)?;
         self.ahead_profiler.collect(context, profiler)?;
+        self.ahead_batching_profiler.collect(context, profiler)?;
         let start = Instant::now();
         match &mut integrate {
             Some(state) => {
@@ -2185,18 +2268,31 @@ impl GpuStages {
         Ok(())
     }
 
-    /// Records this step's solve during the collision's wait, from last step's plan (see
-    /// [`SolveAhead`]), when last step's solve can be planned from.
+    /// Records this step's batching and solve during the collision's wait, from last step's
+    /// plans (see [`SolveAhead`]), when last step's can be planned from.
     fn encode_solve_ahead(&mut self, profiler: &mut Profiler) -> Result<(), GpuError> {
-        self.solve_ahead = None;
+        (self.solve_ahead, self.batching_ahead) = (None, None);
         self.ahead_profiler.discard();
-        let Some(mut plan) = self.last_solve.take() else {
+        self.ahead_batching_profiler.discard();
+        let (Some(mut plan), Some(mut batching)) =
+            (self.last_solve.take(), self.last_batching.take())
+        else {
             return Ok(());
         };
+        // What changed since with last step's results: its rounds and batch sizes.
+        batching.rounds = self.batching_rounds;
         if !self.encodes_ahead {
             return Ok(());
         }
         let start = Instant::now();
+        let mut encoder =
+            self.context
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("batching, recorded ahead"),
+                });
+        self.record_batching(&mut encoder, &batching, true)?;
+        let batching_commands = encoder.finish();
         plan.expected = Some(self.expected_batch_sizes.clone());
         self.solver_bodies.resize(&self.context, plan.bodies)?;
         let mut encoder =
@@ -2206,9 +2302,15 @@ impl GpuStages {
                     label: Some("solver, recorded ahead"),
                 });
         self.encode_batched_solve(&mut encoder, &plan, None, true)?;
+        let resources = self.context.resources_made();
+        self.batching_ahead = Some(BatchingAhead {
+            plan: batching,
+            resources,
+            commands: batching_commands,
+        });
         self.solve_ahead = Some(SolveAhead {
             plan,
-            resources: self.context.resources_made(),
+            resources,
             commands: encoder.finish(),
         });
         profiler.record(SOLVER_ENCODED_AHEAD, SpanKind::Cpu, elapsed_ms(start));
@@ -3582,10 +3684,10 @@ mod tests {
     }
 
     /// 48 boxes and balls falling onto a plane with every stage on the GPU, the pair buffers
-    /// starting too small and a bouncing ball added at step 40, each step's solve recorded during its
-    /// collision's wait or not: (the poses and velocities, the steps that submitted a solve
-    /// recorded ahead, those laid out on the device).
-    fn block_with_solves_ahead(ahead: bool, steps: usize) -> (Vec<u8>, usize, usize) {
+    /// starting too small and a bouncing ball added at step 40, each step's solve and batching
+    /// recorded during its collision's wait or not: (the poses and velocities, the steps that submitted a solve and
+    /// a batching recorded ahead, those laid out on the device).
+    fn block_with_solves_ahead(ahead: bool, steps: usize) -> (Vec<u8>, [usize; 2], usize) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig::default()).unwrap();
@@ -3620,24 +3722,26 @@ mod tests {
         let mut state = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
         state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
         let gpu = world.gpu.as_ref().unwrap();
-        (state, gpu.solves_encoded_ahead, gpu.device_layouts)
+        let ahead = [gpu.solves_encoded_ahead, gpu.batchings_encoded_ahead];
+        (state, ahead, gpu.device_layouts)
     }
 
-    /// A solve recorded during the collision's wait, from last step's plan, steps bitwise as
-    /// one recorded after it, through the pairs' buffers growing, the rows' growing as the pile
+    /// A solve and a batching recorded during the collision's wait, from last step's plans,
+    /// step bitwise as those recorded after it, through the pairs' buffers growing, the rows' growing as the pile
     /// forms and a body added; and most steps of a settling pile submit it.
     #[test]
     fn a_solve_recorded_during_the_collision_steps_as_one_recorded_after() {
         let _turn = turn();
         let ahead = block_with_solves_ahead(true, 120);
         let after = block_with_solves_ahead(false, 120);
-        assert_eq!(after.1, 0);
-        assert!(
-            ahead.1 > ahead.2 / 2 && ahead.1 < ahead.2,
-            "{} of {} steps laid out on the device submitted a solve recorded ahead",
-            ahead.1,
-            ahead.2
-        );
+        assert_eq!(after.1, [0, 0]);
+        for (recorded, what) in ahead.1.into_iter().zip(["solve", "batching"]) {
+            assert!(
+                recorded > ahead.2 / 2 && recorded < ahead.2,
+                "{recorded} of {} steps laid out on the device submitted a {what} recorded ahead",
+                ahead.2
+            );
+        }
         assert!(ahead.0 == after.0, "the poses or velocities differ");
     }
 

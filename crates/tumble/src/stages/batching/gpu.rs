@@ -131,7 +131,8 @@ impl GpuBatching {
 
     /// [`Self::encode`] of the first `count` constraints of `bodies` (the rows' bodies left on
     /// the device, [`GpuRows::bodies`](crate::stages::constraints::gpu::GpuRows::bodies))
-    /// rather than of those uploaded, no joint among them.
+    /// rather than of those uploaded, no joint among them: [`Self::prepare_device_bodies`],
+    /// then, when there is a constraint, [`Self::record_device_bodies`].
     pub fn encode_device_bodies(
         &mut self,
         context: &GpuContext,
@@ -141,8 +142,37 @@ impl GpuBatching {
         batcher: Batcher,
         rounds: usize,
     ) -> Result<(), GpuError> {
-        let input = (bodies.buffer(), count, bodies.capacity());
-        self.encode_over(context, pass, input, body_count, 0, batcher, rounds)
+        if self.prepare_device_bodies(context, (bodies, count), body_count)? {
+            self.record_device_bodies(context, pass, bodies, body_count, batcher, rounds);
+        }
+        Ok(())
+    }
+
+    /// The host's part of [`Self::encode_device_bodies`]: the count to the device and the
+    /// buffers sized for it. Whether there is a constraint to record a batching of.
+    pub fn prepare_device_bodies(
+        &mut self,
+        context: &GpuContext,
+        (bodies, count): (&GpuVec<[u32; 2]>, usize),
+        body_count: usize,
+    ) -> Result<bool, GpuError> {
+        self.prepare(context, count, bodies.capacity(), body_count)
+    }
+
+    /// The commands of [`Self::encode_device_bodies`], after its
+    /// [`Self::prepare_device_bodies`]: they read the count on the device, so a recording
+    /// serves any count its preparation did not grow a buffer for.
+    pub fn record_device_bodies(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        bodies: &GpuVec<[u32; 2]>,
+        body_count: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) {
+        let input = (bodies.buffer(), bodies.capacity());
+        self.record(context, pass, input, body_count, 0, batcher, rounds);
     }
 
     /// [`Self::encode`] over `(buffer, count, capacity)` of constraint bodies.
@@ -157,17 +187,49 @@ impl GpuBatching {
         batcher: Batcher,
         rounds: usize,
     ) -> Result<(), GpuError> {
-        // Lands before this submission's commands run (the batch layout reads the count).
+        if self.prepare(context, count, capacity, body_count)? {
+            let input = (bodies, capacity);
+            self.record(context, pass, input, body_count, ordered, batcher, rounds);
+        }
+        Ok(())
+    }
+
+    /// The count to the device and the buffers sized for `count` of `capacity` constraints
+    /// among `body_count` bodies: whether there is one.
+    fn prepare(
+        &mut self,
+        context: &GpuContext,
+        count: usize,
+        capacity: usize,
+        body_count: usize,
+    ) -> Result<bool, GpuError> {
+        // Lands before the next submission's commands run (the batch layout reads the count).
         self.tally
             .upload(context, &[[0, count as u32, 0, u32::MAX]])?;
         if count == 0 {
             self.colors.resize(context, 0)?;
-            return Ok(());
+            return Ok(false);
         }
         self.colors.resize(context, count)?;
         self.locks.resize(context, 2 * LOCK_SLOTS * body_count)?;
         self.masks.resize(context, body_count)?;
         self.tentative.resize(context, capacity)?;
+        Ok(true)
+    }
+
+    /// The batching's dispatches over `(buffer, capacity)` of constraint bodies, after
+    /// [`Self::prepare`].
+    #[allow(clippy::too_many_arguments)]
+    fn record(
+        &mut self,
+        context: &GpuContext,
+        pass: &mut wgpu::ComputePass<'_>,
+        (bodies, capacity): (&wgpu::Buffer, usize),
+        body_count: usize,
+        ordered: usize,
+        batcher: Batcher,
+        rounds: usize,
+    ) {
         let buffers = [
             bodies.clone(),
             self.colors.buffer().clone(),
@@ -195,10 +257,8 @@ impl GpuBatching {
             }
             dispatches.finish.encode(pass);
         }
-        Ok(())
     }
 
-    /// The dispatches for up to `capacity` constraints.
     fn dispatches(
         &self,
         context: &GpuContext,
