@@ -281,12 +281,14 @@ struct SolvePlan {
     bodies: usize,
 }
 
-/// A step's batched solve recorded during its collision's wait, from last step's plan: a 3k
-/// boxes' solve is about 150 dispatches, 0.4 ms of recording on an H100's host, which the host
-/// spent after the collision's wait while the device idled. The step's solve submits these
-/// commands when its plan is the same and no buffer or binding was made since
-/// (`resources`): then every buffer they read is the one it would record now, and the
-/// counts that change from step to step reach the kernels through buffers, not the commands.
+/// A step's batched solve recorded during its collision's wait, from last step's plan. A 3k
+/// boxes' solve is about 150 dispatches, 0.2–0.4 ms of recording on an H100 machine's host,
+/// which the host spent after the collision's wait: on the step's path wherever the host
+/// records more slowly than the device runs the rows and the batching (BENCHMARKS.md, session
+/// 24). The step's solve submits these commands when its plan is the same and no buffer or
+/// binding was made since (`resources`): then every buffer they read is the one it would
+/// record now, and the counts that change from step to step reach the kernels through
+/// buffers, not the commands.
 struct SolveAhead {
     plan: SolvePlan,
     resources: u64,
@@ -1240,10 +1242,11 @@ impl GpuStages {
             )?;
             if !recorded_ahead {
                 recorded_ahead = true;
-                // The host would wait here: it records this step's solve meanwhile. A failure
-                // there leaves the solve to record its commands itself, where it fails again.
+                // The host would wait here: it records this step's batching and solve
+                // meanwhile. A failure there leaves them to record their commands themselves,
+                // where it fails again.
                 if self.encode_solve_ahead(profiler).is_err() {
-                    self.solve_ahead = None;
+                    (self.solve_ahead, self.batching_ahead) = (None, None);
                 }
             }
             wait_for_passes(context, &mut self.profiler, profiler, &COLLISION, submit_ms)?;
@@ -2059,11 +2062,15 @@ impl GpuStages {
         let commands = match ahead {
             Some(ahead) => {
                 self.solves_encoded_ahead += 1;
+                let mut commands = vec![ahead.commands];
                 // The passes of the stages submitted since the last wait were timed on the
                 // stages' profiler: resolved in a command buffer of their own.
-                let mut encoder = context.device.create_command_encoder(&Default::default());
-                self.profiler.resolve(&mut encoder);
-                vec![ahead.commands, encoder.finish()]
+                if self.profiler.is_active() {
+                    let mut encoder = context.device.create_command_encoder(&Default::default());
+                    self.profiler.resolve(&mut encoder);
+                    commands.push(encoder.finish());
+                }
+                commands
             }
             None => {
                 let mut encoder =
