@@ -1161,12 +1161,9 @@ impl GpuStages {
                         )?;
                         broadphase.encode_trees(context, pass, aabbs)
                     })?;
-                    // The device starts on the trees while the host records the rest.
-                    submit_recorded(context, encoder);
                     encode_pass(encoder, timer, pairs, |pass| {
                         broadphase.encode_pairs(context, pass)
                     })?;
-                    submit_recorded(context, encoder);
                     // The broadphase's keys are padded with u64::MAX past the count, which both
                     // the diff and the narrowphase pass over: the count stays on the device.
                     encode_pass(encoder, timer, lookup, |pass| {
@@ -2402,20 +2399,6 @@ fn record_and_submit(
     let start = Instant::now();
     context.queue.submit([commands]);
     Ok(elapsed_ms(start))
-}
-
-/// Submits what `encoder` recorded so far, and leaves it a new encoder for the rest: a stage
-/// that records many dispatches lets the device start on its first passes meanwhile (the
-/// collision's, 0.68 ms of recording at 500k bodies on an H100's host, which the device spent
-/// idle). Its passes stay timed: the profiler resolves their queries after the last one.
-fn submit_recorded(context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
-    let next = context
-        .device
-        .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("the rest of a stage"),
-        });
-    let recorded = std::mem::replace(encoder, next);
-    context.queue.submit([recorded.finish()]);
 }
 
 /// [`run_passes`]' second half: waits for the submission, records it and the wait as one line
