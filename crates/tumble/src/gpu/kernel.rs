@@ -73,6 +73,10 @@ impl Source {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Binding {
     Uniform,
+    /// A uniform block chosen at each dispatch by its offset in the buffer (a dynamic offset:
+    /// [`UniformSlots::dynamic_binding`], [`Kernel::dispatch_at`]). One bind group then serves
+    /// every block, where a kernel dispatched with many blocks would need one a block.
+    UniformAt,
     StorageRead,
     StorageReadWrite,
 }
@@ -169,9 +173,9 @@ impl Kernel {
                 binding: index as u32,
                 visibility: wgpu::ShaderStages::COMPUTE,
                 ty: match binding {
-                    Binding::Uniform => wgpu::BindingType::Buffer {
+                    Binding::Uniform | Binding::UniformAt => wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
-                        has_dynamic_offset: false,
+                        has_dynamic_offset: *binding == Binding::UniformAt,
                         min_binding_size: None,
                     },
                     Binding::StorageRead | Binding::StorageReadWrite => wgpu::BindingType::Buffer {
@@ -246,8 +250,23 @@ impl Kernel {
         Dispatch {
             pipeline: self.pipeline.clone(),
             bind_group,
+            uniform_offset: None,
             groups: [x, y, 1],
             name: self.name,
+        }
+    }
+
+    /// [`Self::dispatch`] for a kernel whose uniform block is a [`Binding::UniformAt`]: the
+    /// block at `uniform_offset` ([`UniformSlots::offset`]).
+    pub fn dispatch_at(
+        &self,
+        bind_group: wgpu::BindGroup,
+        workgroups: u32,
+        uniform_offset: u32,
+    ) -> Dispatch {
+        Dispatch {
+            uniform_offset: Some(uniform_offset),
+            ..self.dispatch(bind_group, workgroups)
         }
     }
 }
@@ -257,6 +276,8 @@ impl Kernel {
 pub struct Dispatch {
     pipeline: wgpu::ComputePipeline,
     bind_group: wgpu::BindGroup,
+    /// The uniform block's offset, for a kernel that binds it as [`Binding::UniformAt`].
+    uniform_offset: Option<u32>,
     groups: [u32; 3],
     name: &'static str,
 }
@@ -270,7 +291,8 @@ impl Dispatch {
         }
         let timed = DispatchTimer::begin(pass, self.name);
         pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
+        let offsets = self.uniform_offset.as_slice();
+        pass.set_bind_group(0, &self.bind_group, offsets);
         pass.dispatch_workgroups(self.groups[0], self.groups[1], self.groups[2]);
         if let Some(timed) = timed {
             timed.end(pass);
@@ -382,6 +404,17 @@ impl UniformSlots {
             offset: slot as u64 * self.stride,
             size: wgpu::BufferSize::new(self.size),
         }
+    }
+
+    /// The binding of any block, for a [`Binding::UniformAt`]: each dispatch names its block
+    /// by [`Self::offset`].
+    pub fn dynamic_binding(&self) -> wgpu::BufferBinding<'_> {
+        self.binding(0)
+    }
+
+    /// Block `slot`'s offset in the buffer, for [`Kernel::dispatch_at`].
+    pub fn offset(&self, slot: usize) -> u32 {
+        u32::try_from(slot as u64 * self.stride).expect("uniform blocks fit in 4 GiB")
     }
 }
 
