@@ -277,7 +277,7 @@ struct SolvePlan {
     /// The warm start by body, its adjacency built first (a device layout's).
     by_body: bool,
     /// A device layout, planned with these batch sizes (the last layout's).
-    expected: Option<Vec<u32>>,
+    expected: Option<[u32; LAYOUT_BATCHES]>,
     bodies: usize,
 }
 
@@ -513,7 +513,7 @@ pub(crate) struct GpuStages {
     /// The batch layout on the device ([`Self::color_constraints_on_device`]), and each of its
     /// batches' size at the last step that used it: the solver's plan for the next one.
     layout: GpuBatchLayout,
-    expected_batch_sizes: Vec<u32>,
+    expected_batch_sizes: [u32; LAYOUT_BATCHES],
     /// Each body's constraints in a device layout, for the warm start by body.
     adjacency: GpuBodyAdjacency,
     /// This step's batching left its layout on the device for [`Self::solve_batched`].
@@ -655,7 +655,7 @@ impl GpuStages {
             batching: GpuBatching::new(&context)?,
             batching_rounds: FIRST_BATCHING_ROUNDS,
             layout: GpuBatchLayout::new(&context)?,
-            expected_batch_sizes: FIRST_EXPECTED_BATCH_SIZES.to_vec(),
+            expected_batch_sizes: FIRST_EXPECTED_BATCH_SIZES,
             adjacency: GpuBodyAdjacency::new(&context)?,
             laid_out_on_device: false,
             host_layout: false,
@@ -2039,9 +2039,7 @@ impl GpuStages {
             by_body: host_sizes.is_none()
                 && self.warm_start_by_body
                 && !self.batched.order().is_empty(),
-            expected: host_sizes
-                .is_none()
-                .then(|| self.expected_batch_sizes.clone()),
+            expected: host_sizes.is_none().then_some(self.expected_batch_sizes),
             bodies: bodies.len(),
         };
         if plan.integrating {
@@ -2059,18 +2057,19 @@ impl GpuStages {
             self.ahead_profiler.discard();
         }
         let start = Instant::now();
-        let commands = match ahead {
+        // The solve's commands, and those that resolve the stages' timestamps when the solve
+        // was recorded ahead (on a profiler of its own).
+        let (commands, resolved) = match ahead {
             Some(ahead) => {
                 self.solves_encoded_ahead += 1;
-                let mut commands = vec![ahead.commands];
                 // The passes of the stages submitted since the last wait were timed on the
                 // stages' profiler: resolved in a command buffer of their own.
-                if self.profiler.is_active() {
+                let resolved = self.profiler.is_active().then(|| {
                     let mut encoder = context.device.create_command_encoder(&Default::default());
                     self.profiler.resolve(&mut encoder);
-                    commands.push(encoder.finish());
-                }
-                commands
+                    encoder.finish()
+                });
+                (ahead.commands, resolved)
             }
             None => {
                 let mut encoder =
@@ -2081,12 +2080,14 @@ impl GpuStages {
                         });
                 self.encode_batched_solve(&mut encoder, &plan, host_sizes, false)?;
                 self.profiler.resolve(&mut encoder);
-                vec![encoder.finish()]
+                (encoder.finish(), None)
             }
         };
         profiler.record(SOLVER.encode, SpanKind::Cpu, elapsed_ms(start));
         let start = Instant::now();
-        context.queue.submit(commands);
+        context
+            .queue
+            .submit(std::iter::once(commands).chain(resolved));
         context.wait()?;
         profiler.record(SOLVER.wait, SpanKind::Cpu, elapsed_ms(start));
         self.profiler.collect(context, profiler)?;
@@ -2300,7 +2301,7 @@ impl GpuStages {
                 });
         self.record_batching(&mut encoder, &batching, true)?;
         let batching_commands = encoder.finish();
-        plan.expected = Some(self.expected_batch_sizes.clone());
+        plan.expected = Some(self.expected_batch_sizes);
         self.solver_bodies.resize(&self.context, plan.bodies)?;
         let mut encoder =
             self.context
@@ -2746,6 +2747,18 @@ mod tests {
             .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
             .unwrap();
         world
+    }
+
+    /// `count` bodies of [`block_member`], every fourth a ball, the others boxes.
+    fn add_block(world: &mut World, count: usize) {
+        for index in 0..count {
+            let shape = if index % 4 == 0 {
+                Shape::sphere(0.5)
+            } else {
+                Shape::cuboid(Vec3::splat(0.5))
+            };
+            world.add_body(block_member(index, shape)).unwrap();
+        }
     }
 
     fn block_member(index: usize, shape: Shape) -> BodyDesc {
@@ -3573,14 +3586,7 @@ mod tests {
         world
             .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
             .unwrap();
-        for index in 0..24 {
-            let shape = if index % 4 == 0 {
-                Shape::sphere(0.5)
-            } else {
-                Shape::cuboid(Vec3::splat(0.5))
-            };
-            world.add_body(block_member(index, shape)).unwrap();
-        }
+        add_block(&mut world, 24);
         // A chain of three capsules on point joints falls onto the block: joint rows, and
         // jointed pairs the narrowphase skips.
         let link =
@@ -3664,14 +3670,7 @@ mod tests {
     fn batches_laid_out_on_the_device_step_as_on_the_host() {
         let _turn = turn();
         let block = |world: &mut World| {
-            for index in 0..48 {
-                let shape = if index % 4 == 0 {
-                    Shape::sphere(0.5)
-                } else {
-                    Shape::cuboid(Vec3::splat(0.5))
-                };
-                world.add_body(block_member(index, shape)).unwrap();
-            }
+            add_block(world, 48);
         };
         let device = pile_on_the_gpu((false, false), 120, block);
         let host = pile_on_the_gpu((true, false), 120, block);
@@ -3692,8 +3691,8 @@ mod tests {
 
     /// 48 boxes and balls falling onto a plane with every stage on the GPU, the pair buffers
     /// starting too small and a bouncing ball added at step 40, each step's solve and batching
-    /// recorded during its collision's wait or not: (the poses and velocities, the steps that submitted a solve and
-    /// a batching recorded ahead, those laid out on the device).
+    /// recorded during its collision's wait or not: (the poses and velocities, the steps that
+    /// submitted a solve and a batching recorded ahead, those laid out on the device).
     fn block_with_solves_ahead(ahead: bool, steps: usize) -> (Vec<u8>, [usize; 2], usize) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
@@ -3708,14 +3707,7 @@ mod tests {
         world
             .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
             .unwrap();
-        for index in 0..48 {
-            let shape = if index % 4 == 0 {
-                Shape::sphere(0.5)
-            } else {
-                Shape::cuboid(Vec3::splat(0.5))
-            };
-            world.add_body(block_member(index, shape)).unwrap();
-        }
+        add_block(&mut world, 48);
         for step in 0..steps {
             if step == 40 {
                 // Bouncing: its steps' solves have a restitution sweep, the others' not.
@@ -3734,8 +3726,9 @@ mod tests {
     }
 
     /// A solve and a batching recorded during the collision's wait, from last step's plans,
-    /// step bitwise as those recorded after it, through the pairs' buffers growing, the rows' growing as the pile
-    /// forms and a body added; and most steps of a settling pile submit it.
+    /// step bitwise as those recorded after it, through the pairs' buffers growing, the rows'
+    /// growing as the pile forms and a bouncing body added; and most steps of a settling pile
+    /// submit them.
     #[test]
     fn a_solve_recorded_during_the_collision_steps_as_one_recorded_after() {
         let _turn = turn();
