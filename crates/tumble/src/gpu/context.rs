@@ -43,6 +43,11 @@ pub enum GpuError {
     Readback { what: &'static str, reason: String },
     #[error("the GPU did not finish within {seconds} s (device lost or hung)")]
     Timeout { seconds: u64 },
+    #[error(
+        "the step submitted with the collision planned {what} otherwise than the step did \
+         (a bug in tumble; the device's bodies have moved)"
+    )]
+    Unplanned { what: &'static str },
 }
 
 /// How long a blocking wait for the GPU may take before it is reported as a hang. Generous,

@@ -36,6 +36,11 @@ use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BAT
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
+mod speculation;
+
+pub(crate) use speculation::StepPlan;
+use speculation::{Speculated, StepHold, unplanned};
+
 /// Batching rounds a world encodes at first: falling-boxes at 3k bodies needs 24 to 31 (the
 /// talk's batcher makes one batch a round), the colors batcher as many.
 const FIRST_BATCHING_ROUNDS: usize = 32;
@@ -306,6 +311,18 @@ struct BatchingPlan {
     rounds: usize,
 }
 
+/// When a batched solve is recorded ([`GpuStages::encode_batched_solve`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Recording {
+    /// Where it is submitted, after the rows and the batching.
+    Now,
+    /// During the collision's wait, for the step's solve to submit ([`SolveAhead`]).
+    Ahead,
+    /// During the collision's wait and submitted then, on a guess
+    /// ([`speculation`]): its integration moves the bodies only where the step held.
+    Speculated,
+}
+
 /// A step's batching recorded with its solve during the collision's wait ([`SolveAhead`]).
 struct BatchingAhead {
     plan: BatchingPlan,
@@ -560,6 +577,22 @@ pub(crate) struct GpuStages {
     ahead_batching_profiler: GpuProfiler,
     batchings_encoded_ahead: usize,
     encodes_ahead: bool,
+    /// The step's plan for its rows, batching and solve to be submitted with its collision
+    /// ([`Self::plan_step`]), then what they were submitted from and whether the step held
+    /// ([`speculation`]); the check of the step's guesses on the device; whether steps are
+    /// submitted so (the tests compare with steps that are not), and how many held or not.
+    step_plan: Option<StepPlan>,
+    speculated: Option<Speculated>,
+    step_hold: StepHold,
+    speculates: bool,
+    steps_held: usize,
+    steps_not_held: usize,
+    /// Last step's rows, and whether one bounced: the guesses of the next step submitted
+    /// with its collision, which has room for `row_margin` rows more at least
+    /// ([`speculation::ROW_MARGIN`]; the tests make it 0, so that the rows outgrow it).
+    last_rows: usize,
+    last_bounced: bool,
+    row_margin: usize,
     /// Built at the first Jacobi step.
     jacobi: Option<GpuJacobi>,
     /// The batches kept on the device when rows, batching and solver all run here.
@@ -681,14 +714,25 @@ impl GpuStages {
             solves_encoded_ahead: 0,
             batching_ahead: None,
             last_batching: None,
-            ahead_batching_profiler: GpuProfiler::new(&context, 1),
+            // The batching's pass, and the rows', the links' and the check's before it when
+            // submitted with the collision.
+            ahead_batching_profiler: GpuProfiler::new(&context, 4),
             batchings_encoded_ahead: 0,
             encodes_ahead: true,
+            step_plan: None,
+            speculated: None,
+            step_hold: StepHold::new(&context)?,
+            speculates: true,
+            steps_held: 0,
+            steps_not_held: 0,
+            last_rows: 0,
+            last_bounced: false,
+            row_margin: speculation::ROW_MARGIN,
             jacobi: None,
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
             prepare_bodies: GpuPrepareBodies::new(&context),
-            finalize_bodies: GpuFinalizeBodies::new(&context),
+            finalize_bodies: GpuFinalizeBodies::new(&context)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
             batch_offsets: GpuVec::with_capacity(&context, "batch offsets", 0)?,
             batched_joints: GpuVec::with_capacity(&context, "batched joints", 0)?,
@@ -747,6 +791,7 @@ impl GpuStages {
         // Recorded for a step that did not solve (a failed one, or one whose solve ran
         // elsewhere).
         (self.solve_ahead, self.batching_ahead) = (None, None);
+        (self.step_plan, self.speculated) = (None, None);
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
         self.integrated_this_step = false;
@@ -1018,6 +1063,10 @@ impl GpuStages {
         if collided.is_err() {
             // Its submission may not have run: the trees' body lists are made again.
             self.broadphase.forget_bodies();
+            if self.speculated.take().is_some() {
+                // The step submitted with it may have moved the device's bodies.
+                self.bodies.synced = None;
+            }
         }
         if collided.is_err() && self.broadphase.capacity() != capacity {
             // Smaller than what failed, and allocated before: the original error is the one
@@ -1240,16 +1289,26 @@ impl GpuStages {
                     Ok(())
                 },
             )?;
-            if !recorded_ahead {
+            let first = !recorded_ahead;
+            if first {
                 recorded_ahead = true;
-                // The host would wait here: it records this step's batching and solve
-                // meanwhile. A failure there leaves them to record their commands themselves,
+                // The host would wait here: it submits this step's rows, batching and solve
+                // meanwhile where the step planned them, else records the batching and the
+                // solve. A failure there leaves them to record their commands themselves,
                 // where it fails again.
-                if self.encode_solve_ahead(profiler).is_err() {
+                let submitted = match self.step_plan.take() {
+                    Some(plan) if summarize => self.submit_speculation(profiler, plan, staged),
+                    _ => self.encode_solve_ahead(profiler),
+                };
+                if submitted.is_err() {
                     (self.solve_ahead, self.batching_ahead) = (None, None);
+                    self.speculated = None;
                 }
             }
             wait_for_passes(context, &mut self.profiler, profiler, &COLLISION, submit_ms)?;
+            if first {
+                self.read_speculation()?;
+            }
             let count = self.broadphase.read_encoded_count(context)?;
             if !self.broadphase.grow_for(context, count)? {
                 break;
@@ -1283,6 +1342,7 @@ impl GpuStages {
                     context.queue.submit([encoder.finish()]);
                 }
                 *tally = self.row_tally.read(context)?;
+                self.last_bounced = tally.bouncing > 0;
                 self.pairs_computed = self.row_tally.computed();
                 // The pairs the lookup found among last step's are kept; the others were added,
                 // and last step's that it did not find were removed. The keys stay here until
@@ -1457,6 +1517,21 @@ impl GpuStages {
         joints: &JointRowInputs,
         to: RowsTo,
     ) -> Result<(), GpuError> {
+        if let Some(held) = self.held_step() {
+            // Built with the collision's submission, with the islands' links where planned.
+            let link_islands = held.link_islands;
+            let planned = matches!(slots, RowSlots::Narrowphase)
+                && joints.slots.is_empty()
+                && matches!(to, RowsTo::Device { link_islands: link, .. }
+                    if (link && self.summarized && !self.host_island_links) == link_islands);
+            if !planned {
+                return Err(unplanned("the rows"));
+            }
+            self.rows_from_narrowphase = true;
+            self.islands_linked = link_islands;
+            self.island_links_made += usize::from(link_islands);
+            return Ok(());
+        }
         let context = &self.context;
         let start = Instant::now();
         let from_narrowphase = match slots {
@@ -1531,7 +1606,7 @@ impl GpuStages {
         let island_links = &mut self.island_links;
         let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
             encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
-                rows.encode(context, pass, &device_inputs, count)
+                rows.encode(context, pass, &device_inputs, count, false)
             })?;
             if build_joints {
                 encode_pass(encoder, timer, JOINT_ROWS_KERNEL, |pass| {
@@ -1578,6 +1653,9 @@ impl GpuStages {
         batcher: Batcher,
         coloring: &mut Coloring,
     ) -> Result<(), GpuError> {
+        if self.held_step().is_some() {
+            return Err(unplanned("the batching"));
+        }
         let context = &self.context;
         let start = Instant::now();
         self.batching.upload(context, bodies)?;
@@ -1628,6 +1706,18 @@ impl GpuStages {
             batcher,
             rounds: self.batching_rounds,
         };
+        self.last_rows = count;
+        if let Some(held) = self.held_step() {
+            // Colored and laid out with the collision's submission.
+            if held.batching != plan {
+                return Err(unplanned("the batching"));
+            }
+            profiler.record(BATCHING.encode, SpanKind::Cpu, elapsed_ms(start));
+            self.last_batching = Some(plan);
+            self.laid_out_on_device = true;
+            self.device_layouts += 1;
+            return Ok(());
+        }
         // The commands recorded during the collision's wait, when they are this plan's and
         // nothing was made since (see `SolveAhead`).
         let resources = context.resources_made();
@@ -1801,14 +1891,8 @@ impl GpuStages {
                 })?;
                 if integrate.is_some() {
                     encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
-                        finalize.encode(
-                            context,
-                            pass,
-                            device_bodies,
-                            &device.poses,
-                            &device.velocities,
-                        );
-                        Ok(())
+                        let motion = (device_bodies, &device.poses, &device.velocities);
+                        finalize.encode(context, pass, motion, false)
                     })?;
                 }
                 Ok(())
@@ -1876,8 +1960,8 @@ impl GpuStages {
             &INTEGRATE,
             |encoder, timer| {
                 encode_pass(encoder, timer, INTEGRATE.kernel, |pass| {
-                    finalize.encode(context, pass, motion, &device.poses, &device.velocities);
-                    Ok(())
+                    let motion = (motion, &device.poses, &device.velocities);
+                    finalize.encode(context, pass, motion, false)
                 })?;
                 encode_body_downloads(context, device, encoder);
                 Ok(())
@@ -2046,6 +2130,11 @@ impl GpuStages {
             // The kernel moves the device's bodies: not the host's until they came back.
             self.bodies.synced = None;
         }
+        // Solved with the collision's submission, where the step held.
+        let held = self.speculated.take().filter(|speculated| speculated.held);
+        if held.as_ref().is_some_and(|held| held.solve != plan) {
+            return Err(unplanned("the solve"));
+        }
         // The commands recorded during the collision's wait, when they are this plan's and
         // read the buffers this one would (none made since: see `SolveAhead`).
         let resources = context.resources_made();
@@ -2053,13 +2142,14 @@ impl GpuStages {
             .solve_ahead
             .take()
             .filter(|ahead| ahead.plan == plan && ahead.resources == resources);
-        if ahead.is_none() {
+        if ahead.is_none() && held.is_none() {
             self.ahead_profiler.discard();
         }
         let start = Instant::now();
         // The solve's commands, and those that resolve the stages' timestamps when the solve
         // was recorded ahead (on a profiler of its own).
         let (commands, resolved) = match ahead {
+            _ if held.is_some() => (None, None),
             Some(ahead) => {
                 self.solves_encoded_ahead += 1;
                 // The passes of the stages submitted since the last wait were timed on the
@@ -2069,7 +2159,7 @@ impl GpuStages {
                     self.profiler.resolve(&mut encoder);
                     encoder.finish()
                 });
-                (ahead.commands, resolved)
+                (Some(ahead.commands), resolved)
             }
             None => {
                 let mut encoder =
@@ -2078,18 +2168,20 @@ impl GpuStages {
                         .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                             label: Some(SOLVER.kernel[0]),
                         });
-                self.encode_batched_solve(&mut encoder, &plan, host_sizes, false)?;
+                self.encode_batched_solve(&mut encoder, &plan, host_sizes, Recording::Now)?;
                 self.profiler.resolve(&mut encoder);
-                (encoder.finish(), None)
+                (Some(encoder.finish()), None)
             }
         };
         profiler.record(SOLVER.encode, SpanKind::Cpu, elapsed_ms(start));
-        let start = Instant::now();
-        context
-            .queue
-            .submit(std::iter::once(commands).chain(resolved));
-        context.wait()?;
-        profiler.record(SOLVER.wait, SpanKind::Cpu, elapsed_ms(start));
+        if let Some(commands) = commands {
+            let start = Instant::now();
+            context
+                .queue
+                .submit(std::iter::once(commands).chain(resolved));
+            context.wait()?;
+            profiler.record(SOLVER.wait, SpanKind::Cpu, elapsed_ms(start));
+        }
         self.profiler.collect(context, profiler)?;
         self.ahead_profiler.collect(context, profiler)?;
         self.ahead_batching_profiler.collect(context, profiler)?;
@@ -2145,14 +2237,15 @@ impl GpuStages {
     /// Records a batched solve (`plan`; `host_sizes`, the host's batch offsets, unless it has
     /// a device layout) into `encoder`: the rows into batch order (and the adjacency), the
     /// sweeps, the impulses out, the integration, then the read-backs, timed on the stages'
-    /// profiler or, `ahead`, on the one of the solve recorded ahead.
+    /// profiler when recorded [`Recording::Now`], else on the one of the solve recorded ahead.
     fn encode_batched_solve(
         &mut self,
         encoder: &mut wgpu::CommandEncoder,
         plan: &SolvePlan,
         host_sizes: Option<BatchSizes>,
-        ahead: bool,
+        recording: Recording,
     ) -> Result<(), GpuError> {
+        let ahead = recording != Recording::Now;
         let context = &self.context;
         let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
@@ -2248,9 +2341,8 @@ impl GpuStages {
         })?;
         if plan.integrating {
             encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
-                let (poses, velocities) = (&device.poses, &device.velocities);
-                finalize.encode(context, pass, solver_bodies, poses, velocities);
-                Ok(())
+                let motion = (&*solver_bodies, &device.poses, &device.velocities);
+                finalize.encode(context, pass, motion, recording == Recording::Speculated)
             })?;
         }
         // The read-backs ride in the kernels' submission: one wait for the stage.
@@ -2309,7 +2401,7 @@ impl GpuStages {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("solver, recorded ahead"),
                 });
-        self.encode_batched_solve(&mut encoder, &plan, None, true)?;
+        self.encode_batched_solve(&mut encoder, &plan, None, Recording::Ahead)?;
         let resources = self.context.resources_made();
         self.batching_ahead = Some(BatchingAhead {
             plan: batching,
@@ -2643,7 +2735,7 @@ mod tests {
     /// backend locks its context around every call and panics after a second, which a long
     /// dispatch on llvmpipe in a parallel test thread exceeds (seen on a machine with no
     /// Vulkan driver: seven of these tests failed so).
-    fn turn() -> std::sync::MutexGuard<'static, ()> {
+    pub(super) fn turn() -> std::sync::MutexGuard<'static, ()> {
         static TURN: std::sync::Mutex<()> = std::sync::Mutex::new(());
         TURN.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
     }
@@ -3691,9 +3783,14 @@ mod tests {
 
     /// 48 boxes and balls falling onto a plane with every stage on the GPU, the pair buffers
     /// starting too small and a bouncing ball added at step 40, each step's solve and batching
-    /// recorded during its collision's wait or not: (the poses and velocities, the steps that
-    /// submitted a solve and a batching recorded ahead, those laid out on the device).
-    fn block_with_solves_ahead(ahead: bool, steps: usize) -> (Vec<u8>, [usize; 2], usize) {
+    /// recorded during its collision's wait or not, its rows, batching and solve submitted
+    /// with its collision or not: (the poses and velocities, the steps that submitted a solve
+    /// and a batching recorded ahead, those laid out on the device, the steps submitted with
+    /// their collision that held and that did not).
+    fn block_with_solves_ahead(
+        (ahead, speculates): (bool, bool),
+        steps: usize,
+    ) -> (Vec<u8>, [usize; 2], usize, [usize; 2]) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig::default()).unwrap();
@@ -3702,7 +3799,7 @@ mod tests {
             .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
             .unwrap();
         let gpu = world.gpu.as_mut().unwrap();
-        gpu.encodes_ahead = ahead;
+        (gpu.encodes_ahead, gpu.speculates, gpu.row_margin) = (ahead, speculates, 0);
         gpu.broadphase.set_capacity(&context, 4).unwrap();
         world
             .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
@@ -3710,9 +3807,11 @@ mod tests {
         add_block(&mut world, 48);
         for step in 0..steps {
             if step == 40 {
-                // Bouncing: its steps' solves have a restitution sweep, the others' not.
+                // Bouncing: its steps' solves have a restitution sweep, the others' not. It
+                // lands before the block sleeps.
                 let ball = BodyDesc::dynamic(Shape::sphere(0.5))
-                    .position(Vec3::new(0.2, 8.0, 0.3))
+                    .position(Vec3::new(0.2, 5.0, 0.3))
+                    .linear_velocity(Vec3::new(0.0, -8.0, 0.0))
                     .restitution(0.8);
                 world.add_body(ball).unwrap();
             }
@@ -3722,7 +3821,8 @@ mod tests {
         state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
         let gpu = world.gpu.as_ref().unwrap();
         let ahead = [gpu.solves_encoded_ahead, gpu.batchings_encoded_ahead];
-        (state, ahead, gpu.device_layouts)
+        let held = [gpu.steps_held, gpu.steps_not_held];
+        (state, ahead, gpu.device_layouts, held)
     }
 
     /// A solve and a batching recorded during the collision's wait, from last step's plans,
@@ -3732,8 +3832,8 @@ mod tests {
     #[test]
     fn a_solve_recorded_during_the_collision_steps_as_one_recorded_after() {
         let _turn = turn();
-        let ahead = block_with_solves_ahead(true, 120);
-        let after = block_with_solves_ahead(false, 120);
+        let ahead = block_with_solves_ahead((true, false), 120);
+        let after = block_with_solves_ahead((false, false), 120);
         assert_eq!(after.1, [0, 0]);
         for (recorded, what) in ahead.1.into_iter().zip(["solve", "batching"]) {
             assert!(
@@ -3743,6 +3843,25 @@ mod tests {
             );
         }
         assert!(ahead.0 == after.0, "the poses or velocities differ");
+    }
+
+    /// A step whose rows, batching and solve were submitted with its collision, on a guess of
+    /// its counts, steps bitwise as one that records them after the collision's wait, through
+    /// the guesses failing (the pairs' buffers and the rows' growing, the bounce of a ball
+    /// added); and most steps before the pile sleeps hold.
+    #[test]
+    fn a_step_submitted_with_its_collision_steps_as_one_submitted_after() {
+        let _turn = turn();
+        let with = block_with_solves_ahead((true, true), 120);
+        let after = block_with_solves_ahead((false, false), 120);
+        assert_eq!(after.3, [0, 0]);
+        let [held, not_held] = with.3;
+        assert!(
+            held > with.2 / 2 && not_held > 0,
+            "{held} of {} steps laid out on the device held, {not_held} did not",
+            with.2
+        );
+        assert!(with.0 == after.0, "the poses or velocities differ");
     }
 
     /// 81 balls on one dynamic slab: more constraints on the slab than there are colors.

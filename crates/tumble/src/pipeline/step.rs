@@ -11,11 +11,11 @@ use crate::dynamics::joint::MAX_ANGULAR_ROWS;
 use crate::dynamics::wake::wake_candidates;
 use crate::gpu::context::GpuError;
 use crate::math::{Aabb, Mat3, Vec3};
-use crate::pipeline::config::Softness;
+use crate::pipeline::config::{Softness, StepConfig};
 use crate::pipeline::devices::{Executor, Stage};
 use crate::pipeline::gpu_stages::{
     BatchLayout, BodyInputs, BodyState, CollideOutput, GpuStages, JointRowInputs, OldPairs,
-    RowSlots, RowsTo, SummaryOutput, WakeQuery,
+    RowSlots, RowsTo, StepPlan, SummaryOutput, WakeQuery,
 };
 use crate::pipeline::parallel::{FilterParts, filter_map_ordered};
 use crate::pipeline::world::{DRAG_DAMPING_RATIO, DRAG_HERTZ};
@@ -34,6 +34,43 @@ use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses};
 use crate::stages::solver::jacobi::{self, JacobiScratch};
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 use crate::stages::{aabb, integrate, narrowphase, solver};
+
+/// The rows' softness (see [`Softness`]): stiffness capped by the sub-step rate (Box2D v3: a
+/// quarter of it for contacts, half for joints), stiffer against statics.
+struct RowSoftness {
+    contacts: Softness,
+    statics: Softness,
+    joints: Softness,
+}
+
+impl RowSoftness {
+    fn new(config: &StepConfig) -> Self {
+        let h = config.dt / config.substeps as f32;
+        let contact_hertz = config.contact_hertz.min(0.25 / h);
+        let damping = config.contact_damping_ratio;
+        Self {
+            contacts: Softness::new(contact_hertz, damping, h),
+            statics: Softness::new(2.0 * contact_hertz, damping, h),
+            joints: Softness::new(
+                config.joint_hertz.min(0.5 / h),
+                config.joint_damping_ratio,
+                h,
+            ),
+        }
+    }
+}
+
+/// The solver's settings of a step of `config`.
+fn solver_settings(config: &StepConfig) -> SolverSettings {
+    SolverSettings {
+        dt: config.dt,
+        substeps: config.substeps,
+        iterations: config.solver_iterations,
+        gravity: config.gravity,
+        max_push_velocity: config.max_push_velocity,
+        restitution_threshold: config.restitution_threshold,
+    }
+}
 
 /// Per-step working arrays, owned by the world so that a step allocates nothing once the
 /// arrays have grown to the scene's size.
@@ -150,18 +187,14 @@ impl World {
         let scratch = &mut self.scratch;
         let profiler = &mut self.profiler;
 
-        // 5. Constraint rows: joints, then contacts. Stiffness is capped by the sub-step rate
-        //    (Box2D v3: a quarter of it for contacts, half for joints), stiffer against statics.
+        // 5. Constraint rows: joints, then contacts, soft (`RowSoftness`).
         profiler.begin("constraints");
         let h = dt / config.substeps as f32;
-        let contact_hertz = config.contact_hertz.min(0.25 / h);
-        let softness = Softness::new(contact_hertz, config.contact_damping_ratio, h);
-        let static_softness = Softness::new(2.0 * contact_hertz, config.contact_damping_ratio, h);
-        let joint_softness = Softness::new(
-            config.joint_hertz.min(0.5 / h),
-            config.joint_damping_ratio,
-            h,
-        );
+        let RowSoftness {
+            contacts: softness,
+            statics: static_softness,
+            joints: joint_softness,
+        } = RowSoftness::new(&config);
         // Rows, batching and solver all on the GPU: the rows stay on the device from build to
         // solve.
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
@@ -512,14 +545,7 @@ impl World {
         } else {
             integrate::prepare_bodies(&self.velocities, &self.masses, &mut scratch.solver_bodies);
         }
-        let settings = SolverSettings {
-            dt,
-            substeps: config.substeps,
-            iterations: config.solver_iterations,
-            gravity: config.gravity,
-            max_push_velocity: config.max_push_velocity,
-            restitution_threshold: config.restitution_threshold,
-        };
+        let settings = solver_settings(&config);
         let mut batched = Batched {
             contacts: &mut scratch.batched_contacts,
             contact_offsets: &scratch.contact_offsets,
@@ -919,6 +945,26 @@ impl World {
             && self.joints.iter().flatten().next().is_none();
         let summaries_back = !device_layout || gpu.lists_wake_candidates_on_host();
         self.pair_summaries_fresh = device_contacts && summaries_back;
+        // With the batches laid out on the device and no body asleep (so no island wakes
+        // after the collision), the rows, the batching and the solve follow the collision
+        // without the host: submitted with it, on a guess of its counts.
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        let step_plan = (device_contacts
+            && device_layout
+            && on_gpu(Stage::Integrate)
+            && self.islands.sleeping_count() == 0)
+            .then(|| {
+                let softness = RowSoftness::new(&config);
+                StepPlan {
+                    softness: softness.contacts,
+                    static_softness: softness.statics,
+                    link_islands: config.sleeping && self.islands.may_rest(&self.masses, config.dt),
+                    settings: solver_settings(&config),
+                    batcher: config.batcher,
+                    bodies: self.poses.len(),
+                }
+            });
+        gpu.plan_step(step_plan);
         profiler.begin("collision");
         let collided = gpu.collide(
             profiler,

@@ -68,7 +68,7 @@ fn random_bodies(seed: u32, count: usize) -> (Vec<BodyPose>, Vec<BodyVelocity>, 
 #[test]
 fn gpu_integration_matches_the_cpu_on_random_bodies() {
     let context = context();
-    let mut finalize = GpuFinalizeBodies::new(&context);
+    let mut finalize = GpuFinalizeBodies::new(&context).unwrap();
     for (seed, count) in SIZES.into_iter().enumerate() {
         let (poses, velocities, motion) = random_bodies(seed as u32, count);
         let (mut cpu_poses, mut cpu_velocities) = (poses.clone(), velocities.clone());
@@ -78,15 +78,12 @@ fn gpu_integration_matches_the_cpu_on_random_bodies() {
         let mut device_poses = GpuVec::from_slice(&context, "poses", &poses).unwrap();
         let mut device_velocities =
             GpuVec::from_slice(&context, "velocities", &velocities).unwrap();
-        context.submit_pass("finalize", |pass| {
-            finalize.encode(
-                &context,
-                pass,
-                &device_motion,
-                &device_poses,
-                &device_velocities,
-            );
-        });
+        let buffers = (&device_motion, &device_poses, &device_velocities);
+        context
+            .submit_pass("finalize", |pass| {
+                finalize.encode(&context, pass, buffers, false)
+            })
+            .unwrap();
         let gpu_poses = device_poses.download(&context).unwrap();
         let gpu_velocities = device_velocities.download(&context).unwrap();
         assert_eq!(gpu_poses.len(), count);
@@ -108,6 +105,43 @@ fn gpu_integration_matches_the_cpu_on_random_bodies() {
             assert!((gpu.rotation.length() - 1.0).abs() < 4.0 * f32::EPSILON);
         }
     }
+}
+
+/// A guarded finalization moves nothing where its word is 0 (a step that did not hold), and
+/// the next unguarded one moves the bodies again.
+#[test]
+fn a_guarded_integration_moves_nothing_where_the_step_did_not_hold() {
+    let context = context();
+    let mut finalize = GpuFinalizeBodies::new(&context).unwrap();
+    let (poses, velocities, motion) = random_bodies(7, 300);
+    let device_motion = GpuVec::from_slice(&context, "motion", &motion).unwrap();
+    let device_poses = GpuVec::from_slice(&context, "poses", &poses).unwrap();
+    let device_velocities = GpuVec::from_slice(&context, "velocities", &velocities).unwrap();
+    let zero = GpuVec::from_slice(&context, "zero", &[0u32]).unwrap();
+    let buffers = (&device_motion, &device_poses, &device_velocities);
+    let run = |finalize: &mut GpuFinalizeBodies, guarded: bool| {
+        let mut encoder = context.device.create_command_encoder(&Default::default());
+        if guarded {
+            // What a step that did not hold writes before the kernel.
+            let held = finalize.held().buffer();
+            encoder.copy_buffer_to_buffer(zero.buffer(), 0, held, 0, 4);
+        }
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            finalize
+                .encode(&context, &mut pass, buffers, guarded)
+                .unwrap();
+        }
+        context.queue.submit([encoder.finish()]);
+    };
+    run(&mut finalize, true);
+    assert!(device_poses.read(&context).unwrap() == poses, "poses moved");
+    assert!(device_velocities.read(&context).unwrap() == velocities);
+    run(&mut finalize, false);
+    let moved = device_poses.read(&context).unwrap();
+    let dynamic = (0..motion.len()).filter(|&i| motion[i].inverse_mass > 0.0);
+    let moved_count = dynamic.filter(|&i| moved[i] != poses[i]).count();
+    assert!(moved_count > 100, "only {moved_count} bodies moved");
 }
 
 /// A pile of boxes integrated on the device follows the one integrated on the host, every

@@ -121,19 +121,26 @@ impl GpuRows {
 
     /// Encodes the rows of every slot of `inputs` into `constraints`: room for `count` of them
     /// when the caller knows that at most that many slots have one, else for one per slot.
+    /// The live slots are the keys' length, or, `live_on_device`, the count that
+    /// [`Self::encode_live_copy`] copied in before the pass; then `count` is a guess: past
+    /// it the build writes wherever the device's bounds checks send it, and the caller checks
+    /// the count before it uses the rows.
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         inputs: &GpuRowInputs,
         count: Option<usize>,
+        live_on_device: bool,
     ) -> Result<(), GpuError> {
         let live = inputs.keys.len();
-        debug_assert_eq!(inputs.contacts.len(), live, "one manifold per key");
         let rows = count.unwrap_or(live);
-        debug_assert!(rows <= live, "more rows than manifold slots");
-        // Lands before this submission's commands run.
-        self.live.upload(context, &[live as u32])?;
+        if !live_on_device {
+            debug_assert_eq!(inputs.contacts.len(), live, "one manifold per key");
+            debug_assert!(rows <= live, "more rows than manifold slots");
+            // Lands before this submission's commands run.
+            self.live.upload(context, &[live as u32])?;
+        }
         let slots = inputs.keys.capacity().min(inputs.contacts.capacity());
         self.flags.resize(context, slots + 1)?;
         self.places.resize(context, slots + 1)?;
@@ -178,6 +185,12 @@ impl GpuRows {
         )?;
         build.encode(pass);
         Ok(())
+    }
+
+    /// Encodes the copy of word 0 of `count` (a pair count on the device) into the live slots'
+    /// count, for an [`Self::encode`] in a pass after it with `live_on_device`.
+    pub fn encode_live_copy(&self, encoder: &mut wgpu::CommandEncoder, count: &GpuVec<u32>) {
+        encoder.copy_buffer_to_buffer(count.buffer(), 0, self.live.buffer(), 0, 4);
     }
 
     fn dispatches(

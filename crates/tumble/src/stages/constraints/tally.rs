@@ -140,6 +140,11 @@ impl GpuRowTally {
         Ok(())
     }
 
+    /// The totals' buffer (`tally.wgsl`'s words), for a kernel that reads them on the device.
+    pub fn totals(&self) -> &GpuVec<u32> {
+        &self.totals
+    }
+
     /// Encodes the read-back of the totals, after [`Self::encode`]'s pass, with the wake
     /// test's candidate count (a one-word buffer) copied in first when it was encoded, and
     /// the first word of `computed`, the count of the pairs the narrowphase computed

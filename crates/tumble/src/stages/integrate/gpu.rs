@@ -10,7 +10,7 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::dynamics::body::{BODY_WGSL, BodyMass, BodyPose, BodyVelocity};
 use crate::gpu::buffer::GpuVec;
-use crate::gpu::context::GpuContext;
+use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
@@ -54,15 +54,16 @@ pub fn finalize_wgsl() -> Source {
     wgsl("finalize.wgsl", FINALIZE_WGSL)
 }
 
-/// A kernel of one thread a body over three body arrays, with its dispatch kept for the
-/// buffers and count it was built for (a step allocates nothing).
-struct BodyKernel {
+/// A kernel of one thread a body over `N` buffers (after its count's block), with its dispatch
+/// kept for the buffers and count it was built for (a step allocates nothing).
+struct BodyKernel<const N: usize> {
     kernel: Kernel,
-    cached: Option<(([wgpu::Buffer; 3], usize), Dispatch)>,
+    cached: Option<(([wgpu::Buffer; N], usize), Dispatch)>,
 }
 
-impl BodyKernel {
-    fn new(context: &GpuContext, source: &Source, entry: &str, bindings: &[Binding; 4]) -> Self {
+impl<const N: usize> BodyKernel<N> {
+    fn new(context: &GpuContext, source: &Source, entry: &str, bindings: &[Binding]) -> Self {
+        debug_assert_eq!(bindings.len(), N + 1, "the count's block, then the buffers");
         Self {
             kernel: Kernel::new(context, entry, source, entry, bindings),
             cached: None,
@@ -73,7 +74,7 @@ impl BodyKernel {
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        buffers: [&wgpu::Buffer; 3],
+        buffers: [&wgpu::Buffer; N],
         count: usize,
     ) {
         let key = (buffers.map(Clone::clone), count);
@@ -89,8 +90,10 @@ impl BodyKernel {
                 _pad2: 0,
             };
             let slots = UniformSlots::new(context, "body count", &[block]);
-            let [a, b, c] = buffers.map(wgpu::Buffer::as_entire_buffer_binding);
-            let group = self.kernel.bind(context, &[slots.binding(0), a, b, c]);
+            let bindings = std::iter::once(slots.binding(0))
+                .chain(buffers.map(wgpu::Buffer::as_entire_buffer_binding))
+                .collect::<Vec<_>>();
+            let group = self.kernel.bind(context, &bindings);
             let dispatch = self
                 .kernel
                 .dispatch(group, workgroups_for(count, WORKGROUP_SIZE));
@@ -102,7 +105,7 @@ impl BodyKernel {
     }
 }
 
-pub struct GpuPrepareBodies(BodyKernel);
+pub struct GpuPrepareBodies(BodyKernel<3>);
 
 impl GpuPrepareBodies {
     pub fn new(context: &GpuContext) -> Self {
@@ -134,34 +137,83 @@ impl GpuPrepareBodies {
     }
 }
 
-pub struct GpuFinalizeBodies(BodyKernel);
+pub struct GpuFinalizeBodies {
+    kernel: BodyKernel<4>,
+    /// One word: the kernel moves the bodies only where it is not 0. It is 1 unless a step
+    /// submitted before its collision was read did not hold (`guarded`, [`Self::encode`]).
+    held: GpuVec<u32>,
+    /// The last encode's word is written on the device: the next unguarded one sets it to 1.
+    guarded: bool,
+}
 
 impl GpuFinalizeBodies {
-    pub fn new(context: &GpuContext) -> Self {
-        Self(BodyKernel::new(
-            context,
-            &finalize_wgsl(),
-            "finalize_bodies",
-            &[
-                Binding::Uniform,
-                Binding::StorageRead,
-                Binding::StorageReadWrite,
-                Binding::StorageReadWrite,
-            ],
-        ))
+    pub fn new(context: &GpuContext) -> Result<Self, GpuError> {
+        Ok(Self {
+            kernel: BodyKernel::new(
+                context,
+                &finalize_wgsl(),
+                "finalize_bodies",
+                &[
+                    Binding::Uniform,
+                    Binding::StorageRead,
+                    Binding::StorageReadWrite,
+                    Binding::StorageReadWrite,
+                    Binding::StorageRead,
+                ],
+            ),
+            held: GpuVec::from_slice(context, "step held", &[1])?,
+            guarded: false,
+        })
     }
 
     /// Encodes the step's motion `bodies[i]` into pose `i` and velocity `i`, for `bodies.len()`
-    /// bodies (poses and velocities hold at least as many).
+    /// bodies (poses and velocities hold at least as many). `guarded`: only where the word
+    /// [`Self::held`] is not 0 when the kernel runs, which a kernel before it in the
+    /// submission writes; else the bodies move.
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        bodies: &GpuVec<SolverBody>,
-        poses: &GpuVec<BodyPose>,
-        velocities: &GpuVec<BodyVelocity>,
+        (bodies, poses, velocities): (
+            &GpuVec<SolverBody>,
+            &GpuVec<BodyPose>,
+            &GpuVec<BodyVelocity>,
+        ),
+        guarded: bool,
+    ) -> Result<(), GpuError> {
+        if !guarded && self.guarded {
+            // Lands before the submission's commands run.
+            self.held.upload(context, &[1])?;
+        }
+        self.guarded = guarded;
+        let buffers = [
+            bodies.buffer(),
+            poses.buffer(),
+            velocities.buffer(),
+            self.held.buffer(),
+        ];
+        self.kernel.encode(context, pass, buffers, bodies.len());
+        Ok(())
+    }
+
+    /// The word a guarded [`Self::encode`] reads.
+    pub fn held(&self) -> &GpuVec<u32> {
+        &self.held
+    }
+
+    /// Encodes the word's read-back, after the kernel that writes it.
+    pub fn encode_held_download(
+        &mut self,
+        context: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
     ) {
-        let buffers = [bodies.buffer(), poses.buffer(), velocities.buffer()];
-        self.0.encode(context, pass, buffers, bodies.len());
+        self.held.encode_download(context, encoder);
+    }
+
+    /// Whether the word read back ([`Self::encode_held_download`], after the wait) is not 0.
+    pub fn read_held(&self, context: &GpuContext) -> Result<bool, GpuError> {
+        let mut word = Vec::new();
+        self.held.read_download(context, &mut word)?;
+        Ok(word.first().is_some_and(|&held| held != 0))
     }
 }

@@ -179,6 +179,11 @@ impl GpuBatched {
         Ok(())
     }
 
+    /// The counts' buffer: word 0 the contact constraints, word 1 the joints.
+    pub fn count(&self) -> &GpuVec<u32> {
+        &self.count
+    }
+
     /// The batch order the gather reads: `order[i]` = the constraint at batched place i.
     pub fn order(&self) -> &GpuVec<u32> {
         &self.order
