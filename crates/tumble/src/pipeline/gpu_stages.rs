@@ -300,6 +300,20 @@ struct SolveAhead {
     commands: wgpu::CommandBuffer,
 }
 
+impl SolvePlan {
+    /// Whether a solve recorded from `self` records the same commands as one from `other`
+    /// but for the batch sizes the dispatches were planned with, which change only which
+    /// constraints of one batch share a dispatch (see
+    /// [`device_stages`](crate::stages::solver::gpu::device_stages)), not the results.
+    fn solves_as(&self, other: &SolvePlan) -> bool {
+        let planned = |plan: &SolvePlan| SolvePlan {
+            expected: plan.expected.map(|_| [0; LAYOUT_BATCHES]),
+            ..plan.clone()
+        };
+        planned(self) == planned(other)
+    }
+}
+
 /// What a device layout's batching is recorded from besides the buffers it reads (see
 /// [`SolvePlan`]): whether there is a constraint, the bodies, the batcher and the rounds
 /// dispatched on their own.
@@ -321,6 +335,11 @@ enum Recording {
     /// During the collision's wait and submitted then, on a guess
     /// ([`speculation`]): its integration moves the bodies only where the step held.
     Speculated,
+    /// During the last step's wait for its solve, for this step's submitted on a guess, as
+    /// [`Self::Speculated`]: timed on a profiler of its own (the last step's spans are not
+    /// collected yet), its impulses scattered into the contacts' buffer this step's
+    /// collision will write (the two trade places from step to step).
+    NextStep,
 }
 
 /// A step's batching recorded with its solve during the collision's wait ([`SolveAhead`]).
@@ -571,6 +590,13 @@ pub(crate) struct GpuStages {
     last_solve: Option<SolvePlan>,
     ahead_profiler: GpuProfiler,
     solves_encoded_ahead: usize,
+    /// The next step's solve, recorded during this step's wait for its own, for the next
+    /// step's rows, batching and solve submitted with its collision
+    /// ([`Recording::NextStep`]): the contacts' buffer its impulses go to, checked when it
+    /// is submitted; its profiler; how many steps submitted one.
+    next_solve: Option<(SolveAhead, wgpu::Buffer)>,
+    next_profiler: GpuProfiler,
+    next_solves_submitted: usize,
     /// The same for the batching, recorded with the solve.
     batching_ahead: Option<BatchingAhead>,
     last_batching: Option<BatchingPlan>,
@@ -712,6 +738,9 @@ impl GpuStages {
             // The solver's four passes.
             ahead_profiler: GpuProfiler::new(&context, 4),
             solves_encoded_ahead: 0,
+            next_solve: None,
+            next_profiler: GpuProfiler::new(&context, 4),
+            next_solves_submitted: 0,
             batching_ahead: None,
             last_batching: None,
             // The batching's pass, and the rows', the links' and the check's before it when
@@ -2179,8 +2208,12 @@ impl GpuStages {
             context
                 .queue
                 .submit(std::iter::once(commands).chain(resolved));
+            let submit_ms = elapsed_ms(start);
+            // The host would wait here: it records the next step's solve meanwhile.
+            self.record_next_solve(profiler, &plan);
+            let start = Instant::now();
             context.wait()?;
-            profiler.record(SOLVER.wait, SpanKind::Cpu, elapsed_ms(start));
+            profiler.record(SOLVER.wait, SpanKind::Cpu, submit_ms + elapsed_ms(start));
         }
         self.profiler.collect(context, profiler)?;
         self.ahead_profiler.collect(context, profiler)?;
@@ -2246,6 +2279,7 @@ impl GpuStages {
         recording: Recording,
     ) -> Result<(), GpuError> {
         let ahead = recording != Recording::Now;
+        let guarded = matches!(recording, Recording::Speculated | Recording::NextStep);
         let context = &self.context;
         let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
@@ -2262,11 +2296,15 @@ impl GpuStages {
         let solver_bodies = &mut self.solver_bodies;
         let (prepare, finalize) = (&mut self.prepare_bodies, &mut self.finalize_bodies);
         let device = &mut self.bodies;
-        let pair_contacts = &self.contacts;
-        let timer = if ahead {
-            &mut self.ahead_profiler
+        let pair_contacts = if recording == Recording::NextStep {
+            &self.old_contacts
         } else {
-            &mut self.profiler
+            &self.contacts
+        };
+        let timer = match recording {
+            Recording::Now => &mut self.profiler,
+            Recording::Ahead | Recording::Speculated => &mut self.ahead_profiler,
+            Recording::NextStep => &mut self.next_profiler,
         };
         // Three passes, timed apart: the rows into batch order (and the adjacency), the
         // sweeps, the impulses out.
@@ -2342,7 +2380,7 @@ impl GpuStages {
         if plan.integrating {
             encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
                 let motion = (&*solver_bodies, &device.poses, &device.velocities);
-                finalize.encode(context, pass, motion, recording == Recording::Speculated)
+                finalize.encode(context, pass, motion, guarded)
             })?;
         }
         // The read-backs ride in the kernels' submission: one wait for the stage.
@@ -3790,7 +3828,7 @@ mod tests {
     fn block_with_solves_ahead(
         (ahead, speculates): (bool, bool),
         steps: usize,
-    ) -> (Vec<u8>, [usize; 2], usize, [usize; 2]) {
+    ) -> (Vec<u8>, [usize; 2], usize, [usize; 3]) {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut world = World::new(StepConfig::default()).unwrap();
@@ -3821,7 +3859,11 @@ mod tests {
         state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
         let gpu = world.gpu.as_ref().unwrap();
         let ahead = [gpu.solves_encoded_ahead, gpu.batchings_encoded_ahead];
-        let held = [gpu.steps_held, gpu.steps_not_held];
+        let held = [
+            gpu.steps_held,
+            gpu.steps_not_held,
+            gpu.next_solves_submitted,
+        ];
         (state, ahead, gpu.device_layouts, held)
     }
 
@@ -3854,12 +3896,17 @@ mod tests {
         let _turn = turn();
         let with = block_with_solves_ahead((true, true), 120);
         let after = block_with_solves_ahead((false, false), 120);
-        assert_eq!(after.3, [0, 0]);
-        let [held, not_held] = with.3;
+        assert_eq!(after.3, [0, 0, 0]);
+        let [held, not_held, recorded] = with.3;
         assert!(
             held > with.2 / 2 && not_held > 0,
             "{held} of {} steps laid out on the device held, {not_held} did not",
             with.2
+        );
+        // Most of them submitted a solve recorded during the last step's wait.
+        assert!(
+            recorded > held / 2,
+            "{recorded} of {held} submitted a solve recorded a step ahead"
         );
         assert!(with.0 == after.0, "the poses or velocities differ");
     }

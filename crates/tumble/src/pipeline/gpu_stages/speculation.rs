@@ -18,8 +18,8 @@
 use std::time::Instant;
 
 use super::{
-    BatchingPlan, CONSTRAINTS, GpuStages, ISLAND_LINKS_KERNEL, Recording, SolvePlan, elapsed_ms,
-    encode_pass,
+    BatchingPlan, CONSTRAINTS, GpuStages, ISLAND_LINKS_KERNEL, Recording, SolveAhead, SolvePlan,
+    elapsed_ms, encode_pass,
 };
 use crate::dynamics::island_gpu::GpuLinkPairs;
 use crate::gpu::buffer::GpuVec;
@@ -51,6 +51,9 @@ const SUBMITTED_AHEAD: SpanPath = &[
     "collision",
     "rows, batching and solver submitted (during the wait)",
 ];
+
+/// The next step's solve recorded during this one's wait.
+const NEXT_SOLVE_RECORDED: SpanPath = &["solver", "next step's solve encoded (during the wait)"];
 
 /// What a step knows, before its collision, of the rows, the batching and the solve that
 /// follow it when they all run on the device with the batch layout there and no body sleeps:
@@ -253,12 +256,37 @@ impl GpuStages {
             hold.encode(context, pass, guess, &buffers)
         })?;
         self.record_batching(&mut encoder, &batching, true)?;
-        self.encode_batched_solve(&mut encoder, &solve, None, Recording::Speculated)?;
+        // The solve recorded during the last step's wait, where it solves as this one would
+        // and reads the buffers this one would (none made since, the impulses' contacts
+        // this step's).
+        let resources = context.resources_made();
+        let recorded = self.next_solve.take().filter(|(next, contacts)| {
+            next.plan.solves_as(&solve)
+                && next.resources == resources
+                && contacts == self.contacts.buffer()
+        });
+        let solve_commands = match recorded {
+            Some((next, _)) => {
+                self.next_solves_submitted += 1;
+                // Its spans are now the step's solve's.
+                std::mem::swap(&mut self.ahead_profiler, &mut self.next_profiler);
+                Some(next.commands)
+            }
+            None => {
+                self.next_profiler.discard();
+                self.encode_batched_solve(&mut encoder, &solve, None, Recording::Speculated)?;
+                None
+            }
+        };
         self.finalize_bodies
             .encode_held_download(context, &mut encoder);
         let commands = encoder.finish();
-        context.queue.submit([commands]);
+        context
+            .queue
+            .submit(std::iter::once(commands).chain(solve_commands));
         profiler.record(SUBMITTED_AHEAD, SpanKind::Cpu, elapsed_ms(start));
+        // The host would wait here: it records the next step's solve meanwhile.
+        self.record_next_solve(profiler, &solve);
         self.speculated = Some(Speculated {
             held: false,
             link_islands,
@@ -266,6 +294,45 @@ impl GpuStages {
             solve,
         });
         Ok(())
+    }
+
+    /// Records the next step's solve (from `plan`, this step's) during this step's wait, for
+    /// the next step submitted with its collision to submit ([`Recording::NextStep`]). A
+    /// failure leaves it to record its solve itself, where it fails again.
+    pub(super) fn record_next_solve(&mut self, profiler: &mut Profiler, plan: &SolvePlan) {
+        self.next_solve = None;
+        self.next_profiler.discard();
+        // Only a device layout's solve, the contacts' impulses staying here, is submitted so.
+        let speculative = plan.expected.is_some()
+            && plan.integrating
+            && plan.scatter
+            && !plan.jacobi
+            && !plan.joints
+            && !plan.impulses_back;
+        if !(self.speculates && self.encodes_ahead && speculative) {
+            return;
+        }
+        let start = Instant::now();
+        let mut encoder =
+            self.context
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("solver, recorded a step ahead"),
+                });
+        if self
+            .encode_batched_solve(&mut encoder, plan, None, Recording::NextStep)
+            .is_err()
+        {
+            self.next_profiler.discard();
+            return;
+        }
+        let ahead = SolveAhead {
+            plan: plan.clone(),
+            resources: self.context.resources_made(),
+            commands: encoder.finish(),
+        };
+        self.next_solve = Some((ahead, self.old_contacts.buffer().clone()));
+        profiler.record(NEXT_SOLVE_RECORDED, SpanKind::Cpu, elapsed_ms(start));
     }
 
     /// After the collision's wait: whether the step submitted with it held.
