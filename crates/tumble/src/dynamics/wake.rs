@@ -11,6 +11,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
+use crate::dynamics::body::{BODY_WGSL, BodyMass};
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
@@ -30,14 +31,16 @@ const KEY_BINDINGS: [Binding; 4] = [
     Binding::StorageRead,
     Binding::StorageReadWrite,
 ];
-/// Count, keys, summaries, sleeping bits, flags, parameters.
-const BINDINGS: [Binding; 6] = [
+/// Count, keys, summaries, sleeping bits, flags, parameters, masses, the wakers' flag.
+const BINDINGS: [Binding; 8] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::Uniform,
+    Binding::StorageRead,
+    Binding::StorageReadWrite,
 ];
 
 /// Candidates read back with the collision's kernels, past last step's count: at rest the
@@ -74,12 +77,14 @@ struct WakeParams {
 }
 
 fn wgsl() -> Source {
-    Source::new().snippet("wake.wgsl", WGSL)
+    Source::new()
+        .snippet("body.wgsl", BODY_WGSL)
+        .snippet("wake.wgsl", WGSL)
 }
 
-/// The buffers the flag kernel binds (count, keys, summaries, sleeping bits, flags) and the
-/// pair slots it covers.
-type FlagKey = ([wgpu::Buffer; 5], usize);
+/// The buffers the flag kernel binds (count, keys, summaries, sleeping bits, flags, masses)
+/// and the pair slots it covers.
+type FlagKey = ([wgpu::Buffer; 6], usize);
 /// The buffers the key kernel binds (total, keys, candidates, their keys) and the slots.
 type KeysKey = ([wgpu::Buffer; 4], usize);
 
@@ -103,6 +108,9 @@ pub struct GpuWakeCandidates {
     keys_cached: Option<(KeysKey, Dispatch)>,
     /// Last step's candidate count.
     last: usize,
+    /// One word, not 0 where a candidate wakes an island at once: a body that moves touches
+    /// a sleeping one (the first round of `World::wake_touched`).
+    wakers: GpuVec<u32>,
 }
 
 impl GpuWakeCandidates {
@@ -133,6 +141,7 @@ impl GpuWakeCandidates {
             keys: GpuVec::with_capacity(context, "wake candidate keys", 0)?,
             keys_cached: None,
             last: 0,
+            wakers: GpuVec::from_slice(context, "wakers", &[0])?,
         })
     }
 
@@ -152,8 +161,10 @@ impl GpuWakeCandidates {
     }
 
     /// Encodes the candidates among the first `count[0]` of `keys` (padded up to `slots`),
-    /// whose summaries are `summaries`, into a list of their keys, in pair order; after
+    /// whose summaries are `summaries`, into a list of their keys, in pair order, and whether
+    /// one wakes an island at once ([`Self::wakers`]), by the bodies' `masses`; after
     /// [`Self::set_asleep`].
+    #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &mut self,
         context: &GpuContext,
@@ -161,8 +172,11 @@ impl GpuWakeCandidates {
         count: &GpuVec<u32>,
         keys: &GpuVec<u64>,
         summaries: &GpuVec<PairSummary>,
+        masses: &GpuVec<BodyMass>,
         slots: usize,
     ) -> Result<(), GpuError> {
+        // Lands before the submission's commands run.
+        self.wakers.upload(context, &[0])?;
         self.flags.resize(context, slots)?;
         if self.indices.len() != slots {
             let indices: Vec<u32> = (0..slots as u32).collect();
@@ -175,6 +189,7 @@ impl GpuWakeCandidates {
                 summaries.buffer().clone(),
                 self.asleep.buffer().clone(),
                 self.flags.buffer().clone(),
+                masses.buffer().clone(),
             ],
             slots,
         );
@@ -197,6 +212,8 @@ impl GpuWakeCandidates {
                     self.asleep.whole(),
                     self.flags.whole(),
                     uniform.binding(0),
+                    masses.whole(),
+                    self.wakers.whole(),
                 ],
             );
             let dispatch = self
@@ -253,6 +270,12 @@ impl GpuWakeCandidates {
     /// it back with its other counts (the rows' tally).
     pub fn total(&self) -> &GpuVec<u32> {
         &self.total
+    }
+
+    /// The word that the last [`Self::encode`] sets where a candidate wakes an island at once,
+    /// for a kernel after it; 0 until then.
+    pub fn wakers(&self) -> &GpuVec<u32> {
+        &self.wakers
     }
 
     /// Encodes the read-back of as many candidates as last step had and some more, after

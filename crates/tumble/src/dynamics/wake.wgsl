@@ -22,6 +22,12 @@ struct WakeParams {
 @group(0) @binding(3) var<storage, read> asleep: array<u32>;
 // Per pair slot up to the capacity: 1 for a candidate, else 0.
 @group(0) @binding(4) var<storage, read_write> flags: array<u32>;
+@group(0) @binding(6) var<storage, read> masses: array<BodyMass>;
+// Set where a candidate wakes an island at once: a body that moves (a sleeping one has no
+// mass) touches a sleeping one, as the first round of World::wake_touched finds; zero before
+// the dispatch. A step submitted before the host read the collision holds only where none
+// did (pipeline/gpu_stages/held.wgsl).
+@group(0) @binding(7) var<storage, read_write> wakers: array<atomic<u32>, 1>;
 
 fn is_asleep(body: u32) -> bool {
     return ((asleep[body >> 5u] >> (body & 31u)) & 1u) != 0u;
@@ -42,6 +48,10 @@ fn flag_wake_candidates(
     if index < count[0] && summaries[index].x > 0u {
         let key = keys[index];
         flag = select(0u, 1u, is_asleep(key.x) || is_asleep(key.y));
+        let moves = vec2<bool>(masses[key.x].inverse_mass > 0.0, masses[key.y].inverse_mass > 0.0);
+        if (moves.x && is_asleep(key.y)) || (moves.y && is_asleep(key.x)) {
+            atomicMax(&wakers[0], 1u);
+        }
     }
     flags[index] = flag;
 }

@@ -1293,6 +1293,7 @@ impl GpuStages {
                                     broadphase.count(),
                                     broadphase.keys(),
                                     &summaries.summaries,
+                                    &device.masses,
                                     capacity,
                                 )?;
                             }
@@ -1326,7 +1327,10 @@ impl GpuStages {
                 // solve. A failure there leaves them to record their commands themselves,
                 // where it fails again.
                 let submitted = match self.step_plan.take() {
-                    Some(plan) if summarize => self.submit_speculation(profiler, plan, staged),
+                    Some(plan) if summarize => {
+                        let wake_checked = wake_asleep.is_some();
+                        self.submit_speculation(profiler, plan, (staged, wake_checked))
+                    }
                     _ => self.encode_solve_ahead(profiler),
                 };
                 if submitted.is_err() {
@@ -3169,8 +3173,11 @@ mod tests {
 
     /// The wake test's candidates listed on the device are the host pass's, in pair order, on
     /// random sorted keys padded past their count as the broadphase's are, random point counts
-    /// and random sleeping bodies, at 0, 1, about 250 and about 10 000 pairs. The read-back
-    /// stages last call's count and 256 more, so the large case takes the second copy.
+    /// and random sleeping bodies, at 0, 1, about 250 and about 10 000 pairs; and the device
+    /// finds that one wakes an island at once exactly where the host's first round does (a
+    /// body that moves touches a sleeping one), with bodies that move and with none. The
+    /// read-back stages last call's count and 256 more, so the large case takes the second
+    /// copy.
     #[test]
     fn wake_candidates_on_the_device_are_the_hosts() {
         let _turn = turn();
@@ -3185,10 +3192,15 @@ mod tests {
             state % bound
         };
         let mut sizes_seen = Vec::new();
-        for (version, (pairs, bodies)) in [(0, 10), (1, 3), (260, 60), (10_000, 3_000)]
-            .into_iter()
-            .enumerate()
-        {
+        let mut wakes_seen = Vec::new();
+        let cases = [
+            (0, 10, true),
+            (1, 3, true),
+            (260, 60, true),
+            (10_000, 3_000, true),
+            (2_000, 500, false),
+        ];
+        for (version, (pairs, bodies, movers)) in cases.into_iter().enumerate() {
             let mut keys: Vec<u64> = (0..pairs)
                 .map(|_| {
                     let (a, b) = (next(bodies), next(bodies));
@@ -3210,6 +3222,18 @@ mod tests {
                     bits[body / 32] |= 1 << (body % 32);
                 }
             }
+            let asleep = |body: u32| bits[body as usize / 32] & (1 << (body % 32)) != 0;
+            // Sleeping bodies have no mass; of the others, some are static.
+            let masses: Vec<BodyMass> = (0..bodies as u32)
+                .map(|body| BodyMass {
+                    inverse_mass: if asleep(body) || !movers || next(10) < 3 {
+                        0.0
+                    } else {
+                        1.0
+                    },
+                    ..BodyMass::default()
+                })
+                .collect();
             let slots = count + count / 3 + 5;
             let mut padded = keys.clone();
             padded.resize(slots, u64::MAX);
@@ -3219,6 +3243,7 @@ mod tests {
             let keys_buffer = GpuVec::from_slice(&context, "keys", &padded).unwrap();
             let summaries_buffer =
                 GpuVec::from_slice(&context, "summaries", &padded_summaries).unwrap();
+            let masses_buffer = GpuVec::from_slice(&context, "masses", &masses).unwrap();
             wake.set_asleep(&context, (&bits, version as u64)).unwrap();
             let mut encoder = context.device.create_command_encoder(&Default::default());
             {
@@ -3229,6 +3254,7 @@ mod tests {
                     &count_buffer,
                     &keys_buffer,
                     &summaries_buffer,
+                    &masses_buffer,
                     slots,
                 )
                 .unwrap();
@@ -3242,13 +3268,20 @@ mod tests {
                 .iter()
                 .map(|&key| crate::stages::pairs::pair_bodies(key))
                 .collect();
-            let asleep = |body: u32| bits[body as usize / 32] & (1 << (body % 32)) != 0;
             let touching = |pair: usize| summaries[pair].point_count > 0;
             let (mut parts, mut host) = (Default::default(), Vec::new());
             crate::dynamics::wake::wake_candidates(&keys, touching, asleep, &mut parts, &mut host);
             assert_eq!(device, host, "{count} pairs");
             sizes_seen.push((host.len(), staged));
+            let moves = |body: u32| masses[body as usize].inverse_mass > 0.0;
+            let wakes = host
+                .iter()
+                .any(|&(a, b)| moves(a) && asleep(b) || moves(b) && asleep(a));
+            let device_wakes = wake.wakers().read(&context).unwrap()[0] != 0;
+            assert_eq!(device_wakes, wakes, "{count} pairs: an island wakes");
+            wakes_seen.push(wakes);
         }
+        assert!(wakes_seen.contains(&true) && wakes_seen.contains(&false));
         // Some candidates past what was staged: the second copy brought them.
         assert!(
             sizes_seen.iter().any(|&(listed, staged)| listed > staged),
@@ -3520,7 +3553,8 @@ mod tests {
     }
 
     /// While bodies sleep, the collision lists the wake test's candidates on the device: the
-    /// run is bitwise the one whose host walks every pair. Towers of two boxes stand apart on
+    /// run is bitwise the one whose host walks every pair (and whose steps are not submitted
+    /// with their collisions while bodies sleep). Towers of two boxes stand apart on
     /// a plane and fall asleep an island each (so the lists hold pairs of two sleeping bodies
     /// and of a sleeping body and the plane); a ball dropped on one wakes its island through
     /// the list, and the towers beside it sleep on.
@@ -3574,11 +3608,17 @@ mod tests {
             }
             let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
             let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
-            let steps_listed = world.gpu.as_ref().unwrap().wake_candidates_listed;
-            (poses, velocities, asleep, listed, steps_listed)
+            let gpu = world.gpu.as_ref().unwrap();
+            let steps_listed = gpu.wake_candidates_listed;
+            let held = [gpu.steps_held, gpu.steps_not_held];
+            (poses, velocities, asleep, listed, steps_listed, held)
         };
-        let (poses, velocities, asleep, listed, steps_listed) = run(false);
+        let (poses, velocities, asleep, listed, steps_listed, held) = run(false);
         let host = run(true);
+        // The steps submitted with their collision held while towers slept, but for those
+        // where a ball woke one (the device's wake test said so).
+        let [held, not_held] = held;
+        assert!(held > 60 && not_held > 0, "{held} held, {not_held} not");
         // All asleep, the hit tower woken by the ball, all asleep again with it; the second
         // ball wakes its tower, whose free slot it took, after the removal.
         let woke = asleep[..200].windows(2).any(|w| w[1] < w[0]);

@@ -180,6 +180,11 @@ impl World {
             }
             self.profiler.end();
             fetched?;
+            if self.scratch.woke && self.gpu.as_ref().is_some_and(GpuStages::holds_step) {
+                // The device found no island to wake: a bug, reported rather than solved
+                // again (its bodies have moved).
+                return Err(GpuError::Unplanned { what: "the wake" });
+            }
         }
         // Until an awake body may have rested long enough by the end of this step, no island
         // can fall asleep: the islands need no links.
@@ -945,25 +950,25 @@ impl World {
             && self.joints.iter().flatten().next().is_none();
         let summaries_back = !device_layout || gpu.lists_wake_candidates_on_host();
         self.pair_summaries_fresh = device_contacts && summaries_back;
-        // With the batches laid out on the device and no body asleep (so no island wakes
-        // after the collision), the rows, the batching and the solve follow the collision
-        // without the host: submitted with it, on a guess of its counts.
+        // With the batches laid out on the device (and the wake test there while bodies
+        // sleep), the rows, the batching and the solve follow the collision without the host:
+        // submitted with it, on a guess of its counts and that no island wakes.
         let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
         let step_plan = (device_contacts
             && device_layout
             && on_gpu(Stage::Integrate)
-            && self.islands.sleeping_count() == 0)
-            .then(|| {
-                let softness = RowSoftness::new(&config);
-                StepPlan {
-                    softness: softness.contacts,
-                    static_softness: softness.statics,
-                    link_islands: config.sleeping && self.islands.may_rest(&self.masses, config.dt),
-                    settings: solver_settings(&config),
-                    batcher: config.batcher,
-                    bodies: self.poses.len(),
-                }
-            });
+            && (self.islands.sleeping_count() == 0 || !gpu.lists_wake_candidates_on_host()))
+        .then(|| {
+            let softness = RowSoftness::new(&config);
+            StepPlan {
+                softness: softness.contacts,
+                static_softness: softness.statics,
+                link_islands: config.sleeping && self.islands.may_rest(&self.masses, config.dt),
+                settings: solver_settings(&config),
+                batcher: config.batcher,
+                bodies: self.poses.len(),
+            }
+        });
         gpu.plan_step(step_plan);
         profiler.begin("collision");
         let collided = gpu.collide(

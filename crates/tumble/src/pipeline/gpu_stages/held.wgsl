@@ -5,7 +5,8 @@
 // impulses' scatter write nothing).
 
 // Words: the pairs whose keys the rows read (the collision copied no more), the constraints
-// the rows have room for, 1 when the solve was recorded with the restitution sweep, else 0.
+// the rows have room for, 1 when the solve was recorded with the restitution sweep, else 0,
+// and 1 when bodies sleep (the collision ran the wake test), else 0.
 @group(0) @binding(0) var<storage, read> guess: array<u32>;
 // Word 0: the pair count (the broadphase's).
 @group(0) @binding(1) var<storage, read> pair_count: array<u32>;
@@ -18,13 +19,17 @@
 @group(0) @binding(4) var<storage, read_write> batching_tally: array<u32>;
 // The batched solve's counts (stages/solver/batched.wgsl): word 0 the contact constraints.
 @group(0) @binding(5) var<storage, read_write> batched_count: array<u32>;
+// Not 0 where the wake test found an island that wakes (dynamics/wake.wgsl): it changes the
+// masses the rows were built with.
+@group(0) @binding(6) var<storage, read> wakers: array<u32>;
 
 @compute @workgroup_size(1)
 fn hold_step() {
     let rows = tally[1];
     let bounces = select(0u, 1u, tally[2] > 0u);
     let fits = pair_count[0] <= guess[0] && rows > 0u && rows <= guess[1];
-    let ok = fits && bounces == guess[2];
+    let wakes = guess[3] != 0u && wakers[0] != 0u;
+    let ok = fits && bounces == guess[2] && !wakes;
     held[0] = select(0u, 1u, ok);
     let count = select(0u, rows, ok);
     batching_tally[1] = count;

@@ -5,15 +5,20 @@
 //! What the host reads between them, and so what the rows and the solve were recorded from
 //! after the collision's wait, is a handful of counts: how many pairs there are (the broadphase
 //! grows when they overflow it), how many rows (their buffers' size, the batching's and the
-//! solver's counts) and whether one bounces (the restitution sweep). While no body sleeps
-//! (else an island may wake and change the masses before the rows), the step guesses them:
-//! the pairs whose keys the collision copies for the rows anyway, room for last step's rows and
-//! some more, last step's restitution. A one-thread kernel (`held.wgsl`) checks the guesses
-//! against the collision's tally on the device and hands the batching and the solver their
-//! count, none where a guess was wrong; the integration and the impulses' scatter, the only
-//! kernels that write what the step reads again, then write nothing. After the one wait the
-//! host reads that word: where the step held, the rows', batching's and solve's calls only
-//! take their results; where it did not, they record and submit as they would have.
+//! solver's counts), whether one bounces (the restitution sweep) and, while bodies sleep,
+//! whether an island wakes (its masses change before the rows). The step guesses them: the
+//! pairs whose keys the collision copies for the rows anyway, room for last step's rows and
+//! some more, last step's restitution, no island waking. A one-thread kernel (`held.wgsl`)
+//! checks the guesses against the collision's tally and the wake test on the device and hands
+//! the batching and the solver their count, none where a guess was wrong; the integration and
+//! the impulses' scatter, the only kernels that write what the step reads again, then write
+//! nothing. After the one wait the host reads that word: where the step held, the rows',
+//! batching's and solve's calls only take their results; where it did not, they record and
+//! submit as they would have.
+//!
+//! The next step's solve is recorded during this step's wait for its own
+//! ([`GpuStages::record_next_solve`]), so that the host records only the rows and the batching
+//! between the collision's submission and the solve's.
 
 use std::time::Instant;
 
@@ -34,14 +39,15 @@ use crate::stages::solver::SolverSettings;
 
 const WGSL: &str = include_str!("held.wgsl");
 /// The guesses, the pair count, the rows' tally, the word, the batching's tally, the solve's
-/// counts.
-const BINDINGS: [Binding; 6] = [
+/// counts, the wake test's wakers.
+const BINDINGS: [Binding; 7] = [
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
+    Binding::StorageRead,
 ];
 /// The check's pass, timed with the rows' and the batching's.
 const HOLD_KERNEL: SpanPath = &["batching", "kernels: whether the step held"];
@@ -84,7 +90,7 @@ pub(super) struct StepHold {
     kernel: Kernel,
     /// The guesses, sent with each step.
     guess: GpuVec<u32>,
-    cached: Option<([wgpu::Buffer; 5], Dispatch)>,
+    cached: Option<([wgpu::Buffer; 6], Dispatch)>,
 }
 
 /// The buffers the check reads and writes besides its guesses.
@@ -94,6 +100,7 @@ struct HoldBuffers<'a> {
     held: &'a GpuVec<u32>,
     batching_tally: &'a GpuVec<[u32; 4]>,
     batched_count: &'a GpuVec<u32>,
+    wakers: &'a GpuVec<u32>,
 }
 
 impl StepHold {
@@ -101,17 +108,18 @@ impl StepHold {
         let source = Source::new().snippet("held.wgsl", WGSL);
         Ok(Self {
             kernel: Kernel::new(context, "hold_step", &source, "hold_step", &BINDINGS),
-            guess: GpuVec::from_slice(context, "step guesses", &[0; 3])?,
+            guess: GpuVec::from_slice(context, "step guesses", &[0; 4])?,
             cached: None,
         })
     }
 
-    /// Encodes the check of `guess` (the pairs the rows read, their room, the bounce).
+    /// Encodes the check of `guess` (the pairs the rows read, their room, the bounce, whether
+    /// the wake test ran).
     fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        guess: [u32; 3],
+        guess: [u32; 4],
         buffers: &HoldBuffers,
     ) -> Result<(), GpuError> {
         // Lands before the submission's commands run.
@@ -122,6 +130,7 @@ impl StepHold {
             buffers.held.buffer().clone(),
             buffers.batching_tally.buffer().clone(),
             buffers.batched_count.buffer().clone(),
+            buffers.wakers.buffer().clone(),
         ];
         if self
             .cached
@@ -137,6 +146,7 @@ impl StepHold {
                     buffers.held.whole(),
                     buffers.batching_tally.whole(),
                     buffers.batched_count.whole(),
+                    buffers.wakers.whole(),
                 ],
             );
             self.cached = Some((key, self.kernel.dispatch(group, 1)));
@@ -161,16 +171,22 @@ impl GpuStages {
     /// The step's plan, before its collision, for its rows, batching and solve to be
     /// submitted with it ([`Self::collide`]); `None` where they may not.
     pub(crate) fn plan_step(&mut self, plan: Option<StepPlan>) {
-        self.step_plan = plan.filter(|_| self.speculates && !self.profiler.times_dispatches());
+        // A step after one without rows (a world asleep, or not yet touching) likely has none
+        // either, and a step without rows does not hold (the check asks for some): it runs its
+        // stages as it would have.
+        let likely = self.last_rows > 0;
+        self.step_plan =
+            plan.filter(|_| likely && self.speculates && !self.profiler.times_dispatches());
     }
 
     /// Records the rows, the batching and the solve of the planned step (`plan`) and submits
-    /// them, after the collision's submission: `staged` pairs' keys are copied for the rows.
+    /// them, after the collision's submission: `staged` pairs' keys are copied for the rows;
+    /// `wake_checked`: the collision ran the wake test (bodies sleep).
     pub(super) fn submit_speculation(
         &mut self,
         profiler: &mut Profiler,
         plan: StepPlan,
-        staged: usize,
+        (staged, wake_checked): (usize, bool),
     ) -> Result<(), GpuError> {
         // A handle of its own (reference-counted), for the recording to borrow `self`.
         let context = &self.context.clone();
@@ -243,13 +259,19 @@ impl GpuStages {
         self.joint_batch_offsets.upload(context, &zeros)?;
         self.joint_rows.upload_order(context, &[])?;
         self.solver_bodies.resize(context, plan.bodies)?;
-        let guess = [staged as u32, room as u32, u32::from(solve.restitution)];
+        let guess = [
+            staged as u32,
+            room as u32,
+            u32::from(solve.restitution),
+            u32::from(wake_checked),
+        ];
         let buffers = HoldBuffers {
             pair_count: self.broadphase.count(),
             tally: self.row_tally.totals(),
             held: self.finalize_bodies.held(),
             batching_tally: self.batching.tally(),
             batched_count: self.batched.count(),
+            wakers: self.wake.wakers(),
         };
         let hold = &mut self.step_hold;
         encode_pass(&mut encoder, timer, HOLD_KERNEL, |pass| {
@@ -348,6 +370,12 @@ impl GpuStages {
         Ok(())
     }
 
+    /// Whether this step's rows, batching and solve were submitted with its collision and
+    /// held: the step then only takes their results.
+    pub(crate) fn holds_step(&self) -> bool {
+        self.held_step().is_some()
+    }
+
     /// The step submitted with the collision, where it held: the stages after the collision
     /// then only take its results. `None` where it did not (they record and submit their
     /// commands).
@@ -377,17 +405,21 @@ mod tests {
         let context = GpuContext::shared()
             .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
         let mut hold = StepHold::new(&context).unwrap();
-        // (pairs, rows, bouncing rows), the guesses (pairs read, room, bounce), held.
+        // (pairs, rows, bouncing rows, wakers), the guesses (pairs read, room, bounce, wake
+        // test), held.
         let cases = [
-            ((90, 40, 0), [100, 50, 0], true),
-            ((100, 50, 3), [100, 50, 1], true),
-            ((101, 40, 0), [100, 50, 0], false),
-            ((90, 51, 0), [100, 50, 0], false),
-            ((90, 0, 0), [100, 50, 0], false),
-            ((90, 40, 2), [100, 50, 0], false),
-            ((90, 40, 0), [100, 50, 1], false),
+            ((90, 40, 0, 0), [100, 50, 0, 0], true),
+            ((100, 50, 3, 0), [100, 50, 1, 0], true),
+            ((90, 40, 0, 1), [100, 50, 0, 0], true),
+            ((90, 40, 0, 0), [100, 50, 0, 1], true),
+            ((101, 40, 0, 0), [100, 50, 0, 0], false),
+            ((90, 51, 0, 0), [100, 50, 0, 0], false),
+            ((90, 0, 0, 0), [100, 50, 0, 0], false),
+            ((90, 40, 2, 0), [100, 50, 0, 0], false),
+            ((90, 40, 0, 0), [100, 50, 1, 0], false),
+            ((90, 40, 0, 1), [100, 50, 0, 1], false),
         ];
-        for ((pairs, rows, bouncing), guess, held) in cases {
+        for ((pairs, rows, bouncing, wakers), guess, held) in cases {
             let mut tally = [0; 8];
             (tally[1], tally[2]) = (rows, bouncing);
             let buffers = HoldBuffers {
@@ -396,12 +428,15 @@ mod tests {
                 held: &GpuVec::from_slice(&context, "held", &[7]).unwrap(),
                 batching_tally: &GpuVec::from_slice(&context, "tally", &[[0, 9, 0, 9]]).unwrap(),
                 batched_count: &GpuVec::from_slice(&context, "counts", &[9, 0]).unwrap(),
+                wakers: &GpuVec::from_slice(&context, "wakers", &[wakers]).unwrap(),
             };
             context.submit_pass("hold", |pass| {
                 hold.encode(&context, pass, guess, &buffers).unwrap();
             });
             let count = if held { rows } else { 0 };
-            let case = format!("pairs {pairs}, rows {rows}, bouncing {bouncing}, {guess:?}");
+            let case = format!(
+                "{pairs} pairs, {rows} rows, {bouncing} bouncing, {wakers} wakers, {guess:?}"
+            );
             assert_eq!(
                 buffers.held.read(&context).unwrap(),
                 [u32::from(held)],
