@@ -41,6 +41,10 @@ pub fn run(request: &BunnyRun) -> Result<(), String> {
             _ => ParticleDevice::Cpu,
         },
     };
+    if let (ParticleDevice::Gpu(context), true) = (&device, request.profile) {
+        // The profile's `[gpu]` lines.
+        context.set_gpu_timing(true);
+    }
     let device_label = if matches!(device, ParticleDevice::Cpu) {
         "cpu"
     } else {

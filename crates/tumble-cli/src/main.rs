@@ -280,6 +280,12 @@ fn run(args: &RunArgs) -> Result<(), String> {
     } else {
         "cpu".to_string()
     };
+    if args.profile && devices.any_gpu() {
+        // The profile's `[gpu]` lines; the other runs (and `--json`'s median) leave the
+        // device's timestamps off.
+        let context = tumble::gpu::GpuContext::shared().map_err(|e| e.to_string())?;
+        context.set_gpu_timing(true);
+    }
     // The raycast scene casts its fan after every step, inside the step's profiler frame.
     let mut fan = RayFan::for_scene(&args.scene, args.scale);
     let mut first_step_ms = None;

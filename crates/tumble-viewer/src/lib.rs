@@ -149,6 +149,10 @@ pub fn view(name: &str, scene: &Scene, options: &ViewOptions) -> Result<(), View
 
 /// Steps the scene and writes the pictures `--png` and `--frames` ask for.
 fn render_headless(scene: &Scene, options: &ViewOptions) -> Result<(), ViewError> {
+    if options.overlay == OverlayKind::Profile {
+        // The profile's `[gpu]` lines.
+        tumble::gpu::GpuContext::shared()?.set_gpu_timing(true);
+    }
     let mut world = build_world(scene, options.device, None)?;
     let context = GpuContext::headless()?;
     let ImageSize { width, height } = options.size;

@@ -484,9 +484,11 @@ impl ApplicationHandler for App<'_> {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if self.view.is_none() {
             // The world's GPU stages move to the window's device, where the renderer reads
-            // the poses they leave.
+            // the poses they leave, and time their passes there for the profile (`p`).
             let opened = self.open(event_loop).and_then(|view| {
-                self.shown.use_device(view.context.physics())?;
+                let physics = view.context.physics();
+                physics.set_gpu_timing(true);
+                self.shown.use_device(physics)?;
                 Ok(view)
             });
             match opened {

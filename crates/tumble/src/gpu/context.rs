@@ -10,7 +10,7 @@
 //! the hardware allows them) and the optional features the kernels can use: timestamp queries
 //! for the GPU profiler and subgroups for faster variants. Baseline kernels need neither.
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Duration;
 
@@ -64,6 +64,8 @@ pub struct GpuContext {
     pub(crate) pipelines: Arc<Mutex<PipelineCache>>,
     /// Buffers and bind groups made on the device so far ([`Self::resources_made`]).
     resources_made: Arc<AtomicU64>,
+    /// Whether the profilers time the passes on the device ([`Self::set_gpu_timing`]).
+    gpu_timing: Arc<AtomicBool>,
 }
 
 impl GpuContext {
@@ -105,6 +107,7 @@ impl GpuContext {
             info: Arc::new(info),
             pipelines: Arc::default(),
             resources_made: Arc::default(),
+            gpu_timing: Arc::default(),
         })
     }
 
@@ -134,6 +137,7 @@ impl GpuContext {
             info: Arc::new(info),
             pipelines: Arc::default(),
             resources_made: Arc::default(),
+            gpu_timing: Arc::default(),
         }
     }
 
@@ -209,6 +213,21 @@ impl GpuContext {
     ) -> wgpu::BindGroup {
         self.resources_made.fetch_add(1, Ordering::Relaxed);
         self.device.create_bind_group(descriptor)
+    }
+
+    /// Times the GPU stages' passes on the device from now on, or stops: the profiles' `[gpu]`
+    /// lines, where the adapter has timestamp queries ([`Self::has_timestamps`]). For every
+    /// user of this device (a clone shares the setting). Off at first: the queries and their
+    /// read-back took about 0.1 ms of a step on an H100 (BENCHMARKS.md, session 25), which a
+    /// step that is not being profiled need not pay.
+    pub fn set_gpu_timing(&self, on: bool) {
+        self.gpu_timing.store(on, Ordering::Relaxed);
+    }
+
+    /// Whether the passes are timed on the device: asked for ([`Self::set_gpu_timing`]) and
+    /// possible.
+    pub fn times_gpu(&self) -> bool {
+        self.gpu_timing.load(Ordering::Relaxed) && self.has_timestamps()
     }
 
     pub fn has_timestamps(&self) -> bool {

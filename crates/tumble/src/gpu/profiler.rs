@@ -7,7 +7,9 @@
 //! into the [`Profiler`] as [`SpanKind::Gpu`]. Host↔device copies are timed on the host and
 //! recorded as [`SpanKind::Copy`] ([`record_copy`]).
 //!
-//! Without timestamp queries (llvmpipe on GL) every call is a no-op and passes get no
+//! Passes are timed only while their device's context asks for it
+//! ([`GpuContext::set_gpu_timing`]: `tumble run --profile` and the viewer do); otherwise, and
+//! without timestamp queries (llvmpipe on GL), every call is a no-op and passes get no
 //! timestamp writes: the report then simply has no GPU lines.
 //!
 //! With `TUMBLE_PROFILE_DISPATCHES=1` in the environment, and an adapter that writes timestamps
@@ -29,6 +31,8 @@ pub type SpanPath = &'static [&'static str];
 #[derive(Debug)]
 pub struct GpuProfiler {
     queries: Option<Queries>,
+    /// The context's switch ([`GpuContext::set_gpu_timing`]).
+    context: GpuContext,
     /// Each dispatch's timestamps, when they are asked for (see the module docs).
     dispatches: Option<DispatchTimer>,
     /// Spans begun this frame, in query order (span k uses queries 2k and 2k + 1).
@@ -132,6 +136,7 @@ impl GpuProfiler {
         });
         let mut profiler = Self {
             queries,
+            context: context.clone(),
             dispatches: None,
             spans: Vec::with_capacity(max_spans),
         };
@@ -165,9 +170,9 @@ impl GpuProfiler {
         result
     }
 
-    /// Whether spans are measured (the adapter has timestamp queries).
+    /// Whether spans are measured: asked for, and the adapter has timestamp queries.
     pub fn is_active(&self) -> bool {
-        self.queries.is_some()
+        self.queries.is_some() && self.context.times_gpu()
     }
 
     /// Whether each dispatch is timed ([`Self::time_each_dispatch`]).
@@ -187,7 +192,7 @@ impl GpuProfiler {
         &mut self,
         path: SpanPath,
     ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
-        let queries = self.queries.as_ref()?;
+        let queries = self.queries.as_ref().filter(|_| self.context.times_gpu())?;
         if self.spans.len() >= queries.capacity {
             return None;
         }

@@ -356,6 +356,7 @@ fn ragdolls_with_the_joint_rows_on_the_gpu_follow_the_cpu() {
 #[test]
 fn the_profile_shows_the_joint_rows_kernel() {
     let turn = context();
+    turn.set_gpu_timing(true);
     let mut world = ragdolls(&Stage::ALL);
     for _ in 0..3 {
         world.try_step().unwrap();

@@ -41,10 +41,32 @@ impl ScanCase {
     }
 }
 
+/// Passes get timestamps only while the device's context asks for them (a step that is not
+/// profiled does not pay for the queries), where the adapter has them.
+#[test]
+fn passes_are_timed_only_when_asked() {
+    let case = ScanCase::new(3);
+    let context: GpuContext = (*case.context).clone();
+    let mut gpu_profiler = GpuProfiler::new(&context, 4);
+    let was = context.times_gpu();
+    context.set_gpu_timing(false);
+    assert!(!gpu_profiler.is_active());
+    assert!(gpu_profiler.pass_timestamps(&["off"]).is_none());
+    context.set_gpu_timing(true);
+    assert_eq!(gpu_profiler.is_active(), context.has_timestamps());
+    assert_eq!(
+        gpu_profiler.pass_timestamps(&["on"]).is_some(),
+        context.has_timestamps()
+    );
+    gpu_profiler.discard();
+    context.set_gpu_timing(was);
+}
+
 #[test]
 fn timestamps_and_copies_are_recorded_as_their_own_lines() {
     let mut case = ScanCase::new(1);
     let context: GpuContext = (*case.context).clone();
+    context.set_gpu_timing(true);
     let mut gpu_profiler = GpuProfiler::new(&context, 4);
     let mut profiler = Profiler::new("frame");
     profiler.begin_frame();
@@ -76,7 +98,7 @@ fn timestamps_and_copies_are_recorded_as_their_own_lines() {
         .iter()
         .map(|line| (line.name, line.kind))
         .collect();
-    if gpu_profiler.is_active() {
+    if context.has_timestamps() {
         assert_eq!(
             lines,
             [("scan", SpanKind::Gpu), ("download", SpanKind::Copy)]
