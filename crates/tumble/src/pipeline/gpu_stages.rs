@@ -333,7 +333,8 @@ enum Recording {
     /// During the collision's wait, for the step's solve to submit ([`SolveAhead`]).
     Ahead,
     /// During the collision's wait and submitted then, on a guess
-    /// ([`speculation`]): its integration moves the bodies only where the step held.
+    /// ([`speculation`]): its integration moves the bodies only where the step held (as any
+    /// does: the word is 1 but after such a step that did not).
     Speculated,
     /// During the last step's wait for its solve, for this step's submitted on a guess, as
     /// [`Self::Speculated`]: timed on a profiler of its own (the last step's spans are not
@@ -820,7 +821,16 @@ impl GpuStages {
         // Recorded for a step that did not solve (a failed one, or one whose solve ran
         // elsewhere).
         (self.solve_ahead, self.batching_ahead) = (None, None);
-        (self.step_plan, self.speculated) = (None, None);
+        if self
+            .speculated
+            .take()
+            .is_some_and(|speculated| speculated.held)
+        {
+            // A step that held and failed after its collision: the device integrated its
+            // bodies, the host did not.
+            self.bodies.synced = None;
+        }
+        self.step_plan = None;
         self.bodies.uploaded_this_step = false;
         self.pair_contacts_fresh = false;
         self.integrated_this_step = false;
@@ -1093,8 +1103,10 @@ impl GpuStages {
             // Its submission may not have run: the trees' body lists are made again.
             self.broadphase.forget_bodies();
             if self.speculated.take().is_some() {
-                // The step submitted with it may have moved the device's bodies.
+                // The step submitted with it may have moved the device's bodies, or not (then
+                // its word may be 0).
                 self.bodies.synced = None;
+                let _ = self.finalize_bodies.reset_held(&self.context);
             }
         }
         if collided.is_err() && self.broadphase.capacity() != capacity {
@@ -1741,7 +1753,9 @@ impl GpuStages {
         };
         self.last_rows = count;
         if let Some(held) = self.held_step() {
-            // Colored and laid out with the collision's submission.
+            // Colored and laid out with the collision's submission. The preparation above
+            // gave the buffers this step's lengths (the colors' read-back, the solve's plan);
+            // the counts it sent land before the next submission, which sends its own.
             if held.batching != plan {
                 return Err(unplanned("the batching"));
             }
@@ -1925,7 +1939,8 @@ impl GpuStages {
                 if integrate.is_some() {
                     encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
                         let motion = (device_bodies, &device.poses, &device.velocities);
-                        finalize.encode(context, pass, motion, false)
+                        finalize.encode(context, pass, motion);
+                        Ok(())
                     })?;
                 }
                 Ok(())
@@ -1994,7 +2009,8 @@ impl GpuStages {
             |encoder, timer| {
                 encode_pass(encoder, timer, INTEGRATE.kernel, |pass| {
                     let motion = (motion, &device.poses, &device.velocities);
-                    finalize.encode(context, pass, motion, false)
+                    finalize.encode(context, pass, motion);
+                    Ok(())
                 })?;
                 encode_body_downloads(context, device, encoder);
                 Ok(())
@@ -2283,7 +2299,6 @@ impl GpuStages {
         recording: Recording,
     ) -> Result<(), GpuError> {
         let ahead = recording != Recording::Now;
-        let guarded = matches!(recording, Recording::Speculated | Recording::NextStep);
         let context = &self.context;
         let solver = &mut self.solver;
         let (batched, rows) = (&mut self.batched, &self.rows);
@@ -2384,7 +2399,8 @@ impl GpuStages {
         if plan.integrating {
             encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
                 let motion = (&*solver_bodies, &device.poses, &device.velocities);
-                finalize.encode(context, pass, motion, guarded)
+                finalize.encode(context, pass, motion);
+                Ok(())
             })?;
         }
         // The read-backs ride in the kernels' submission: one wait for the stage.

@@ -62,8 +62,8 @@ const SUBMITTED_AHEAD: SpanPath = &[
 const NEXT_SOLVE_RECORDED: SpanPath = &["solver", "next step's solve encoded (during the wait)"];
 
 /// What a step knows, before its collision, of the rows, the batching and the solve that
-/// follow it when they all run on the device with the batch layout there and no body sleeps:
-/// everything they are recorded from but the counts the collision finds.
+/// follow it when they all run on the device with the batch layout there (and the wake test
+/// while bodies sleep): everything they are recorded from but the counts the collision finds.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct StepPlan {
     pub softness: Softness,
@@ -331,7 +331,9 @@ impl GpuStages {
             && !plan.jacobi
             && !plan.joints
             && !plan.impulses_back;
-        if !(self.speculates && self.encodes_ahead && speculative) {
+        // Steps whose dispatches are timed are not submitted so (`plan_step`).
+        let submitted = self.speculates && self.encodes_ahead && !self.profiler.times_dispatches();
+        if !(submitted && speculative) {
             return;
         }
         let start = Instant::now();
@@ -365,6 +367,8 @@ impl GpuStages {
                 self.steps_held += 1;
             } else {
                 self.steps_not_held += 1;
+                // The step runs its stages again, integrating as any does.
+                self.finalize_bodies.reset_held(&self.context)?;
             }
         }
         Ok(())

@@ -139,11 +139,11 @@ impl GpuPrepareBodies {
 
 pub struct GpuFinalizeBodies {
     kernel: BodyKernel<4>,
-    /// One word: the kernel moves the bodies only where it is not 0. It is 1 unless a step
-    /// submitted before its collision was read did not hold (`guarded`, [`Self::encode`]).
+    /// One word: the kernel moves the bodies only where it is not 0. It is 1 but after a step
+    /// whose rows and solve were submitted on a guess that was wrong: the check before the
+    /// kernel then writes 0, and the host sets it back ([`Self::reset_held`]) once it has
+    /// read it.
     held: GpuVec<u32>,
-    /// The last encode's word is written on the device: the next unguarded one sets it to 1.
-    guarded: bool,
 }
 
 impl GpuFinalizeBodies {
@@ -162,14 +162,12 @@ impl GpuFinalizeBodies {
                 ],
             ),
             held: GpuVec::from_slice(context, "step held", &[1])?,
-            guarded: false,
         })
     }
 
     /// Encodes the step's motion `bodies[i]` into pose `i` and velocity `i`, for `bodies.len()`
-    /// bodies (poses and velocities hold at least as many). `guarded`: only where the word
-    /// [`Self::held`] is not 0 when the kernel runs, which a kernel before it in the
-    /// submission writes; else the bodies move.
+    /// bodies (poses and velocities hold at least as many), where the word [`Self::held`] is
+    /// not 0 when the kernel runs.
     pub fn encode(
         &mut self,
         context: &GpuContext,
@@ -179,13 +177,7 @@ impl GpuFinalizeBodies {
             &GpuVec<BodyPose>,
             &GpuVec<BodyVelocity>,
         ),
-        guarded: bool,
-    ) -> Result<(), GpuError> {
-        if !guarded && self.guarded {
-            // Lands before the submission's commands run.
-            self.held.upload(context, &[1])?;
-        }
-        self.guarded = guarded;
+    ) {
         let buffers = [
             bodies.buffer(),
             poses.buffer(),
@@ -193,12 +185,17 @@ impl GpuFinalizeBodies {
             self.held.buffer(),
         ];
         self.kernel.encode(context, pass, buffers, bodies.len());
-        Ok(())
     }
 
-    /// The word a guarded [`Self::encode`] reads.
+    /// The word the kernel reads, for a kernel before it to write.
     pub fn held(&self) -> &GpuVec<u32> {
         &self.held
+    }
+
+    /// Sets the word back to 1 (landing before the next submission's commands run), after a
+    /// step that wrote 0 into it finished.
+    pub fn reset_held(&mut self, context: &GpuContext) -> Result<(), GpuError> {
+        self.held.upload(context, &[1])
     }
 
     /// Encodes the word's read-back, after the kernel that writes it.
