@@ -331,8 +331,11 @@ impl GpuStages {
             && !plan.jacobi
             && !plan.joints
             && !plan.impulses_back;
-        // Steps whose dispatches are timed are not submitted so (`plan_step`).
-        let submitted = self.speculates && self.encodes_ahead && !self.profiler.times_dispatches();
+        // Nor are steps whose dispatches are timed, or after one without rows (`plan_step`).
+        let submitted = self.speculates
+            && self.encodes_ahead
+            && !self.profiler.times_dispatches()
+            && self.last_rows > 0;
         if !(submitted && speculative) {
             return;
         }
