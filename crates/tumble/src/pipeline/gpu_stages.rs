@@ -3967,6 +3967,86 @@ mod tests {
         assert!(with.0 == after.0, "the poses or velocities differ");
     }
 
+    /// Steps submitted with their collisions step as those that are not while the world
+    /// changes between steps: the solver and the batching moved to the CPU and back, the
+    /// sub-steps and gravity changed, a body added, a velocity set. The plans and the solve recorded a step
+    /// ahead must follow each change.
+    #[test]
+    fn steps_submitted_with_their_collisions_follow_the_worlds_changes() {
+        use crate::pipeline::devices::{Stage, StageDevices};
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let run = |speculates: bool| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world.gpu.as_mut().unwrap().speculates = speculates;
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            add_block(&mut world, 32);
+            for step in 0..90 {
+                match step {
+                    20 => {
+                        let mut devices = StageDevices::all(Executor::Gpu);
+                        devices.set(Stage::Batching, Executor::Cpu);
+                        devices.set(Stage::Solver, Executor::Cpu);
+                        world.set_stage_devices(devices).unwrap();
+                    }
+                    30 => world
+                        .set_stage_devices(StageDevices::all(Executor::Gpu))
+                        .unwrap(),
+                    45 | 50 => {
+                        // The sub-steps change the rows' softness too, gravity the solve alone.
+                        let config = *world.config();
+                        let config = if step == 45 {
+                            StepConfig {
+                                substeps: 4,
+                                ..config
+                            }
+                        } else {
+                            StepConfig {
+                                gravity: Vec3::new(0.5, -12.0, 0.0),
+                                ..config
+                            }
+                        };
+                        world.set_config(config).unwrap();
+                    }
+                    60 => {
+                        let ball = BodyDesc::dynamic(Shape::sphere(0.5))
+                            .position(Vec3::new(0.3, 6.0, 0.2));
+                        world.add_body(ball).unwrap();
+                    }
+                    70 => {
+                        let body = world.handle_of(5);
+                        world
+                            .set_velocity(body, Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO)
+                            .unwrap();
+                    }
+                    _ => {}
+                }
+                world.step();
+            }
+            let mut state = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
+            let gpu = world.gpu.as_ref().unwrap();
+            (state, gpu.steps_held, gpu.next_solves_submitted)
+        };
+        let with = run(true);
+        let without = run(false);
+        assert_eq!((without.1, without.2), (0, 0));
+        assert!(
+            with.1 > 40 && with.2 > 30,
+            "{} held, {} recorded ahead",
+            with.1,
+            with.2
+        );
+        assert!(with.0 == without.0, "the poses or velocities differ");
+    }
+
     /// 81 balls on one dynamic slab: more constraints on the slab than there are colors.
     fn balls_on_a_slab(world: &mut World) {
         let slab = BodyDesc::dynamic(Shape::cuboid(Vec3::new(5.0, 0.25, 5.0)))
