@@ -59,7 +59,7 @@ enum Device {
 struct RunArgs {
     /// Built-in scene name (`tumble scenes`) or path to a JSON scene file.
     scene: String,
-    /// Where the step runs; `auto` picks a hardware GPU for scenes of 10k bodies or more.
+    /// Where the step runs; `auto` picks a hardware GPU for scenes of 100 bodies or more.
     #[arg(long, value_enum, default_value = "auto")]
     device: Device,
     /// Per-stage devices, e.g. `broadphase=gpu,solver=cpu` (overrides --device per stage).
@@ -177,11 +177,13 @@ fn load_scene(name: &str, scale: f32) -> Result<Scene, String> {
 }
 
 /// Bodies from which `--device auto` runs the step on a hardware GPU. Measured on an H100
-/// machine (BENCHMARKS.md): below it the GPU step's fixed costs (a submission and a wait per
-/// stage, ~230 dependent solver dispatches) lose to 16 CPU threads (falling-boxes at 3k: 4.7
-/// against 4.2 ms; stacked-boxes, mostly asleep: 2.3 against 0.6 ms); above it the GPU wins
-/// (30k falling boxes: 12.3 against 41 ms, 100k: 28.6 against 112 ms).
-const AUTO_GPU_BODIES: usize = 10_000;
+/// machine (BENCHMARKS.md, session 25; `tumble bench` against 16 CPU threads, ms a step): the
+/// GPU step's fixed cost, about 0.9 ms, loses only to the smallest scenes (66 ragdoll bodies:
+/// 2.1 against 1.6) and wins from about a hundred (153 falling boxes: 0.85 against 1.32, 126
+/// stacked boxes: 2.4 against 4.5, 165 ragdoll bodies: 2.5 against 3.6, 3k falling boxes: 1.2
+/// against 4.4). Session 14's GPU step, which waited for the device between stages, lost up
+/// to 10k bodies.
+const AUTO_GPU_BODIES: usize = 100;
 
 /// The executor of each stage, after `--device` and then `--stages`. `auto` is every stage on
 /// a hardware GPU for scenes of at least [`AUTO_GPU_BODIES`] bodies, else the CPU (Mesa's CPU

@@ -246,7 +246,7 @@ fn raycast_scene_reports_rays_in_the_profile() {
 }
 
 /// `--device auto` (the default) is the CPU for small scenes, and every stage on a hardware GPU
-/// for scenes of 10k bodies or more when there is one (not on Mesa's CPU drivers).
+/// for scenes of 100 bodies or more when there is one (not on Mesa's CPU drivers).
 #[test]
 fn auto_runs_large_scenes_on_a_hardware_gpu() {
     let device_of = |scene: &str, scale: &str| {
@@ -257,6 +257,7 @@ fn auto_runs_large_scenes_on_a_hardware_gpu() {
             serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
         summary["device"].as_str().unwrap().to_owned()
     };
+    // 77 bodies.
     assert_eq!(device_of("stacked-boxes", "0.02"), "cpu");
     let hardware = tumble::gpu::GpuContext::shared().is_ok_and(|context| !context.is_cpu_driver());
     let expected = if hardware {
@@ -264,8 +265,8 @@ fn auto_runs_large_scenes_on_a_hardware_gpu() {
     } else {
         "cpu"
     };
-    // 3.4 × 3008 boxes: 10.2k bodies.
-    assert_eq!(device_of("falling-boxes", "3.4"), expected);
+    // 0.1 × 3008 boxes and the ground: 305 bodies.
+    assert_eq!(device_of("falling-boxes", "0.1"), expected);
 }
 
 #[test]
