@@ -19,9 +19,11 @@ fn run_in_pool(threads: usize, scene: &Scene, steps: usize) -> String {
     })
 }
 
+/// At 1.5k boxes the solver's widest stages hold several blocks, so several workers share
+/// its steps (a smaller world's solve runs on one thread whatever the pool's size).
 #[test]
 fn falling_boxes_are_bitwise_identical_across_runs_and_thread_counts() {
-    let scene = builtin("falling-boxes", 0.05).unwrap();
+    let scene = builtin("falling-boxes", 0.5).unwrap();
     let one = run_in_pool(1, &scene, 120);
     for threads in [1, 2, 4] {
         assert_same_dump(

@@ -188,7 +188,10 @@ pub fn solve(bodies: &mut [SolverBody], batched: &mut Batched, settings: SolverS
         restitution: batched.contacts.iter().any(|c| c.restitution > 0.0),
         settings,
     };
-    let threads = rayon::current_num_threads();
+    // Workers past the widest stage's blocks would only wait at every stage's end, spinning
+    // on the team's counters beside the workers that have blocks to run: a small world's
+    // solve runs on one thread.
+    let threads = rayon::current_num_threads().min(step.widest_stage());
     if threads == 1 {
         step.run(&mut Worker::alone());
         return;
@@ -273,6 +276,29 @@ impl Step<'_> {
         }
     }
 
+    /// The blocks of batch `batch` when it is a stage of its own, its contacts' and its
+    /// joints': a batch large enough to fill two blocks, but for the overflow batch.
+    fn batch_blocks(&self, batch: usize) -> Option<(usize, usize)> {
+        let batch_count = self.contact_offsets.len().saturating_sub(1);
+        let contacts = range(self.contact_offsets, batch);
+        let joints = range(self.joint_offsets, batch);
+        let overflow = self.has_overflow && batch + 1 == batch_count;
+        if overflow || contacts.len() + joints.len() < 2 * CONTACTS_PER_BLOCK {
+            return None;
+        }
+        let contact_blocks = contacts.len().div_ceil(CONTACTS_PER_BLOCK);
+        Some((contact_blocks, joints.len().div_ceil(JOINTS_PER_BLOCK)))
+    }
+
+    /// The most blocks one stage of the step has: the work of that many workers at most.
+    fn widest_stage(&self) -> usize {
+        let batch_count = self.contact_offsets.len().saturating_sub(1);
+        let batches = (0..batch_count).filter_map(|batch| self.batch_blocks(batch));
+        let widest_batch = batches.map(|(contacts, joints)| contacts + joints).max();
+        let body_blocks = self.bodies.1.div_ceil(BODIES_PER_BLOCK);
+        widest_batch.unwrap_or(1).max(body_blocks).max(1)
+    }
+
     /// One stage over the bodies, in blocks of [`BODIES_PER_BLOCK`].
     fn for_each_body(&self, worker: &mut Worker, f: impl Fn(&mut SolverBody)) {
         let count = self.bodies.1;
@@ -314,17 +340,14 @@ impl Step<'_> {
         };
         let mut small_from = 0;
         for batch in 0..batch_count {
-            let (contacts, joints) = (contacts_of(batch), joints_of(batch));
-            let overflow = self.has_overflow && batch + 1 == batch_count;
-            if overflow || contacts.len() + joints.len() < 2 * CONTACTS_PER_BLOCK {
+            let Some((contact_blocks, joint_blocks)) = self.batch_blocks(batch) else {
                 continue;
-            }
+            };
+            let (contacts, joints) = (contacts_of(batch), joints_of(batch));
             if small_from < batch {
                 worker.stage(1, |_| in_order(small_from..batch));
             }
             small_from = batch + 1;
-            let contact_blocks = contacts.len().div_ceil(CONTACTS_PER_BLOCK);
-            let joint_blocks = joints.len().div_ceil(JOINTS_PER_BLOCK);
             worker.stage(contact_blocks + joint_blocks, |block| {
                 if block < contact_blocks {
                     let start = contacts.start + block * CONTACTS_PER_BLOCK;
@@ -543,5 +566,66 @@ pub(super) fn bias_terms(
         )
     } else {
         (0.0, 1.0, 0.0)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A step over `bodies` and `contacts` batched by `offsets` (the joints' offsets set by
+    /// the caller).
+    fn step_over<'a>(
+        bodies: &'a mut [SolverBody],
+        contacts: &'a mut [ContactConstraint],
+        offsets: &'a [u32],
+    ) -> Step<'a> {
+        Step {
+            bodies: BodyAccess(bodies.as_mut_ptr(), bodies.len()),
+            contacts: Shared::new(contacts),
+            contact_offsets: offsets,
+            joints: Shared::new(&mut []),
+            joint_offsets: &[],
+            has_overflow: false,
+            restitution: false,
+            settings: SolverSettings {
+                dt: 1.0 / 60.0,
+                substeps: 1,
+                iterations: 1,
+                gravity: Vec3::ZERO,
+                max_push_velocity: 3.0,
+                restitution_threshold: 1.0,
+            },
+        }
+    }
+
+    /// The team is as wide as the widest stage: one worker for a small world, the largest
+    /// batch's blocks (or the bodies') for a larger one.
+    #[test]
+    fn the_widest_stage_counts_the_blocks_a_worker_can_take() {
+        let mut bodies = vec![SolverBody::STATIC; 3000];
+        let mut contacts = vec![ContactConstraint::default(); 1000];
+        // Batches of 100 (walked in order), 700 (11 blocks of 64) and 200 (4 blocks).
+        let offsets = [0, 100, 800, 1000];
+        let joint_offsets = [0, 0, 0, 0];
+        let step = Step {
+            joint_offsets: &joint_offsets,
+            ..step_over(&mut bodies, &mut contacts, &offsets)
+        };
+        assert_eq!(step.batch_blocks(0), None);
+        assert_eq!(step.batch_blocks(1), Some((11, 0)));
+        assert_eq!(step.widest_stage(), 11);
+        let small = [0, 100, 150];
+        let step = Step {
+            joint_offsets: &joint_offsets[..3],
+            ..step_over(&mut bodies[..200], &mut contacts[..150], &small)
+        };
+        assert_eq!(step.widest_stage(), 1);
+        // Many bodies and no contact: the body stages (1024 a block) are the widest.
+        let step = Step {
+            joint_offsets: &joint_offsets[..1],
+            ..step_over(&mut bodies, &mut [], &[0])
+        };
+        assert_eq!(step.widest_stage(), 3);
     }
 }
