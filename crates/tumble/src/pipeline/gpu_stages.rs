@@ -330,16 +330,13 @@ struct BatchingPlan {
 enum Recording {
     /// Where it is submitted, after the rows and the batching.
     Now,
-    /// During the collision's wait, for the step's solve to submit ([`SolveAhead`]).
+    /// During the collision's wait: for the step's solve to submit ([`SolveAhead`]), or
+    /// submitted then with the rows and the batching, on a guess ([`speculation`]).
     Ahead,
-    /// During the collision's wait and submitted then, on a guess
-    /// ([`speculation`]): its integration moves the bodies only where the step held (as any
-    /// does: the word is 1 but after such a step that did not).
-    Speculated,
-    /// During the last step's wait for its solve, for this step's submitted on a guess, as
-    /// [`Self::Speculated`]: timed on a profiler of its own (the last step's spans are not
-    /// collected yet), its impulses scattered into the contacts' buffer this step's
-    /// collision will write (the two trade places from step to step).
+    /// During the last step's wait for its solve, for this step's submitted on a guess: timed
+    /// on a profiler of its own (the last step's spans are not collected yet), its impulses
+    /// scattered into the contacts' buffer this step's collision will write (the two trade
+    /// places from step to step).
     NextStep,
 }
 
@@ -2322,7 +2319,7 @@ impl GpuStages {
         };
         let timer = match recording {
             Recording::Now => &mut self.profiler,
-            Recording::Ahead | Recording::Speculated => &mut self.ahead_profiler,
+            Recording::Ahead => &mut self.ahead_profiler,
             Recording::NextStep => &mut self.next_profiler,
         };
         // Three passes, timed apart: the rows into batch order (and the adjacency), the

@@ -296,7 +296,7 @@ impl GpuStages {
             }
             None => {
                 self.next_profiler.discard();
-                self.encode_batched_solve(&mut encoder, &solve, None, Recording::Speculated)?;
+                self.encode_batched_solve(&mut encoder, &solve, None, Recording::Ahead)?;
                 None
             }
         };
