@@ -1639,12 +1639,7 @@ impl GpuStages {
             } => (Some(at_most), link_islands),
         };
         let link_islands = link_islands && self.summarized && !self.host_island_links;
-        let link_pairs = GpuLinkPairs {
-            count: self.broadphase.count(),
-            keys: self.broadphase.keys(),
-            summaries: &self.summaries.summaries,
-            slots: self.broadphase.capacity(),
-        };
+        let link_pairs = link_pairs(&self.broadphase, &self.summaries);
         let island_links = &mut self.island_links;
         let encode = |encoder: &mut wgpu::CommandEncoder, timer: &mut GpuProfiler| {
             encode_pass(encoder, timer, CONSTRAINTS.kernel, |pass| {
@@ -1657,10 +1652,8 @@ impl GpuStages {
                 })?;
             }
             if link_islands {
-                encode_pass(encoder, timer, ISLAND_LINKS_KERNEL, |pass| {
-                    island_links.encode(context, pass, &link_pairs, device_inputs.masses)
-                })?;
-                island_links.encode_download(context, encoder);
+                let masses = device_inputs.masses;
+                encode_island_links(context, (encoder, timer), island_links, &link_pairs, masses)?;
             }
             Ok(())
         };
@@ -2496,6 +2489,35 @@ fn run_pass(
     run_passes(context, gpu_profiler, profiler, spans, |encoder, timer| {
         encode_pass(encoder, timer, spans.kernel, encode)
     })
+}
+
+/// The touching pairs the islands' links pass over: this step's collision's, on the device.
+fn link_pairs<'a>(
+    broadphase: &'a GpuBroadphase,
+    summaries: &'a GpuPairSummaries,
+) -> GpuLinkPairs<'a> {
+    GpuLinkPairs {
+        count: broadphase.count(),
+        keys: broadphase.keys(),
+        summaries: &summaries.summaries,
+        slots: broadphase.capacity(),
+    }
+}
+
+/// Encodes the islands' links over `pairs` as a pass of their own, with their read-back (the
+/// sleep reads them when a body may have rested long enough).
+fn encode_island_links(
+    context: &GpuContext,
+    (encoder, timer): (&mut wgpu::CommandEncoder, &mut GpuProfiler),
+    island_links: &mut GpuIslandLinks,
+    pairs: &GpuLinkPairs,
+    masses: &GpuVec<BodyMass>,
+) -> Result<(), GpuError> {
+    encode_pass(encoder, timer, ISLAND_LINKS_KERNEL, |pass| {
+        island_links.encode(context, pass, pairs, masses)
+    })?;
+    island_links.encode_download(context, encoder);
+    Ok(())
 }
 
 /// Encodes one measured pass (its GPU time recorded at `kernel`) into `encoder`.

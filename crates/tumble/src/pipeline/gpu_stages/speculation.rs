@@ -23,10 +23,9 @@
 use std::time::Instant;
 
 use super::{
-    BatchingPlan, CONSTRAINTS, GpuStages, ISLAND_LINKS_KERNEL, Recording, SolveAhead, SolvePlan,
-    elapsed_ms, encode_pass,
+    BatchingPlan, CONSTRAINTS, GpuStages, Recording, SolveAhead, SolvePlan, elapsed_ms,
+    encode_island_links, encode_pass, link_pairs,
 };
-use crate::dynamics::island_gpu::GpuLinkPairs;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Binding, Dispatch, Kernel, Source, encode_all};
@@ -238,17 +237,15 @@ impl GpuStages {
             rows.encode(context, pass, &inputs, Some(room), true)
         })?;
         if link_islands {
-            let link_pairs = GpuLinkPairs {
-                count: self.broadphase.count(),
-                keys: self.broadphase.keys(),
-                summaries: &self.summaries.summaries,
-                slots: self.broadphase.capacity(),
-            };
-            let island_links = &mut self.island_links;
-            encode_pass(&mut encoder, timer, ISLAND_LINKS_KERNEL, |pass| {
-                island_links.encode(context, pass, &link_pairs, &device.masses)
-            })?;
-            island_links.encode_download(context, &mut encoder);
+            let pairs = link_pairs(&self.broadphase, &self.summaries);
+            let passes = (&mut encoder, &mut *timer);
+            encode_island_links(
+                context,
+                passes,
+                &mut self.island_links,
+                &pairs,
+                &device.masses,
+            )?;
         }
         // The batching's and the solve's buffers for the room; their counts are the check's.
         self.batched.size_for(context, room, 0)?;

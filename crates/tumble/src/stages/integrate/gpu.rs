@@ -144,6 +144,8 @@ pub struct GpuFinalizeBodies {
     /// kernel then writes 0, and the host sets it back ([`Self::reset_held`]) once it has
     /// read it.
     held: GpuVec<u32>,
+    /// The word read back, reused (a step allocates nothing).
+    held_host: Vec<u32>,
 }
 
 impl GpuFinalizeBodies {
@@ -162,6 +164,7 @@ impl GpuFinalizeBodies {
                 ],
             ),
             held: GpuVec::from_slice(context, "step held", &[1])?,
+            held_host: Vec::new(),
         })
     }
 
@@ -208,9 +211,8 @@ impl GpuFinalizeBodies {
     }
 
     /// Whether the word read back ([`Self::encode_held_download`], after the wait) is not 0.
-    pub fn read_held(&self, context: &GpuContext) -> Result<bool, GpuError> {
-        let mut word = Vec::new();
-        self.held.read_download(context, &mut word)?;
-        Ok(word.first().is_some_and(|&held| held != 0))
+    pub fn read_held(&mut self, context: &GpuContext) -> Result<bool, GpuError> {
+        self.held.read_download(context, &mut self.held_host)?;
+        Ok(self.held_host.first().is_some_and(|&held| held != 0))
     }
 }
