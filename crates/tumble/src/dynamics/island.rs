@@ -90,6 +90,16 @@ pub struct Islands {
     rested_parts: FilterParts<u32>,
     /// Whether `parent` holds this step's links ([`Islands::unlink_all`]).
     linked: bool,
+    /// Changes of the timers made here ([`Self::timers_version`]).
+    timers_version: u64,
+    /// Whether the device moved the timers since the host last had them
+    /// ([`Self::timers_on_device`]); the largest rest time of an awake body there at its
+    /// last step; the bodies whose timer the host set since, which the device's do not have,
+    /// and the largest rest time the host gave an awake body since (set, or woken).
+    on_device: bool,
+    device_max: f32,
+    set_since: Vec<u32>,
+    host_max: f32,
 }
 
 impl Islands {
@@ -98,8 +108,10 @@ impl Islands {
         for body in count..self.states.len() {
             self.set_asleep_bit(body as u32, false);
         }
+        let old = self.states.len();
         self.states.resize(count, SleepState::default());
         self.asleep_bits.resize(count.div_ceil(32), 0);
+        self.timers_set(old as u32..count as u32, 0.0);
     }
 
     /// Which bodies sleep, a bit each (bit `b % 32` of word `b / 32`), and a version that
@@ -125,11 +137,100 @@ impl Islands {
     /// Sets the rest time of `body` (s), as a dumped state had it.
     pub fn set_timer(&mut self, body: u32, timer: f32) {
         self.states[body as usize].timer = timer;
+        self.timers_set(body..body + 1, timer);
     }
 
     /// The body starts resting afresh (it was moved, dragged or added).
     pub fn reset_timer(&mut self, body: u32) {
-        self.states[body as usize].timer = 0.0;
+        self.set_timer(body, 0.0);
+    }
+
+    /// The host set the timers of `bodies` to `timer`.
+    fn timers_set(&mut self, bodies: std::ops::Range<u32>, timer: f32) {
+        if bodies.is_empty() {
+            return;
+        }
+        if self.on_device {
+            self.set_since.extend(bodies);
+            self.host_max = self.host_max.max(timer);
+        } else {
+            self.timers_version += 1;
+        }
+    }
+
+    /// A number that changes whenever the host changes a timer: the device takes the host's
+    /// timers again after it does.
+    pub fn timers_version(&self) -> u64 {
+        self.timers_version
+    }
+
+    /// Whether the host's timers are every body's (not [`Self::timers_on_device`], or the
+    /// device's were adopted since).
+    pub fn holds_timers(&self) -> bool {
+        !self.on_device
+    }
+
+    /// Whether the device moved the rest timers since the host last had them
+    /// ([`Self::timers_moved_on_device`]): until it adopts them
+    /// ([`Self::adopt_device_timers`]), the host's are stale but for the bodies it set since
+    /// ([`Self::set_on_host`]).
+    pub fn timers_on_device(&self) -> bool {
+        self.on_device
+    }
+
+    /// Whether the host's timer of `body` is its newest: the host holds every timer, or set
+    /// this one since the device moved them.
+    pub fn holds_timer(&self, body: u32) -> bool {
+        !self.on_device || self.set_since.contains(&body)
+    }
+
+    /// Whether the host set a timer since the device moved them.
+    pub fn set_on_host(&self) -> bool {
+        !self.set_since.is_empty()
+    }
+
+    /// Every body's rest time, for the device (the host must hold them: [`Self::holds_timers`]).
+    pub fn timers(&self) -> Vec<f32> {
+        self.states.iter().map(|state| state.timer).collect()
+    }
+
+    /// A step moved the rest timers on the device, the largest of an awake body's to
+    /// `max_timer`: the host's are stale from now on, until [`Self::adopt_device_timers`].
+    pub fn timers_moved_on_device(&mut self, max_timer: f32) {
+        debug_assert!(
+            self.set_since.is_empty(),
+            "timers set on the host were lost"
+        );
+        self.on_device = true;
+        self.device_max = max_timer;
+        self.host_max = 0.0;
+    }
+
+    /// The device's timers, one per body it had, become the host's, but for those the host
+    /// set since they moved there (bodies added since among them). Returns false, and takes
+    /// nothing, when a body has neither.
+    pub fn adopt_device_timers(&mut self, timers: &[f32]) -> bool {
+        self.set_since.sort_unstable();
+        self.set_since.dedup();
+        let set = std::mem::take(&mut self.set_since);
+        let unset = |body: usize| set.binary_search(&(body as u32)).is_err();
+        if (timers.len()..self.states.len()).any(unset) {
+            self.set_since = set;
+            return false;
+        }
+        for (body, (state, &timer)) in self.states.iter_mut().zip(timers).enumerate() {
+            if unset(body) {
+                state.timer = timer;
+            }
+        }
+        if !set.is_empty() {
+            // The device lacks the host's: it takes them all again.
+            self.timers_version += 1;
+        }
+        self.set_since = set;
+        self.set_since.clear();
+        self.on_device = false;
+        true
     }
 
     /// Adds `dt` to the rest time of each awake dynamic body slower than [`SLEEP_SPEED`] at
@@ -145,6 +246,8 @@ impl Islands {
         bounding_radius: impl Fn(usize) -> f32 + Sync,
         dt: f32,
     ) -> bool {
+        debug_assert!(!self.on_device, "the host's timers are stale");
+        self.timers_version += 1;
         let update = |(i, state): (usize, &mut SleepState)| {
             if state.is_asleep() || masses[i].inverse_mass == 0.0 {
                 return false;
@@ -242,6 +345,12 @@ impl Islands {
     /// ([`Self::update_timers`] adds at most `dt`, rounded as here): until one may, no island
     /// can fall asleep, and the step need not link its islands.
     pub fn may_rest(&self, masses: &[BodyMass], dt: f32) -> bool {
+        if self.on_device {
+            // An awake body's time is at most the device's largest or one the host gave
+            // since, and f32 addition is monotone: the same answer as the pass below, or yes
+            // where a body that rested most fell asleep or was set to 0 since.
+            return self.device_max.max(self.host_max) + dt >= TIME_TO_SLEEP;
+        }
         let may_rest = |(state, mass): (&SleepState, &BodyMass)| {
             !state.is_asleep() && mass.inverse_mass != 0.0 && state.timer + dt >= TIME_TO_SLEEP
         };
@@ -281,6 +390,7 @@ impl Islands {
             self.linked,
             "fall_asleep needs this step's links (unlink_all, link)"
         );
+        debug_assert!(!self.on_device, "the host's timers are stale");
         self.linked = false;
         let count = self.states.len();
         let Self {
@@ -375,6 +485,8 @@ impl Islands {
             return;
         }
         for (member, mass) in self.sleeping[island as usize].drain(..) {
+            // A sleeping body's timer does not move on the device: the host's is its own.
+            self.host_max = self.host_max.max(self.states[member as usize].timer);
             masses[member as usize] = mass;
             self.states[member as usize].island = AWAKE;
             set_bit(&mut self.asleep_bits, member, false);

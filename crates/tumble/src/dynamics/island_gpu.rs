@@ -5,7 +5,7 @@
 //! an island may fall asleep: 2.5 ms a step of a settled pile of 100k boxes on 16 cores
 //! (BENCHMARKS.md, 2026-12-05), hidden behind the solver's wait until the solver is faster,
 //! and it needs the pairs' keys and summaries on the host. Here it is three dispatches in the
-//! rows' submission (`island.wgsl`: unlink, link, flatten), and the host reads back a root a
+//! rows' submission (`island.wgsl`: unlink, link, flatten), and the host reads a root a
 //! body ([`Islands::adopt_links`](super::island::Islands::adopt_links)). Both link the higher
 //! root under the lower, so both give each body its island's lowest body: the same roots.
 
@@ -132,14 +132,16 @@ impl GpuIslandLinks {
         Ok(())
     }
 
-    /// Encodes the roots' read-back, after [`Self::encode`]'s pass.
-    pub fn encode_download(&mut self, context: &GpuContext, encoder: &mut wgpu::CommandEncoder) {
-        self.parent.encode_download(context, encoder);
+    /// Each body's root once [`Self::encode`]'s pass ran, for the device's sleep test
+    /// ([`GpuRestTimers`](super::rest_gpu::GpuRestTimers)).
+    pub fn roots(&self) -> &GpuVec<u32> {
+        &self.parent
     }
 
-    /// Once the submission of [`Self::encode_download`] ran: each body's root, the lowest body
-    /// of its island, into `out`.
+    /// Once [`Self::encode`]'s submission ran: each body's root, the lowest body of its
+    /// island, read now into `out`. Only a step that may put an island to sleep reads them.
     pub fn read(&self, context: &GpuContext, out: &mut Vec<u32>) -> Result<(), GpuError> {
-        self.parent.read_download(context, out)
+        *out = self.parent.read(context)?;
+        Ok(())
     }
 }

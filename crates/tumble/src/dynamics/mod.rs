@@ -4,4 +4,5 @@ pub mod body;
 pub mod island;
 pub mod island_gpu;
 pub mod joint;
+pub mod rest_gpu;
 pub mod wake;

@@ -1,8 +1,10 @@
 use std::time::Instant;
 
 use crate::dynamics::body::{BodyMass, BodyPose, BodyVelocity, Collider, ColliderData};
+use crate::dynamics::island::Islands;
 use crate::dynamics::island_gpu::{GpuIslandLinks, GpuLinkPairs};
 use crate::dynamics::joint::Joint;
+use crate::dynamics::rest_gpu::{GpuRestTimers, RestInputs, RestTally};
 use crate::dynamics::wake::GpuWakeCandidates;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
@@ -103,6 +105,7 @@ const SUMMARIES_DOWNLOAD: SpanPath = &["pair summaries to cpu"];
 const PAIR_KEYS_DOWNLOAD: SpanPath = &["pair keys to cpu"];
 /// Their roots' read-back, which the sleep waits for.
 const ISLAND_LINKS_DOWNLOAD: SpanPath = &["sleep", "copy links to cpu"];
+const REST_TIMERS_DOWNLOAD: SpanPath = &["sleep", "copy rest timers to cpu"];
 const BATCHING: StageSpans = StageSpans {
     upload: &["batching", "copy to gpu"],
     encode: &["batching", "encode"],
@@ -284,6 +287,9 @@ struct SolvePlan {
     /// A device layout, planned with these batch sizes (the last layout's).
     expected: Option<[u32; LAYOUT_BATCHES]>,
     bodies: usize,
+    /// The rest timers moved after the integration, and whether the sleep test runs with
+    /// them (the islands linked on the device this step).
+    rest: Option<bool>,
 }
 
 /// A step's batched solve recorded during its collision's wait, from last step's plan. A 3k
@@ -576,6 +582,17 @@ pub(crate) struct GpuStages {
     islands_linked: bool,
     island_links_made: usize,
     host_island_links: bool,
+    /// The rest timers and the sleep test, run where the batched solve integrates the
+    /// bodies while the world sleeps its islands (`sleeping`); the host's timers version they
+    /// started from ([`Islands::timers_version`]); this step's tally, once read; how many
+    /// times the host read the timers. The tests that compare them with the host's turn them
+    /// off (`host_rest_timers`).
+    rest: GpuRestTimers,
+    sleeping: bool,
+    rest_version: Option<u64>,
+    rest_tally: Option<RestTally>,
+    rest_timer_reads: usize,
+    host_rest_timers: bool,
     /// Steps whose collision left the pairs' summaries on the device, and those read back
     /// after all ([`Self::read_pair_summaries`]).
     summaries_left: usize,
@@ -728,6 +745,12 @@ impl GpuStages {
             islands_linked: false,
             island_links_made: 0,
             host_island_links: false,
+            rest: GpuRestTimers::new(&context)?,
+            sleeping: false,
+            rest_version: None,
+            rest_tally: None,
+            rest_timer_reads: 0,
+            host_rest_timers: false,
             summaries_left: 0,
             summaries_fetched: 0,
             solver: GpuSolver::new(&context)?,
@@ -837,6 +860,54 @@ impl GpuStages {
         self.laid_out_on_device = false;
         self.summarized = false;
         self.islands_linked = false;
+        self.rest_tally = None;
+    }
+
+    /// Gives the device the host's rest timers where they changed since it took them
+    /// (`islands` must hold every timer: see [`Islands::timers_on_device`]), for the solves
+    /// that integrate the bodies while `sleeping` to move them there.
+    pub fn sync_rest_timers(&mut self, islands: &Islands, sleeping: bool) -> Result<(), GpuError> {
+        let version = islands.timers_version();
+        debug_assert!(
+            islands.holds_timers() || self.rest_version == Some(version),
+            "the host's timers are stale and the device's are not the newer"
+        );
+        self.sleeping = sleeping;
+        if sleeping && self.rest_version != Some(version) {
+            self.rest_version = None;
+            self.rest.upload(&self.context, &islands.timers())?;
+            self.rest_version = Some(version);
+        }
+        Ok(())
+    }
+
+    /// What this step's rest timers found, where the device moved them (the host's are then
+    /// stale: [`Self::read_rest_timers`]).
+    pub fn take_rest_tally(&mut self) -> Option<RestTally> {
+        self.rest_tally.take()
+    }
+
+    /// Whether a solve that integrates `bodies` bodies moves their rest timers too: the world
+    /// sleeps its islands and gave the device a timer a body.
+    fn rests_bodies(&self, bodies: usize) -> bool {
+        self.sleeping
+            && !self.host_rest_timers
+            && self.rest_version.is_some()
+            && self.rest.bodies() == bodies
+    }
+
+    /// Every body's rest time as the device has it, read now.
+    pub fn rest_timers(&self) -> Result<Vec<f32>, GpuError> {
+        self.rest.read(&self.context)
+    }
+
+    /// [`Self::rest_timers`], its copy timed on `profiler`.
+    pub fn read_rest_timers(&mut self, profiler: &mut Profiler) -> Result<Vec<f32>, GpuError> {
+        self.rest_timer_reads += 1;
+        let start = Instant::now();
+        let timers = self.rest_timers()?;
+        record_copy(profiler, REST_TIMERS_DOWNLOAD, elapsed_ms(start));
+        Ok(timers)
     }
 
     /// The host stored this step's solved impulses in its pair cache, now at `version`: when
@@ -2164,6 +2235,8 @@ impl GpuStages {
                 && !self.batched.order().is_empty(),
             expected: host_sizes.is_none().then_some(self.expected_batch_sizes),
             bodies: bodies.len(),
+            rest: (integrate.is_some() && self.rests_bodies(bodies.len()))
+                .then_some(self.islands_linked),
         };
         if plan.integrating {
             // The kernel moves the device's bodies: not the host's until they came back.
@@ -2229,6 +2302,9 @@ impl GpuStages {
         self.ahead_profiler.collect(context, profiler)?;
         self.ahead_batching_profiler.collect(context, profiler)?;
         let start = Instant::now();
+        if let Some(tested) = plan.rest {
+            self.rest_tally = Some(self.rest.read_tally(context, tested)?);
+        }
         match &mut integrate {
             Some(state) => {
                 read_body_downloads(context, &self.bodies, state)?;
@@ -2304,6 +2380,7 @@ impl GpuStages {
         let jacobi = self.jacobi.as_mut().filter(|_| plan.jacobi);
         let solver_bodies = &mut self.solver_bodies;
         let (prepare, finalize) = (&mut self.prepare_bodies, &mut self.finalize_bodies);
+        let (rest, roots) = (&mut self.rest, self.island_links.roots());
         let device = &mut self.bodies;
         let pair_contacts = if recording == Recording::NextStep {
             &self.old_contacts
@@ -2387,9 +2464,21 @@ impl GpuStages {
             Ok(())
         })?;
         if plan.integrating {
+            if plan.rest.is_some() {
+                rest.encode_clear(encoder);
+            }
             encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
                 let motion = (&*solver_bodies, &device.poses, &device.velocities);
                 finalize.encode(context, pass, motion);
+                if let Some(test) = plan.rest {
+                    let inputs = RestInputs {
+                        held: finalize.held(),
+                        bodies: solver_bodies,
+                        colliders: &device.colliders,
+                        roots: test.then_some(roots),
+                    };
+                    rest.encode(context, pass, &inputs, plan.settings.dt);
+                }
                 Ok(())
             })?;
         }
@@ -2398,6 +2487,9 @@ impl GpuStages {
             encode_body_downloads(context, device, encoder);
         } else {
             solver_bodies.encode_download(context, encoder);
+        }
+        if plan.rest.is_some() {
+            rest.encode_download(context, encoder);
         }
         if plan.impulses_back {
             batched.impulses.encode_download(context, encoder);
@@ -2504,8 +2596,8 @@ fn link_pairs<'a>(
     }
 }
 
-/// Encodes the islands' links over `pairs` as a pass of their own, with their read-back (the
-/// sleep reads them when a body may have rested long enough).
+/// Encodes the islands' links over `pairs` as a pass of their own (the device's sleep test
+/// reads them after the solve, the host only where an island may fall asleep).
 fn encode_island_links(
     context: &GpuContext,
     (encoder, timer): (&mut wgpu::CommandEncoder, &mut GpuProfiler),
@@ -2515,9 +2607,7 @@ fn encode_island_links(
 ) -> Result<(), GpuError> {
     encode_pass(encoder, timer, ISLAND_LINKS_KERNEL, |pass| {
         island_links.encode(context, pass, pairs, masses)
-    })?;
-    island_links.encode_download(context, encoder);
-    Ok(())
+    })
 }
 
 /// Encodes one measured pass (its GPU time recorded at `kernel`) into `encoder`.
@@ -3400,7 +3490,6 @@ mod tests {
                     .encode(&context, &mut pass, &pairs, &masses_buffer)
                     .unwrap();
             }
-            links.encode_download(&context, &mut encoder);
             context.queue.submit([encoder.finish()]);
             let mut device = Vec::new();
             links.read(&context, &mut device).unwrap();
@@ -3421,6 +3510,164 @@ mod tests {
             largest = largest.max(sizes.into_iter().max().unwrap_or(0));
         }
         assert!(largest > 1000, "the largest island has {largest} bodies");
+    }
+
+    /// The rest kernels give each body the host's timer bit for bit
+    /// ([`Islands::update_timers`]), the largest rest time and the rested count, and count at
+    /// least as many sleepers as [`Islands::fall_asleep`] puts to sleep, 0 exactly where it
+    /// puts none; a step that did not hold moves nothing. Random bodies at 0, 1, 257 and
+    /// 20 000: one in five static or asleep, speeds about the threshold, rest times about the
+    /// time to sleep, random islands.
+    #[test]
+    fn rest_timers_and_the_sleep_test_on_the_device_are_the_hosts() {
+        use crate::dynamics::body::{BodyMass, BodyVelocity};
+        use crate::dynamics::island::{Islands, SLEEP_SPEED, TIME_TO_SLEEP};
+        use crate::dynamics::rest_gpu::{GpuRestTimers, RestInputs};
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut rest = GpuRestTimers::new(&context).unwrap();
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let dt = 1.0 / 60.0;
+        let (mut slept_some, mut held_all) = (false, false);
+        // Bodies, the share that moves, how far below the time to sleep timers start (in
+        // steps), and the islands' blocks: the 257 rest long enough for most islands to
+        // sleep, the 600 are one island held awake. The last case is a step that did not hold.
+        let cases = [
+            (0usize, 0.1, 4.0, 30),
+            (1, 0.1, 4.0, 30),
+            (257, 0.01, 0.5, 30),
+            (600, 0.1, 4.0, 600),
+            (20_000, 0.1, 4.0, 30),
+            (20_000, 0.1, 4.0, 30),
+        ];
+        for (case, (bodies, moving, below, block)) in cases.into_iter().enumerate() {
+            let held = case != 5;
+            let masses: Vec<BodyMass> = (0..bodies)
+                .map(|_| BodyMass {
+                    inverse_mass: if next() < 0.2 { 0.0 } else { 0.5 },
+                    ..Default::default()
+                })
+                .collect();
+            // Most bodies rest; a few move, some right about the threshold.
+            let speed = |next: &mut dyn FnMut() -> f32| match next() {
+                x if x < 1.0 - moving => next() * 0.02,
+                x if x < 1.0 - moving / 2.0 => SLEEP_SPEED * (0.9 + 0.2 * next()),
+                _ => next() * 2.0,
+            };
+            let direction = |next: &mut dyn FnMut() -> f32| {
+                Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize_or(Vec3::X)
+            };
+            let velocities: Vec<BodyVelocity> = (0..bodies)
+                .map(|_| {
+                    let linear = direction(&mut next) * speed(&mut next);
+                    let angular = direction(&mut next) * speed(&mut next);
+                    BodyVelocity::new(linear, angular)
+                })
+                .collect();
+            let radii: Vec<f32> = (0..bodies).map(|_| 0.1 + next()).collect();
+            let timers: Vec<f32> = (0..bodies)
+                .map(|_| (TIME_TO_SLEEP - below * dt) + next() * 8.0 * dt)
+                .collect();
+            // Islands within blocks of bodies, by random edges, and a chain through each block.
+            let random_edges = (0..bodies * 2).map(|_| {
+                let a = (next() * bodies as f32) as u32 % bodies.max(1) as u32;
+                let b = (a / block * block + (next() * block as f32) as u32) % bodies.max(1) as u32;
+                (a, b)
+            });
+            let chains = (1..bodies as u32)
+                .filter(|&b| b % block != 0)
+                .map(|b| (b - 1, b));
+            let edges: Vec<(u32, u32)> = random_edges.chain(chains).collect();
+            let mut islands = Islands::default();
+            islands.resize(bodies);
+            for (body, &timer) in timers.iter().enumerate() {
+                islands.set_timer(body as u32, timer);
+            }
+            islands.unlink_all();
+            islands.link(&edges, &masses);
+            let roots = islands.roots();
+            let rested = if held {
+                islands.update_timers(&velocities, &masses, |i| radii[i], dt);
+                (0..bodies)
+                    .filter(|&i| {
+                        masses[i].inverse_mass > 0.0
+                            && islands.state(i as u32).timer >= TIME_TO_SLEEP
+                    })
+                    .count() as u32
+            } else {
+                0
+            };
+            let expected: Vec<f32> = islands.timers();
+            let max_timer = (0..bodies)
+                .filter(|&i| held && masses[i].inverse_mass > 0.0)
+                .map(|i| expected[i])
+                .fold(0.0f32, f32::max);
+            let mut velocities_left = velocities.clone();
+            let mut masses_left = masses.clone();
+            let mut asleep = Vec::new();
+            if held {
+                islands.fall_asleep(&mut masses_left, &mut velocities_left, None, &mut asleep);
+            }
+
+            let solver_bodies: Vec<SolverBody> = (0..bodies)
+                .map(|i| SolverBody {
+                    linear_velocity: velocities[i].linear,
+                    inverse_mass: masses[i].inverse_mass,
+                    angular_velocity: velocities[i].angular,
+                    ..SolverBody::STATIC
+                })
+                .collect();
+            let colliders: Vec<ColliderData> = radii
+                .iter()
+                .map(|&bounding_radius| ColliderData {
+                    bounding_radius,
+                    ..bytemuck::Zeroable::zeroed()
+                })
+                .collect();
+            let held_word = GpuVec::from_slice(&context, "held", &[u32::from(held)]).unwrap();
+            let solver_bodies = GpuVec::from_slice(&context, "bodies", &solver_bodies).unwrap();
+            let colliders = GpuVec::from_slice(&context, "colliders", &colliders).unwrap();
+            let roots = GpuVec::from_slice(&context, "roots", &roots).unwrap();
+            rest.upload(&context, &timers).unwrap();
+            let inputs = RestInputs {
+                held: &held_word,
+                bodies: &solver_bodies,
+                colliders: &colliders,
+                roots: Some(&roots),
+            };
+            let mut encoder = context.device.create_command_encoder(&Default::default());
+            rest.encode_clear(&mut encoder);
+            {
+                let mut pass = encoder.begin_compute_pass(&Default::default());
+                rest.encode(&context, &mut pass, &inputs, dt);
+            }
+            rest.encode_download(&context, &mut encoder);
+            context.queue.submit([encoder.finish()]);
+            let tally = rest.read_tally(&context, true).unwrap();
+            let device = rest.read(&context).unwrap();
+            let case = format!("{bodies} bodies, held {held}");
+            let differing = (0..bodies).filter(|&i| device[i].to_bits() != expected[i].to_bits());
+            assert_eq!(differing.count(), 0, "timers differ: {case}");
+            assert_eq!(tally.max_timer.to_bits(), max_timer.to_bits(), "{case}");
+            assert_eq!(tally.rested, rested, "{case}");
+            let sleepers = tally.sleepers.unwrap();
+            assert!(
+                sleepers as usize >= asleep.len(),
+                "{case}: {sleepers}, {asleep:?}"
+            );
+            assert_eq!(sleepers == 0, asleep.is_empty(), "{case}: {sleepers}");
+            slept_some |= !asleep.is_empty();
+            held_all |= held && rested > 0 && asleep.is_empty();
+        }
+        // Both outcomes were tried: islands put to sleep, and rested bodies all held awake.
+        assert!(slept_some && held_all);
     }
 
     /// Bouncing rows counted with the collision on the device plan the restitution sweep:
@@ -3679,6 +3926,76 @@ mod tests {
         assert!(poses == host.0, "the poses differ");
     }
 
+    /// Where the batched solve integrates the bodies, it moves their rest timers and tests for
+    /// an island to put to sleep on the device: the run is bitwise the one whose host moves
+    /// them from the velocities it reads back. Towers of two boxes fall asleep; one is pushed
+    /// while the timers are on the device (the host sets its timer), a ball added later wakes
+    /// another (a body the device has no timer for; woken bodies keep their rest times), and
+    /// the dumps made between steps read the device's timers.
+    #[test]
+    fn rest_timers_on_the_device_sleep_as_the_hosts() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let run = |host_rest_timers: bool| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            world
+                .set_stage_devices(crate::pipeline::devices::StageDevices::all(Executor::Gpu))
+                .unwrap();
+            world.gpu.as_mut().unwrap().host_rest_timers = host_rest_timers;
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            let mut blocks = Vec::new();
+            for index in 0..4 {
+                for level in 0..2 {
+                    let position = Vec3::new(3.0 * index as f32, 0.5 + level as f32, 0.0);
+                    let block =
+                        BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position);
+                    blocks.push(world.add_body(block).unwrap());
+                }
+            }
+            let (mut asleep, mut dumps) = (Vec::new(), Vec::new());
+            for step in 0..200 {
+                if step == 20 {
+                    // Resting, not yet asleep: its timer starts again on the host.
+                    let (linear, angular) = (Vec3::new(0.0, 0.0, 0.3), Vec3::ZERO);
+                    world.set_velocity(blocks[1], linear, angular).unwrap();
+                }
+                if step == 110 {
+                    let ball = BodyDesc::dynamic(Shape::sphere(0.25))
+                        .position(Vec3::new(6.0, 3.0, 0.0))
+                        .linear_velocity(Vec3::new(0.0, -2.0, 0.0));
+                    world.add_body(ball).unwrap();
+                }
+                if step % 50 == 25 {
+                    dumps.push(crate::scene::Scene::from_world(&world).to_json());
+                }
+                world.step();
+                asleep.push(world.stats().sleeping);
+            }
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let reads = world.gpu.as_ref().unwrap().rest_timer_reads;
+            (poses, velocities, asleep, dumps, reads)
+        };
+        let (poses, velocities, asleep, dumps, reads) = run(false);
+        let host = run(true);
+        // Every tower fell asleep, the ball woke one, and it slept again with the ball.
+        assert_eq!(asleep[100], 8, "{asleep:?}");
+        assert!(asleep[110..].contains(&6), "{asleep:?}");
+        assert_eq!(asleep.last(), Some(&9), "{asleep:?}");
+        // The device's timers came to the host where an island fell asleep and where the host
+        // set some, not every step.
+        assert!((1..20).contains(&reads), "{reads} reads of the timers");
+        assert_eq!(host.4, 0);
+        assert_eq!(asleep, host.2);
+        assert!(dumps == host.3, "the dumps differ");
+        assert!(velocities == host.1, "the velocities differ");
+        assert!(poses == host.0, "the poses differ");
+    }
+
     /// Where the contacts stay on the device, the rows' submission links the islands there:
     /// the run is bitwise the one whose host links them. A light ball rolls across a heavy
     /// table, which rests under it but stays awake with it (the links make them one island),
@@ -3721,7 +4038,7 @@ mod tests {
                 asleep.push(world.stats().sleeping);
                 table_asleep.push(world.is_sleeping(table).unwrap());
             }
-            let rested = world.islands.state(table.index()).timer;
+            let rested = world.sleep_state(table.index()).timer;
             assert!(
                 rested >= crate::dynamics::island::TIME_TO_SLEEP,
                 "the table rested {rested} s"

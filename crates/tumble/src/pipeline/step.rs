@@ -148,6 +148,8 @@ impl World {
         if let Some(gpu) = &mut self.gpu {
             gpu.begin_step();
         }
+        self.device_timers = OnceLock::new();
+        self.give_device_rest_timers()?;
         // What this step's collision may bring from the device.
         let scratch = &mut self.scratch;
         (scratch.tally_fresh, scratch.woke, scratch.wake_listed) = (false, false, false);
@@ -1258,22 +1260,81 @@ impl World {
         self.scratch.wake_candidates = candidates;
     }
 
-    /// Rest times from this step's velocities; islands that rested long enough go to sleep
-    /// and into the broadphase's fixed tree. `linked`: this step's contacts were linked into
-    /// islands already (while the device solved); else the device's links are taken where it
-    /// made them, or the host links them now. It cannot fail: the step has moved the bodies.
+    /// The rest timers to the device where its solve moves them: the host's, where they
+    /// changed since it took them, or where the host set some since the device moved them,
+    /// the device's with those.
+    fn give_device_rest_timers(&mut self) -> Result<(), GpuError> {
+        if self.islands.set_on_host() {
+            self.take_device_rest_timers()?;
+        }
+        match &mut self.gpu {
+            Some(gpu) => gpu.sync_rest_timers(&self.islands, self.config.sleeping),
+            None => Ok(()),
+        }
+    }
+
+    /// The device's rest timers to the host, where the device moved them since the host had
+    /// them (with the host's where it set some since).
+    pub(crate) fn take_device_rest_timers(&mut self) -> Result<(), GpuError> {
+        let Some(gpu) = self
+            .gpu
+            .as_mut()
+            .filter(|_| self.islands.timers_on_device())
+        else {
+            return Ok(());
+        };
+        let timers = gpu.read_rest_timers(&mut self.profiler)?;
+        if self.islands.adopt_device_timers(&timers) {
+            return Ok(());
+        }
+        Err(GpuError::Readback {
+            what: "rest timers",
+            reason: format!(
+                "{} timers for {} bodies, the others not set since",
+                timers.len(),
+                self.poses.len()
+            ),
+        })
+    }
+
+    /// Rest times from this step's velocities (moved on the device where its solve
+    /// integrated the bodies); islands that rested long enough go to sleep and into the
+    /// broadphase's fixed tree. `linked`: this step's contacts were linked into islands
+    /// already (while the device solved); else the device's links are taken where it made
+    /// them, or the host links them now. It cannot fail: the step has moved the bodies.
     fn fall_asleep(&mut self, linked: bool) {
-        let colliders = &self.colliders;
-        self.profiler.begin("rest timers");
-        let any_rested = self.islands.update_timers(
-            &self.velocities,
-            &self.masses,
-            |i| colliders[i].shape.bounding_radius(),
-            self.config.dt,
-        );
-        self.profiler.end();
-        // No body has rested long enough to sleep: no island can (see update_timers).
-        if !any_rested {
+        let tally = self.gpu.as_mut().and_then(GpuStages::take_rest_tally);
+        let any_rested = match tally {
+            Some(tally) => {
+                self.islands.timers_moved_on_device(tally.max_timer);
+                // The device found no island to put to sleep: the host leaves its timers
+                // there (the usual step of a pile that stands).
+                if !tally.may_sleep() {
+                    return;
+                }
+                true
+            }
+            None => {
+                // A read that fails leaves no island to sleep this step (the device's error
+                // shows at its next submission); so below.
+                if self.take_device_rest_timers().is_err() {
+                    return;
+                }
+                let colliders = &self.colliders;
+                self.profiler.begin("rest timers");
+                let any_rested = self.islands.update_timers(
+                    &self.velocities,
+                    &self.masses,
+                    |i| colliders[i].shape.bounding_radius(),
+                    self.config.dt,
+                );
+                self.profiler.end();
+                any_rested
+            }
+        };
+        // No body has rested long enough to sleep: no island can (see update_timers). Else
+        // the host needs every timer.
+        if !any_rested || self.take_device_rest_timers().is_err() {
             return;
         }
         let mut linked = linked;

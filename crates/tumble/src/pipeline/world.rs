@@ -27,7 +27,7 @@ pub const DRAG_DAMPING_RATIO: f32 = 3.0;
 use crate::dynamics::body::{
     BodyDesc, BodyError, BodyHandle, BodyMass, BodyPose, BodyVelocity, Collider,
 };
-use crate::dynamics::island::Islands;
+use crate::dynamics::island::{Islands, SleepState};
 use crate::dynamics::joint::{Joint, JointDesc, JointError, JointHandle, JointState};
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::math::{Mat3, Transform, Vec3};
@@ -188,6 +188,10 @@ pub struct World {
     /// the contact queries read them through `device_keys`, at their first call after the
     /// step.
     pub(crate) device_keys: OnceLock<Vec<u64>>,
+    /// Where the last step moved the rest timers on the device
+    /// ([`Islands::timers_on_device`]): theirs, read at the first call of
+    /// [`Self::sleep_state`] after the step.
+    pub(crate) device_timers: OnceLock<Vec<f32>>,
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
     pub(crate) host_shapes: usize,
@@ -243,6 +247,7 @@ impl World {
             pair_summaries: Vec::new(),
             pair_summaries_fresh: false,
             device_contacts: OnceLock::new(),
+            device_timers: OnceLock::new(),
             device_keys: OnceLock::new(),
             host_shapes: 0,
             may_bounce: false,
@@ -482,6 +487,24 @@ impl World {
         }
         self.resting_pairs_changed();
         self.refresh_resting = true;
+    }
+
+    /// Body slot `index`'s sleep state, its rest time wherever it is newest: the device's
+    /// where the last step moved them there (read at the first call after the step; the
+    /// host's older one if that read fails, and the next step reports the device's error).
+    pub(crate) fn sleep_state(&self, index: u32) -> SleepState {
+        let mut state = self.islands.state(index);
+        if !self.islands.holds_timer(index) {
+            let timers = self.device_timers.get_or_init(|| {
+                (self.gpu.as_ref())
+                    .and_then(|gpu| gpu.rest_timers().ok())
+                    .unwrap_or_default()
+            });
+            if let Some(&timer) = timers.get(index as usize) {
+                state.timer = timer;
+            }
+        }
+        state
     }
 
     /// Whether the body sleeps (see [`crate::dynamics::island`]).
@@ -831,8 +854,9 @@ impl World {
     /// it over, so the step's buffers ([`Self::device_poses`]) are on the device it draws with.
     /// The GPU side starts afresh there (its buffers are uploaded again at the next step).
     pub fn set_gpu_context(&mut self, context: GpuContext) -> Result<(), GpuError> {
-        // The contacts left on the old device come over first.
+        // The contacts and rest timers left on the old device come over first.
         self.sync_contacts()?;
+        self.take_device_rest_timers()?;
         if self.gpu.is_some() {
             self.gpu = Some(GpuStages::new(context.clone())?);
         }

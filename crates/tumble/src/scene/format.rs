@@ -679,7 +679,7 @@ impl Scene {
         let mut sleep: Vec<BodySleep> = handles
             .iter()
             .map(|&handle| {
-                let state = world.islands.state(handle.index());
+                let state = world.sleep_state(handle.index());
                 BodySleep {
                     timer: state.timer,
                     island: state.is_asleep().then_some(state.island),

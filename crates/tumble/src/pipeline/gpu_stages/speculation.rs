@@ -199,6 +199,7 @@ impl GpuStages {
             batcher: plan.batcher,
             rounds: self.batching_rounds,
         };
+        let link_islands = plan.link_islands && !self.host_island_links;
         let solve = SolvePlan {
             settings: plan.settings,
             jacobi: false,
@@ -210,8 +211,8 @@ impl GpuStages {
             by_body: self.warm_start_by_body,
             expected: Some(self.expected_batch_sizes),
             bodies: plan.bodies,
+            rest: self.rests_bodies(plan.bodies).then_some(link_islands),
         };
-        let link_islands = plan.link_islands && !self.host_island_links;
         let mut encoder = context
             .device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
