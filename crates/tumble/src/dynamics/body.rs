@@ -370,11 +370,18 @@ pub enum BodyError {
     StaleHandle,
     #[error("reading the contacts back from the GPU failed: {0}")]
     ContactsReadback(String),
+    #[error("reading the bodies back from the GPU failed: {0}")]
+    BodiesReadback(String),
     #[error("body name {0:?} is used twice")]
     DuplicateName(String),
 }
 
 impl BodyError {
+    /// A failed read-back of the bodies the device holds.
+    pub(crate) fn readback(error: crate::gpu::context::GpuError) -> Self {
+        BodyError::BodiesReadback(error.to_string())
+    }
+
     /// The problem without the field's name, for callers that name the field themselves
     /// (the scene loader writes `bodies[3].mass: must be >= 0, got -1`).
     pub fn requirement(&self) -> String {

@@ -183,9 +183,17 @@ pub enum JointError {
     StaleBody,
     #[error("the joint handle is stale: that joint was removed")]
     StaleHandle,
+    #[error("reading the bodies back from the GPU failed: {0}")]
+    BodiesReadback(String),
 }
 
 impl JointError {
+    /// A failed read-back of the bodies the device holds (the joint's frames need their
+    /// poses).
+    pub(crate) fn readback(error: crate::gpu::context::GpuError) -> Self {
+        JointError::BodiesReadback(error.to_string())
+    }
+
     /// The field of the description (as the scene file names it) the error is about, if one.
     pub fn field(&self) -> Option<&'static str> {
         match self {
@@ -195,7 +203,10 @@ impl JointError {
             JointError::BadSwingLimit(_) => Some("swing_limit"),
             JointError::NegativeMaxTorque(_) => Some("motor.max_torque"),
             JointError::BadBreakImpulse(_) => Some("break_impulse"),
-            JointError::BothStatic | JointError::StaleBody | JointError::StaleHandle => None,
+            JointError::BothStatic
+            | JointError::StaleBody
+            | JointError::StaleHandle
+            | JointError::BodiesReadback(_) => None,
         }
     }
 

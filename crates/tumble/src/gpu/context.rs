@@ -48,6 +48,11 @@ pub enum GpuError {
          (a bug in tumble; the device's bodies have moved)"
     )]
     Unplanned { what: &'static str },
+    #[error(
+        "the host's bodies are older than the device's and would overwrite them (a bug in \
+         tumble: the world reads them back first)"
+    )]
+    StaleBodies,
 }
 
 /// How long a blocking wait for the GPU may take before it is reported as a hang. Generous,

@@ -290,6 +290,8 @@ struct SolvePlan {
     /// The rest timers moved after the integration, and whether the sleep test runs with
     /// them (the islands linked on the device this step).
     rest: Option<bool>,
+    /// The integrated poses and velocities come back to the host.
+    bodies_back: bool,
 }
 
 /// A step's batched solve recorded during its collision's wait, from last step's plan. A 3k
@@ -526,6 +528,9 @@ struct DeviceBodies {
     synced: Option<u64>,
     /// A stage checked this step that the device holds the host's bodies.
     uploaded_this_step: bool,
+    /// The device's poses and velocities are newer than the host's: an integration here left
+    /// them, unread ([`GpuStages::bodies_left_on_device`]). The masses are still the host's.
+    newer: bool,
     /// Uploads that took only the changed bodies ([`BodyChanges`]; the tests check them).
     partial_uploads: usize,
     /// Debug builds: the host's bodies as bytes when they were last synced, to catch a change
@@ -593,6 +598,11 @@ pub(crate) struct GpuStages {
     rest_tally: Option<RestTally>,
     rest_timer_reads: usize,
     host_rest_timers: bool,
+    /// Whether this step's solve may leave the bodies it integrates on the device
+    /// ([`Self::set_bodies_may_stay`]), and how many solves read them back (the tests count
+    /// them).
+    bodies_may_stay: bool,
+    solves_reading_bodies: usize,
     /// Steps whose collision left the pairs' summaries on the device, and those read back
     /// after all ([`Self::read_pair_summaries`]).
     summaries_left: usize,
@@ -714,6 +724,7 @@ impl GpuStages {
                 shape_kinds: 0,
                 synced: None,
                 uploaded_this_step: false,
+                newer: false,
                 partial_uploads: 0,
                 #[cfg(debug_assertions)]
                 shadow: Vec::new(),
@@ -751,6 +762,8 @@ impl GpuStages {
             rest_tally: None,
             rest_timer_reads: 0,
             host_rest_timers: false,
+            bodies_may_stay: false,
+            solves_reading_bodies: 0,
             summaries_left: 0,
             summaries_fetched: 0,
             solver: GpuSolver::new(&context)?,
@@ -879,6 +892,43 @@ impl GpuStages {
             self.rest_version = Some(version);
         }
         Ok(())
+    }
+
+    /// Whether this step's solve may integrate the bodies without reading them back: nothing
+    /// on the host needs them after it (every stage on the GPU, no drag). They stay only where
+    /// the device moves the rest timers too, or the world sleeps no island.
+    pub fn set_bodies_may_stay(&mut self, may: bool) {
+        self.bodies_may_stay = may;
+    }
+
+    /// Whether the last integration left the poses and velocities on the device, newer than
+    /// the host's ([`Self::read_bodies`]).
+    pub fn bodies_left_on_device(&self) -> bool {
+        self.bodies.newer
+    }
+
+    /// The poses and velocities on the device, read now.
+    pub fn read_bodies(&self) -> Result<(Vec<BodyPose>, Vec<BodyVelocity>), GpuError> {
+        Ok((
+            self.bodies.poses.read(&self.context)?,
+            self.bodies.velocities.read(&self.context)?,
+        ))
+    }
+
+    /// The host took the device's poses and velocities ([`Self::read_bodies`]) into its
+    /// bodies, still at the version the device holds.
+    pub fn bodies_read(&mut self, bodies: &BodyInputs) {
+        self.bodies.newer = false;
+        #[cfg(debug_assertions)]
+        if self.bodies.synced == Some(bodies.version) {
+            self.bodies.shadow = body_bytes(bodies);
+        }
+    }
+
+    /// Whether a solve that integrates reads the bodies back: unless they may stay and the
+    /// host needs no velocity for its rest timers (`rest`: they move on the device).
+    fn reads_bodies_back(&self, rest: Option<bool>) -> bool {
+        !(self.bodies_may_stay && (rest.is_some() || !self.sleeping))
     }
 
     /// What this step's rest timers found, where the device moved them (the host's are then
@@ -2214,6 +2264,10 @@ impl GpuStages {
             jacobi.prepare(bodies, contact_bodies, joint_bodies)?;
         }
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
+        // The rest timers move after an integration here, with the sleep test where the
+        // islands were linked on the device.
+        let rest =
+            (integrate.is_some() && self.rests_bodies(bodies.len())).then_some(self.islands_linked);
         let plan = SolvePlan {
             settings,
             jacobi: kind == SolverKind::Jacobi,
@@ -2235,8 +2289,8 @@ impl GpuStages {
                 && !self.batched.order().is_empty(),
             expected: host_sizes.is_none().then_some(self.expected_batch_sizes),
             bodies: bodies.len(),
-            rest: (integrate.is_some() && self.rests_bodies(bodies.len()))
-                .then_some(self.islands_linked),
+            rest,
+            bodies_back: integrate.is_some() && self.reads_bodies_back(rest),
         };
         if plan.integrating {
             // The kernel moves the device's bodies: not the host's until they came back.
@@ -2307,7 +2361,11 @@ impl GpuStages {
         }
         match &mut integrate {
             Some(state) => {
-                read_body_downloads(context, &self.bodies, state)?;
+                if plan.bodies_back {
+                    read_body_downloads(context, &self.bodies, state)?;
+                    self.solves_reading_bodies += 1;
+                }
+                self.bodies.newer = !plan.bodies_back;
                 self.integrated_this_step = true;
                 record_copy(profiler, SOLVER_BODIES_DOWNLOAD, elapsed_ms(start));
             }
@@ -2483,9 +2541,9 @@ impl GpuStages {
             })?;
         }
         // The read-backs ride in the kernels' submission: one wait for the stage.
-        if plan.integrating {
+        if plan.bodies_back {
             encode_body_downloads(context, device, encoder);
-        } else {
+        } else if !plan.integrating {
             solver_bodies.encode_download(context, encoder);
         }
         if plan.rest.is_some() {
@@ -2774,10 +2832,14 @@ fn upload_bodies(
     } else if bodies
         .synced
         .is_some_and(|synced| synced >= inputs.changed.since)
-        && changed.len() <= (inputs.masses.len() / PARTIAL_UPLOAD_SHARE).max(PARTIAL_UPLOAD_MIN)
+        && (bodies.newer
+            || changed.len()
+                <= (inputs.masses.len() / PARTIAL_UPLOAD_SHARE).max(PARTIAL_UPLOAD_MIN))
     {
         // Only some bodies' masses and velocities changed since: theirs, with their indices,
         // scattered on the device by a submission of their own (the stage's comes after it).
+        // Where the device's bodies are the newer, however many: only the changed bodies'
+        // velocities are the host's (set, or zero by a sleep or a wake).
         let scatter = &mut bodies.scatter;
         scatter.host_masses.clear();
         scatter
@@ -2809,6 +2871,8 @@ fn upload_bodies(
         {
             bodies.shadow = body_bytes(inputs);
         }
+    } else if bodies.newer {
+        return Err(GpuError::StaleBodies);
     } else {
         // Not synced while the copies are under way: a failed one leaves them mixed.
         bodies.synced = None;
@@ -2892,7 +2956,7 @@ fn elapsed_ms(start: Instant) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::{Quat, Vec3};
+    use crate::math::{Quat, Transform, Vec3};
     use crate::pipeline::config::{Softness, StepConfig};
     use crate::pipeline::devices::Executor;
     use crate::stages::constraints::world_inverse_inertia;
@@ -3051,6 +3115,7 @@ mod tests {
         for _ in 0..40 {
             world.step();
         }
+        world.sync_bodies().unwrap();
         let config = *world.config();
         let mut profiler = Profiler::new("test");
         let keys = world.pairs.keys().to_vec();
@@ -3165,7 +3230,7 @@ mod tests {
                 .map(|line| line.calls_per_frame * report.frames as f64)
                 .sum::<f64>()
                 .round() as usize;
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
             let impulses: Vec<f32> = world
                 .pairs
                 .values()
@@ -3222,11 +3287,13 @@ mod tests {
                 let gpu = world.gpu.as_ref().unwrap();
                 kept += usize::from(gpu.bodies.synced == Some(world.bodies_version));
                 if upload_every_step {
+                    world.sync_bodies().unwrap();
                     world.bodies_changed();
                 }
             }
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let velocities =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
             (poses, velocities, kept)
         };
         let (kept_poses, kept_velocities, kept) = run(false);
@@ -3237,6 +3304,100 @@ mod tests {
             "the velocities differ"
         );
         assert!(kept_poses == uploaded_poses, "the poses differ");
+    }
+
+    /// With every stage on the GPU the integrated bodies stay on the device, and the getters
+    /// read them there: the run, and what the getters return between steps, are bitwise the
+    /// one that reads the bodies back every step. Between steps the host sets a velocity,
+    /// adds and removes bodies, drags one (its row is built on the host: the bodies come back
+    /// for those steps), runs the solver on the CPU for a step, and dumps the world; boxes
+    /// fall asleep and a ball wakes them.
+    #[test]
+    fn bodies_left_on_the_device_step_as_bodies_read_back() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let steps = 160;
+        let run = |may_stay: bool| {
+            let mut world = World::new(StepConfig::default()).unwrap();
+            world.set_gpu_context(context.clone()).unwrap();
+            let gpu_stages = crate::pipeline::devices::StageDevices::all(Executor::Gpu);
+            world.set_stage_devices(gpu_stages).unwrap();
+            world.bodies_may_stay_on_device = may_stay;
+            world
+                .add_body(BodyDesc::fixed(Shape::plane(Vec3::Y, 0.0)))
+                .unwrap();
+            let blocks: Vec<_> = (0..12)
+                .map(|index| {
+                    let position =
+                        Vec3::new(1.5 * (index % 6) as f32, 0.5, 2.0 * (index / 6) as f32);
+                    let block =
+                        BodyDesc::dynamic(Shape::cuboid(Vec3::splat(0.5))).position(position);
+                    world.add_body(block).unwrap()
+                })
+                .collect();
+            let (mut seen, mut on_device) = (Vec::new(), 0);
+            for step in 0..steps {
+                match step {
+                    10 => world
+                        .set_velocity(blocks[3], Vec3::new(0.0, 2.0, 0.5), Vec3::Y)
+                        .unwrap(),
+                    20..25 => world
+                        .set_drag_target(blocks[7], Vec3::ZERO, Vec3::new(4.5, 2.0, 2.0), 200.0)
+                        .unwrap(),
+                    25 => world.clear_drag(),
+                    40 => {
+                        let mut devices = gpu_stages;
+                        devices.set(crate::pipeline::devices::Stage::Solver, Executor::Cpu);
+                        world.set_stage_devices(devices).unwrap();
+                    }
+                    41 => world.set_stage_devices(gpu_stages).unwrap(),
+                    60 => world.remove_body(blocks[0]).unwrap(),
+                    110 => {
+                        let ball = BodyDesc::dynamic(Shape::sphere(0.3))
+                            .position(Vec3::new(4.5, 3.0, 0.0));
+                        world.add_body(ball).unwrap();
+                    }
+                    _ => {}
+                }
+                world.step();
+                on_device += usize::from(world.bodies_on_device());
+                // What a caller sees between steps.
+                let body = blocks[5];
+                seen.push((
+                    world.pose(body).unwrap(),
+                    world.linear_velocity(body).unwrap(),
+                    world.angular_velocity(body).unwrap(),
+                    world.stats().sleeping,
+                ));
+                if step % 40 == 30 {
+                    seen.push((
+                        Transform::IDENTITY,
+                        Vec3::splat(world.kinetic_energy() as f32),
+                        Vec3::ZERO,
+                        crate::scene::Scene::from_world(&world).to_json().len(),
+                    ));
+                }
+            }
+            let reads = world.gpu.as_ref().unwrap().solves_reading_bodies;
+            world.sync_bodies().unwrap();
+            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            (poses, velocities, seen, on_device, reads)
+        };
+        let (poses, velocities, seen, on_device, reads) = run(true);
+        let back = run(false);
+        // The bodies stayed but where the drag or the CPU solver needed them, and while a
+        // removed body's slot was free (the one-submission collision needs every slot live).
+        assert!(on_device >= steps - 60, "{on_device} of {steps} steps");
+        assert!(reads <= steps - on_device, "{reads} solves read the bodies back");
+        // Every GPU solve of the other run read them (one step solved on the CPU).
+        assert_eq!((back.3, back.4), (0, steps - 1));
+        let sleeping = seen.iter().map(|s| s.3);
+        assert!(sleeping.clone().any(|n| n >= 11), "the boxes never slept");
+        assert!(seen == back.2, "what the getters returned differs");
+        assert!(velocities == back.1, "the velocities differ");
+        assert!(poses == back.0, "the poses differ");
     }
 
     /// Islands that fall asleep or wake change only their bodies' masses and velocities: the
@@ -3272,11 +3433,13 @@ mod tests {
                 world.step();
                 asleep.push(world.stats().sleeping);
                 if upload_every_step {
+                    world.sync_bodies().unwrap();
                     world.bodies_changed();
                 }
             }
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let velocities =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
             let partial = world.gpu.as_ref().unwrap().bodies.partial_uploads;
             (poses, velocities, asleep, partial)
         };
@@ -3888,8 +4051,9 @@ mod tests {
                 let scratch = &world.scratch;
                 listed.push(scratch.wake_listed.then_some(scratch.wake_pair_keys.len()));
             }
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let velocities =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
             let gpu = world.gpu.as_ref().unwrap();
             let steps_listed = gpu.wake_candidates_listed;
             let held = [gpu.steps_held, gpu.steps_not_held];
@@ -3975,8 +4139,9 @@ mod tests {
                 world.step();
                 asleep.push(world.stats().sleeping);
             }
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let velocities =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
             let reads = world.gpu.as_ref().unwrap().rest_timer_reads;
             (poses, velocities, asleep, dumps, reads)
         };
@@ -4043,8 +4208,9 @@ mod tests {
                 rested >= crate::dynamics::island::TIME_TO_SLEEP,
                 "the table rested {rested} s"
             );
-            let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
+            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let velocities =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
             let gpu = world.gpu.as_ref().unwrap();
             // No joints, the PGS solver: the pairs' summaries stay on the device, unless the
             // host links the islands, which reads them.
@@ -4137,7 +4303,7 @@ mod tests {
         }
         let contacts: Vec<PairContact> = world.contacts().map(|(_, _, c)| *c).collect();
         (
-            bytemuck::cast_slice::<_, u8>(&world.poses).to_vec(),
+            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec(),
             bytemuck::cast_slice::<_, u8>(&contacts).to_vec(),
             world.stats().max_penetration,
             left_on_device,
@@ -4177,7 +4343,7 @@ mod tests {
         let batches = world.contact_batches().map(|(_, _, batch)| batch).collect();
         let gpu = world.gpu.as_ref().unwrap();
         (
-            bytemuck::cast_slice::<_, u8>(&world.poses).to_vec(),
+            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec(),
             batches,
             histograms,
             world.stats().sleeping,
@@ -4247,8 +4413,8 @@ mod tests {
             }
             world.step();
         }
-        let mut state = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-        state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
+        let mut state = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+        state.extend_from_slice(bytemuck::cast_slice(world.current_bodies().unwrap().1));
         let gpu = world.gpu.as_ref().unwrap();
         let ahead = [gpu.solves_encoded_ahead, gpu.batchings_encoded_ahead];
         let held = [
@@ -4366,8 +4532,9 @@ mod tests {
                 }
                 world.step();
             }
-            let mut state = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
-            state.extend_from_slice(bytemuck::cast_slice(&world.velocities));
+            let mut state =
+                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            state.extend_from_slice(bytemuck::cast_slice(world.current_bodies().unwrap().1));
             let gpu = world.gpu.as_ref().unwrap();
             (state, gpu.steps_held, gpu.next_solves_submitted)
         };
@@ -4737,7 +4904,9 @@ mod tests {
         assert!(pairs * row_bytes > limit, "{pairs} pairs");
         assert!(rows > 0 && rows * row_bytes <= limit, "{rows}");
         assert_eq!(pairs, reference.stats().pairs);
-        let poses = |world: &World| bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
+        let poses = |world: &World| {
+            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec()
+        };
         assert!(poses(&world) == poses(&reference), "the poses differ");
     }
 

@@ -147,7 +147,7 @@ impl World {
                 return None;
             }
             let i = index as usize;
-            let pose = self.poses[i].transform();
+            let pose = self.current_bodies_or_host().0[i].transform();
             let hit = cast_sphere(radius, &self.colliders[i].shape, &pose, ray)?;
             Some(RayHit {
                 body: self.handle_of(index),
@@ -200,7 +200,7 @@ impl World {
                 let i = index as usize;
                 let hit = sweep.cast(
                     &self.colliders[i].shape,
-                    &self.poses[i].transform(),
+                    &self.current_bodies_or_host().0[i].transform(),
                     path.max_distance(),
                 )?;
                 Some(RayHit {
@@ -291,7 +291,8 @@ impl World {
         let escaped = self.escaped_bodies();
         let mut consider = |index: u32| {
             let i = index as usize;
-            let shape_aabb = self.colliders[i].shape.aabb(&self.poses[i].transform());
+            let pose = self.current_bodies_or_host().0[i].transform();
+            let shape_aabb = self.colliders[i].shape.aabb(&pose);
             if shape_aabb.overlaps(aabb) && self.passes(index, filter) {
                 bodies.push(self.handle_of(index));
             }
@@ -316,7 +317,11 @@ impl World {
             distance,
             point,
             normal,
-        } = cast_ray(&self.colliders[i].shape, &self.poses[i].transform(), ray)?;
+        } = cast_ray(
+            &self.colliders[i].shape,
+            &self.current_bodies_or_host().0[i].transform(),
+            ray,
+        )?;
         Some(RayHit {
             body: self.handle_of(index),
             distance,
@@ -344,11 +349,12 @@ impl World {
     /// the bodies moved, were added or were removed.
     fn escaped_bodies(&self) -> &[u32] {
         self.query_escapes.get_or_init(|| {
-            (0..self.poses.len() as u32)
+            let (poses, _) = self.current_bodies_or_host();
+            (0..poses.len() as u32)
                 .filter(|&index| {
                     let i = index as usize;
                     self.broadphase.fat_aabb(index).is_some_and(|fat| {
-                        !fat.contains(&self.colliders[i].shape.aabb(&self.poses[i].transform()))
+                        !fat.contains(&self.colliders[i].shape.aabb(&poses[i].transform()))
                     })
                 })
                 .collect()

@@ -150,6 +150,16 @@ impl World {
         }
         self.device_timers = OnceLock::new();
         self.give_device_rest_timers()?;
+        // The bodies stay on the device from step to step while nothing on the host needs
+        // them; a step that does brings them over first.
+        self.device_bodies = OnceLock::new();
+        let may_stay = self.bodies_may_stay_on_device();
+        if !may_stay {
+            self.sync_bodies()?;
+        }
+        if let Some(gpu) = &mut self.gpu {
+            gpu.set_bodies_may_stay(may_stay);
+        }
         // What this step's collision may bring from the device.
         let scratch = &mut self.scratch;
         (scratch.tally_fresh, scratch.woke, scratch.wake_listed) = (false, false, false);
@@ -866,6 +876,18 @@ impl World {
         Ok(())
     }
 
+    /// Whether this step's solve may leave the poses and velocities it integrates on the device
+    /// ([`World::bodies_on_device`]): every stage on the GPU with the contacts staying there,
+    /// the PGS solver (the Jacobi solver's adjacency reads the velocities on the host), and
+    /// no drag (its row is built on the host from the pose).
+    fn bodies_may_stay_on_device(&self) -> bool {
+        self.bodies_may_stay_on_device
+            && self.keeps_contacts_on_device()
+            && self.devices.get(Stage::Integrate) == Executor::Gpu
+            && self.config.solver == SolverKind::Pgs
+            && self.drag.is_none()
+    }
+
     /// Whether this step leaves the pairs' contacts on the device (see `contacts_on_device`):
     /// stages 1 to 4 in one submission, the rows, the batching and the solver on the GPU, and
     /// every pair one the GPU narrowphase computes.
@@ -1317,7 +1339,7 @@ impl World {
             None => {
                 // A read that fails leaves no island to sleep this step (the device's error
                 // shows at its next submission); so below.
-                if self.take_device_rest_timers().is_err() {
+                if self.take_device_rest_timers().is_err() || self.sync_bodies().is_err() {
                     return;
                 }
                 let colliders = &self.colliders;

@@ -34,7 +34,7 @@ use crate::math::{Mat3, Transform, Vec3};
 use crate::pipeline::config::{ConfigError, StepConfig};
 use crate::pipeline::devices::StageDevices;
 pub use crate::pipeline::gpu_stages::DevicePoses;
-use crate::pipeline::gpu_stages::{BodyChanges, GpuStages};
+use crate::pipeline::gpu_stages::{BodyChanges, BodyInputs, GpuStages};
 use crate::pipeline::parallel::filter_map_ordered;
 use crate::pipeline::step::StepScratch;
 use crate::profile::Profiler;
@@ -46,6 +46,9 @@ use crate::stages::narrowphase::{ChildCache, ManifoldCache, PairContact, gpu_sha
 use crate::stages::pairs::PairCache;
 use std::sync::Arc;
 use std::sync::OnceLock;
+
+/// The poses and velocities read back from the device ([`World::current_bodies`]).
+pub(crate) type DeviceBodyRead = Result<(Vec<BodyPose>, Vec<BodyVelocity>), GpuError>;
 
 /// Batch number of a pair that has no constraint this step.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -192,6 +195,12 @@ pub struct World {
     /// ([`Islands::timers_on_device`]): theirs, read at the first call of
     /// [`Self::sleep_state`] after the step.
     pub(crate) device_timers: OnceLock<Vec<f32>>,
+    /// Where the last step left the poses and velocities on the device
+    /// ([`Self::bodies_on_device`]): theirs, read at the first call of a getter after the
+    /// step ([`Self::current_bodies`]).
+    pub(crate) device_bodies: OnceLock<DeviceBodyRead>,
+    /// Whether a step may leave them there (tests turn it off to compare).
+    pub(crate) bodies_may_stay_on_device: bool,
     /// Live bodies whose shape the GPU narrowphase has no kernel for ([`gpu_shape`]): while
     /// there are any, the contacts come back to the host every step.
     pub(crate) host_shapes: usize,
@@ -248,6 +257,8 @@ impl World {
             pair_summaries_fresh: false,
             device_contacts: OnceLock::new(),
             device_timers: OnceLock::new(),
+            device_bodies: OnceLock::new(),
+            bodies_may_stay_on_device: true,
             device_keys: OnceLock::new(),
             host_shapes: 0,
             may_bounce: false,
@@ -270,7 +281,7 @@ impl World {
             self.islands
                 .wake_all(&mut self.masses, &mut self.changed_bodies);
             if !self.changed_bodies.is_empty() {
-                self.bodies_changed();
+                self.masses_changed();
             }
             self.after_waking();
         }
@@ -280,6 +291,8 @@ impl World {
     /// Adds a body; `Err` says which field of `desc` is invalid.
     pub fn add_body(&mut self, desc: BodyDesc) -> Result<BodyHandle, BodyError> {
         desc.validate()?;
+        // The device's arrays grow with the host's: the host's must be the newest first.
+        self.sync_bodies().map_err(BodyError::readback)?;
         if let Some(name) = &desc.name
             && self.find(name).is_some()
         {
@@ -455,7 +468,9 @@ impl World {
         // A free slot is static and shapeless for the stages: it never moves or collides.
         self.masses[i] = BodyMass::default();
         self.velocities[i] = BodyVelocity::default();
-        self.bodies_changed();
+        self.changed_bodies.clear();
+        self.changed_bodies.push(handle.index);
+        self.masses_changed();
         self.free_slots.push(handle.index);
         self.resting_pairs_changed();
         Ok(())
@@ -480,7 +495,8 @@ impl World {
             let bodies: Vec<u32> = group.iter().map(|&(_, body)| body).collect();
             self.islands
                 .restore_island(&bodies, &mut self.masses, &mut self.velocities);
-            self.bodies_changed();
+            self.changed_bodies.clone_from(&bodies);
+            self.masses_changed();
             for &body in &bodies {
                 self.broadphase.set_moving(body, false);
             }
@@ -534,16 +550,15 @@ impl World {
         self.after_waking();
     }
 
-    /// The bodies in `changed_bodies` just woke: back into the moving tree, and their pairs
-    /// are found by the broadphase again.
     /// The host changed `poses`, `velocities` or `masses`: the device's copies are stale.
     pub(crate) fn bodies_changed(&mut self) {
         self.bodies_version += 1;
         self.body_changes.all(self.bodies_version);
     }
 
-    /// The bodies in `changed_bodies` fell asleep or woke: only their masses and velocities
-    /// changed, and a device that holds the bodies from before takes only theirs.
+    /// The bodies in `changed_bodies` fell asleep, woke, were removed or had their velocity
+    /// set: only their masses and velocities changed, and a device that holds the bodies from
+    /// before takes only theirs.
     pub(crate) fn masses_changed(&mut self) {
         self.bodies_version += 1;
         let bodies = &mut self.body_changes.bodies;
@@ -552,6 +567,8 @@ impl World {
         bodies.dedup();
     }
 
+    /// The bodies in `changed_bodies` just woke: back into the moving tree, and their pairs
+    /// are found by the broadphase again.
     fn after_waking(&mut self) {
         if self.changed_bodies.is_empty() {
             return;
@@ -602,7 +619,8 @@ impl World {
         if self.masses[a].inverse_mass == 0.0 && self.masses[b].inverse_mass == 0.0 {
             return Err(JointError::BothStatic);
         }
-        let pose = |i: usize| (self.poses[i].position, self.poses[i].rotation);
+        let (poses, _) = self.current_bodies().map_err(JointError::readback)?;
+        let pose = |i: usize| (poses[i].position, poses[i].rotation);
         let joint = Joint::new(&desc, pose(a), pose(b));
         let index = match self.free_joints.pop() {
             Some(index) => {
@@ -666,8 +684,9 @@ impl World {
         let Some(joint) = self.joints[index] else {
             return Err(JointError::StaleHandle);
         };
+        let (poses, _) = self.current_bodies().map_err(JointError::readback)?;
         let anchor =
-            |body: u32, local: Vec3| self.poses[body as usize].transform().transform_point(local);
+            |body: u32, local: Vec3| poses[body as usize].transform().transform_point(local);
         Ok((
             anchor(joint.body_a, joint.local_anchor_a),
             anchor(joint.body_b, joint.local_anchor_b),
@@ -768,8 +787,9 @@ impl World {
     /// it is pulled towards, both in the world frame (m). Their distance is how far the drag
     /// trails; a viewer draws the line between them.
     pub fn drag_anchors(&self) -> Option<(Vec3, Vec3)> {
+        let (poses, _) = self.current_bodies_or_host();
         self.drag.map(|drag| {
-            let pose = self.poses[drag.body as usize].transform();
+            let pose = poses[drag.body as usize].transform();
             (pose.transform_point(drag.local_anchor), drag.target)
         })
     }
@@ -824,7 +844,12 @@ impl World {
                 self.steps += 1;
                 Ok(value)
             }
-            Err(error) => Err(error),
+            Err(error) => {
+                // Bodies the device holds come back where it still can: the next step starts
+                // from them (where it cannot, the next step reports why).
+                let _ = self.sync_bodies();
+                Err(error)
+            }
         }
     }
 
@@ -857,6 +882,7 @@ impl World {
         // The contacts and rest timers left on the old device come over first.
         self.sync_contacts()?;
         self.take_device_rest_timers()?;
+        self.sync_bodies()?;
         if self.gpu.is_some() {
             self.gpu = Some(GpuStages::new(context.clone())?);
         }
@@ -904,16 +930,100 @@ impl World {
             })
     }
 
+    /// The body's pose now. Where the last step left the bodies on the device, the first
+    /// getter after it reads them back (see [`Self::sync_bodies`]).
     pub fn pose(&self, handle: BodyHandle) -> Result<Transform, BodyError> {
-        Ok(self.poses[self.check(handle)?].transform())
+        let i = self.check(handle)?;
+        let (poses, _) = self.current_bodies().map_err(BodyError::readback)?;
+        Ok(poses[i].transform())
     }
 
+    /// The velocity of the body's centre of mass (m/s), read as [`Self::pose`] is.
     pub fn linear_velocity(&self, handle: BodyHandle) -> Result<Vec3, BodyError> {
-        Ok(self.velocities[self.check(handle)?].linear)
+        let i = self.check(handle)?;
+        let (_, velocities) = self.current_bodies().map_err(BodyError::readback)?;
+        Ok(velocities[i].linear)
     }
 
+    /// The body's angular velocity (rad/s), read as [`Self::pose`] is.
     pub fn angular_velocity(&self, handle: BodyHandle) -> Result<Vec3, BodyError> {
-        Ok(self.velocities[self.check(handle)?].angular)
+        let i = self.check(handle)?;
+        let (_, velocities) = self.current_bodies().map_err(BodyError::readback)?;
+        Ok(velocities[i].angular)
+    }
+
+    /// Whether the last step left the poses and velocities on the device: its solve
+    /// integrated them there and nothing on the host needed them. The host's copies are then
+    /// older, but for the bodies it changed since; the getters read the device's at their
+    /// first call after the step, and [`Self::sync_bodies`] brings them over.
+    pub fn bodies_on_device(&self) -> bool {
+        self.gpu
+            .as_ref()
+            .is_some_and(GpuStages::bodies_left_on_device)
+    }
+
+    /// The poses and velocities wherever they are newest: the host's, or where the last step
+    /// left them on the device, the device's (read at the first call after the step) with the
+    /// host's velocities for the bodies it changed since (a sleep, a wake, a velocity set).
+    pub(crate) fn current_bodies(&self) -> Result<(&[BodyPose], &[BodyVelocity]), GpuError> {
+        if !self.bodies_on_device() {
+            return Ok((&self.poses, &self.velocities));
+        }
+        match self.device_bodies.get_or_init(|| self.read_device_bodies()) {
+            Ok((poses, velocities)) => Ok((poses, velocities)),
+            Err(error) => Err(error.clone()),
+        }
+    }
+
+    /// [`Self::current_bodies`] for the readers that report no error of their own (queries,
+    /// dumps, the energy): the host's older copies where the read-back fails, whose error the
+    /// next step reports.
+    pub(crate) fn current_bodies_or_host(&self) -> (&[BodyPose], &[BodyVelocity]) {
+        self.current_bodies()
+            .unwrap_or((&self.poses, &self.velocities))
+    }
+
+    fn read_device_bodies(&self) -> DeviceBodyRead {
+        let gpu = self.gpu.as_ref().ok_or(GpuError::StaleBodies)?;
+        let (poses, mut velocities) = gpu.read_bodies()?;
+        if poses.len() != self.poses.len() || velocities.len() != self.velocities.len() {
+            return Err(GpuError::Readback {
+                what: "bodies",
+                reason: format!("{} poses for {} bodies", poses.len(), self.poses.len()),
+            });
+        }
+        // The host changes no pose without bringing the bodies over first, but the velocities
+        // of bodies that slept, woke, went or were set since are its own.
+        for &i in &self.body_changes.bodies {
+            velocities[i as usize] = self.velocities[i as usize];
+        }
+        Ok((poses, velocities))
+    }
+
+    /// Brings the poses and velocities the last step left on the device
+    /// ([`Self::bodies_on_device`]) to the host's copies. The getters and the step do this
+    /// themselves where they need them; a caller rarely has to.
+    pub fn sync_bodies(&mut self) -> Result<(), GpuError> {
+        if !self.bodies_on_device() {
+            return Ok(());
+        }
+        let (poses, velocities) = match self.device_bodies.take() {
+            Some(read) => read?,
+            None => self.read_device_bodies()?,
+        };
+        self.poses.copy_from_slice(&poses);
+        self.velocities.copy_from_slice(&velocities);
+        if let Some(gpu) = &mut self.gpu {
+            gpu.bodies_read(&BodyInputs {
+                poses: &self.poses,
+                velocities: &self.velocities,
+                masses: &self.masses,
+                colliders: &self.colliders,
+                version: self.bodies_version,
+                changed: &self.body_changes,
+            });
+        }
+        Ok(())
     }
 
     /// Sets a dynamic body's velocities (static bodies ignore this).
@@ -931,17 +1041,30 @@ impl World {
             self.wake(&[handle.index]);
             self.islands.reset_timer(handle.index);
             self.velocities[i] = BodyVelocity::new(linear, angular);
-            self.bodies_changed();
+            // This body's alone: a device that holds the others' newer velocities keeps them.
+            self.changed_bodies.clear();
+            self.changed_bodies.push(handle.index);
+            self.masses_changed();
         }
         Ok(())
     }
 
     /// The description the body would be re-created from now (current pose and velocity).
     pub fn body_desc(&self, handle: BodyHandle) -> Result<BodyDesc, BodyError> {
+        let bodies = self.current_bodies().map_err(BodyError::readback)?;
+        self.body_desc_in(handle, bodies)
+    }
+
+    /// [`Self::body_desc`] at the poses and velocities of `bodies`.
+    pub(crate) fn body_desc_in(
+        &self,
+        handle: BodyHandle,
+        (poses, velocities): (&[BodyPose], &[BodyVelocity]),
+    ) -> Result<BodyDesc, BodyError> {
         let i = self.check(handle)?;
         let (pose, velocity, collider, slot) = (
-            &self.poses[i],
-            &self.velocities[i],
+            &poses[i],
+            &velocities[i],
             &self.colliders[i],
             &self.slots[i],
         );
@@ -983,13 +1106,14 @@ impl World {
 
     /// Kinetic energy of all bodies (J): ½ m v² + ½ ω·Iω.
     pub fn kinetic_energy(&self) -> f64 {
+        let (poses, velocities) = self.current_bodies_or_host();
         let mut energy = 0.0f64;
-        for (i, velocity) in self.velocities.iter().enumerate() {
+        for (i, velocity) in velocities.iter().enumerate() {
             let mass = &self.masses[i];
             if mass.inverse_mass == 0.0 {
                 continue;
             }
-            let rotation = Mat3::from_quat(self.poses[i].rotation);
+            let rotation = Mat3::from_quat(poses[i].rotation);
             let local_omega = rotation.transpose() * velocity.angular;
             let inertia = mass.inverse_inertia.recip();
             let linear = velocity.linear.length_squared() / mass.inverse_mass;
@@ -1199,7 +1323,8 @@ impl World {
             // The cache keeps the pair as (lower, higher): flip the normal and move the anchors
             // into the other body's frame.
             contact.manifold = contact.manifold.flipped();
-            let (from, to) = (self.poses[ia].transform(), self.poses[ib].transform());
+            let (poses, _) = self.current_bodies().map_err(BodyError::readback)?;
+            let (from, to) = (poses[ia].transform(), poses[ib].transform());
             let count = contact.manifold.count as usize;
             for point in &mut contact.manifold.points[..count] {
                 point.anchor = to.inverse_transform_point(from.transform_point(point.anchor));

@@ -629,10 +629,11 @@ impl Scene {
         let handles: Vec<_> = world.bodies().collect();
         let mut index_of = std::collections::HashMap::new();
         let mut bodies = Vec::with_capacity(handles.len());
+        let current = world.current_bodies_or_host();
         for (i, &handle) in handles.iter().enumerate() {
             index_of.insert(handle, i);
-            // Handles from `bodies()` are live, so `body_desc` cannot fail.
-            if let Ok(desc) = world.body_desc(handle) {
+            // Handles from `bodies()` are live, so `body_desc_in` cannot fail.
+            if let Ok(desc) = world.body_desc_in(handle, current) {
                 bodies.push(desc);
             }
         }
@@ -643,7 +644,7 @@ impl Scene {
                 let body_a = *index_of.get(&world.handle_of(a))?;
                 let body_b = *index_of.get(&world.handle_of(b))?;
                 // Anchor and axis where body A carries them now; the state keeps the frames.
-                let pose_a = &world.poses[a as usize];
+                let pose_a = &world.current_bodies_or_host().0[a as usize];
                 let axis = pose_a.rotation * joint.local_axis_a;
                 let kind = match joint.kind {
                     JointKind::Hinge { limits, motor, .. } => JointKind::Hinge {
@@ -1022,6 +1023,7 @@ fn field_of(shape: &ShapeFile, error: &BodyError) -> String {
         BodyError::StaleHandle | BodyError::DuplicateName(_) => "name".into(),
         BodyError::CompoundMeshKeys { .. } => format!("shape.{shape_name}"),
         BodyError::ContactsReadback(_) => "contacts".into(),
+        BodyError::BodiesReadback(_) => "bodies".into(),
     }
 }
 

@@ -200,6 +200,7 @@ impl GpuStages {
             rounds: self.batching_rounds,
         };
         let link_islands = plan.link_islands && !self.host_island_links;
+        let rest = self.rests_bodies(plan.bodies).then_some(link_islands);
         let solve = SolvePlan {
             settings: plan.settings,
             jacobi: false,
@@ -211,7 +212,8 @@ impl GpuStages {
             by_body: self.warm_start_by_body,
             expected: Some(self.expected_batch_sizes),
             bodies: plan.bodies,
-            rest: self.rests_bodies(plan.bodies).then_some(link_islands),
+            rest,
+            bodies_back: self.reads_bodies_back(rest),
         };
         let mut encoder = context
             .device
