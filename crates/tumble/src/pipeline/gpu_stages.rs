@@ -3718,10 +3718,15 @@ mod tests {
                     ..Default::default()
                 })
                 .collect();
-            // Most bodies rest; a few move, some right about the threshold.
+            // Most bodies rest; a few move, some about the threshold but not within a
+            // thousandth of it, where a GPU's square root or fused multiply-add may round to
+            // the other side.
             let speed = |next: &mut dyn FnMut() -> f32| match next() {
                 x if x < 1.0 - moving => next() * 0.02,
-                x if x < 1.0 - moving / 2.0 => SLEEP_SPEED * (0.9 + 0.2 * next()),
+                x if x < 1.0 - moving / 2.0 => {
+                    let off = 0.001 + 0.099 * next();
+                    SLEEP_SPEED * if next() < 0.5 { 1.0 - off } else { 1.0 + off }
+                }
                 _ => next() * 2.0,
             };
             let direction = |next: &mut dyn FnMut() -> f32| {
