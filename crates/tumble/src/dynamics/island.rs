@@ -94,8 +94,8 @@ pub struct Islands {
     timers_version: u64,
     /// Whether the device moved the timers since the host last had them
     /// ([`Self::timers_on_device`]); the largest rest time of an awake body there at its
-    /// last step; the bodies whose timer the host set since, which the device's do not have,
-    /// and the largest rest time the host gave an awake body since (set, or woken).
+    /// last step; the bodies whose timer the host set since, which the device's do not have
+    /// (sorted), and the largest rest time the host gave an awake body since (set, or woken).
     on_device: bool,
     device_max: f32,
     set_since: Vec<u32>,
@@ -151,7 +151,12 @@ impl Islands {
             return;
         }
         if self.on_device {
-            self.set_since.extend(bodies);
+            // Kept sorted (bodies come in order as they are added): `holds_timer` searches it.
+            for body in bodies {
+                if let Err(place) = self.set_since.binary_search(&body) {
+                    self.set_since.insert(place, body);
+                }
+            }
             self.host_max = self.host_max.max(timer);
         } else {
             self.timers_version += 1;
@@ -181,7 +186,7 @@ impl Islands {
     /// Whether the host's timer of `body` is its newest: the host holds every timer, or set
     /// this one since the device moved them.
     pub fn holds_timer(&self, body: u32) -> bool {
-        !self.on_device || self.set_since.contains(&body)
+        !self.on_device || self.set_since.binary_search(&body).is_ok()
     }
 
     /// Whether the host set a timer since the device moved them.
@@ -210,8 +215,6 @@ impl Islands {
     /// set since they moved there (bodies added since among them). Returns false, and takes
     /// nothing, when a body has neither.
     pub fn adopt_device_timers(&mut self, timers: &[f32]) -> bool {
-        self.set_since.sort_unstable();
-        self.set_since.dedup();
         let set = std::mem::take(&mut self.set_since);
         let unset = |body: usize| set.binary_search(&(body as u32)).is_err();
         if (timers.len()..self.states.len()).any(unset) {

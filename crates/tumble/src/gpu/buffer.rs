@@ -222,7 +222,9 @@ impl<T: bytemuck::Pod> GpuVec<T> {
             return Ok(out);
         }
         let bytes = Self::bytes(self.len);
-        let staging = context.create_buffer(&wgpu::BufferDescriptor {
+        // Not counted by `resources_made`: no recorded command refers to it, so a read between
+        // steps keeps the commands recorded ahead.
+        let staging = context.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(self.label),
             size: bytes,
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,

@@ -931,6 +931,12 @@ impl GpuStages {
         !(self.bodies_may_stay && (rest.is_some() || !self.sleeping))
     }
 
+    /// The device's rest timers may differ from the host's, which hold them: the next step
+    /// uploads the host's.
+    pub fn rest_timers_stale(&mut self) {
+        self.rest_version = None;
+    }
+
     /// What this step's rest timers found, where the device moved them (the host's are then
     /// stale: [`Self::read_rest_timers`]).
     pub fn take_rest_tally(&mut self) -> Option<RestTally> {
@@ -3308,7 +3314,8 @@ mod tests {
 
     /// With every stage on the GPU the integrated bodies stay on the device, and the getters
     /// read them there: the run, and what the getters return between steps, are bitwise the
-    /// one that reads the bodies back every step. Between steps the host sets a velocity,
+    /// one that reads the bodies back every step. Between steps the host sets a velocity
+    /// (read before and after),
     /// adds and removes bodies, drags one (its row is built on the host: the bodies come back
     /// for those steps), runs the solver on the CPU for a step, and dumps the world; boxes
     /// fall asleep and a ball wakes them.
@@ -3339,9 +3346,16 @@ mod tests {
             let (mut seen, mut on_device) = (Vec::new(), 0);
             for step in 0..steps {
                 match step {
-                    10 => world
-                        .set_velocity(blocks[3], Vec3::new(0.0, 2.0, 0.5), Vec3::Y)
-                        .unwrap(),
+                    10 => {
+                        // Read before the change, so that a read kept from the step must
+                        // take it.
+                        let before = world.linear_velocity(blocks[3]).unwrap();
+                        world
+                            .set_velocity(blocks[3], Vec3::new(0.0, 2.0, 0.5), Vec3::Y)
+                            .unwrap();
+                        let after = world.linear_velocity(blocks[3]).unwrap();
+                        seen.push((Transform::IDENTITY, before, after, 0));
+                    }
                     20..25 => world
                         .set_drag_target(blocks[7], Vec3::ZERO, Vec3::new(4.5, 2.0, 2.0), 200.0)
                         .unwrap(),
@@ -3379,18 +3393,27 @@ mod tests {
                     ));
                 }
             }
-            let reads = world.gpu.as_ref().unwrap().solves_reading_bodies;
+            let gpu = world.gpu.as_ref().unwrap();
+            let (reads, next) = (gpu.solves_reading_bodies, gpu.next_solves_submitted);
             world.sync_bodies().unwrap();
             let poses = bytemuck::cast_slice::<_, u8>(&world.poses).to_vec();
             let velocities = bytemuck::cast_slice::<_, u8>(&world.velocities).to_vec();
-            (poses, velocities, seen, on_device, reads)
+            (poses, velocities, seen, on_device, reads, next)
         };
-        let (poses, velocities, seen, on_device, reads) = run(true);
+        let (poses, velocities, seen, on_device, reads, next) = run(true);
         let back = run(false);
         // The bodies stayed but where the drag or the CPU solver needed them, and while a
         // removed body's slot was free (the one-submission collision needs every slot live).
         assert!(on_device >= steps - 60, "{on_device} of {steps} steps");
-        assert!(reads <= steps - on_device, "{reads} solves read the bodies back");
+        assert!(
+            reads <= steps - on_device,
+            "{reads} solves read the bodies back"
+        );
+        // The getters' reads between steps keep the solves recorded a step ahead.
+        assert!(
+            next > steps / 2,
+            "{next} solves recorded a step ahead submitted"
+        );
         // Every GPU solve of the other run read them (one step solved on the CPU).
         assert_eq!((back.3, back.4), (0, steps - 1));
         let sleeping = seen.iter().map(|s| s.3);
@@ -3678,9 +3701,9 @@ mod tests {
     /// The rest kernels give each body the host's timer bit for bit
     /// ([`Islands::update_timers`]), the largest rest time and the rested count, and count at
     /// least as many sleepers as [`Islands::fall_asleep`] puts to sleep, 0 exactly where it
-    /// puts none; a step that did not hold moves nothing. Random bodies at 0, 1, 257 and
-    /// 20 000: one in five static or asleep, speeds about the threshold, rest times about the
-    /// time to sleep, random islands.
+    /// puts none; a step that did not hold moves nothing. Random bodies at 0, 1, 257, 600 and
+    /// 20 000: most one in five static or asleep, speeds about the threshold, rest times about
+    /// the time to sleep, random islands.
     #[test]
     fn rest_timers_and_the_sleep_test_on_the_device_are_the_hosts() {
         use crate::dynamics::body::{BodyMass, BodyVelocity};
@@ -3700,43 +3723,49 @@ mod tests {
         let dt = 1.0 / 60.0;
         let (mut slept_some, mut held_all) = (false, false);
         // Bodies, the share that moves, how far below the time to sleep timers start (in
-        // steps), and the islands' blocks: the 257 rest long enough for most islands to
-        // sleep, the 600 are one island held awake. The last case is a step that did not hold.
+        // steps), the islands' blocks and the share of static (or sleeping) bodies: the 257
+        // rest long enough for most islands to sleep, the 600 are one island held awake. The
+        // last case is a step that did not hold.
         let cases = [
-            (0usize, 0.1, 4.0, 30),
-            (1, 0.1, 4.0, 30),
-            (257, 0.01, 0.5, 30),
-            (600, 0.1, 4.0, 600),
-            (20_000, 0.1, 4.0, 30),
-            (20_000, 0.1, 4.0, 30),
+            (0usize, 0.1, 4.0, 30, 0.2),
+            (1, 0.1, 4.0, 30, 0.2),
+            (257, 0.01, 0.5, 30, 0.2),
+            (600, 0.1, 4.0, 600, 0.0),
+            (20_000, 0.1, 4.0, 30, 0.2),
+            (20_000, 0.1, 4.0, 30, 0.2),
         ];
-        for (case, (bodies, moving, below, block)) in cases.into_iter().enumerate() {
+        for (case, (bodies, moving, below, block, statics)) in cases.into_iter().enumerate() {
             let held = case != 5;
             let masses: Vec<BodyMass> = (0..bodies)
                 .map(|_| BodyMass {
-                    inverse_mass: if next() < 0.2 { 0.0 } else { 0.5 },
+                    inverse_mass: if next() < statics { 0.0 } else { 0.5 },
                     ..Default::default()
                 })
                 .collect();
             // Most bodies rest; a few move, some about the threshold but not within a
             // thousandth of it, where a GPU's square root or fused multiply-add may round to
             // the other side.
-            let speed = |next: &mut dyn FnMut() -> f32| match next() {
-                x if x < 1.0 - moving => next() * 0.02,
+            // (linear, angular) speeds. Resting bodies' fastest points stay below 0.042 m/s
+            // (radii up to 1.1 m); those about the threshold turn not at all, and are not
+            // within a thousandth of it, where a GPU's square root or fused multiply-add may
+            // round to the other side; moving ones are at least twice as fast.
+            let speeds = |next: &mut dyn FnMut() -> f32| match next() {
+                x if x < 1.0 - moving => (next() * 0.02, next() * 0.02),
                 x if x < 1.0 - moving / 2.0 => {
                     let off = 0.001 + 0.099 * next();
-                    SLEEP_SPEED * if next() < 0.5 { 1.0 - off } else { 1.0 + off }
+                    let factor = if next() < 0.5 { 1.0 - off } else { 1.0 + off };
+                    (SLEEP_SPEED * factor, 0.0)
                 }
-                _ => next() * 2.0,
+                _ => (SLEEP_SPEED * (2.0 + 40.0 * next()), next() * 2.0),
             };
             let direction = |next: &mut dyn FnMut() -> f32| {
                 Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5).normalize_or(Vec3::X)
             };
             let velocities: Vec<BodyVelocity> = (0..bodies)
                 .map(|_| {
-                    let linear = direction(&mut next) * speed(&mut next);
-                    let angular = direction(&mut next) * speed(&mut next);
-                    BodyVelocity::new(linear, angular)
+                    let (linear, angular) = speeds(&mut next);
+                    let linear = direction(&mut next) * linear;
+                    BodyVelocity::new(linear, direction(&mut next) * angular)
                 })
                 .collect();
             let radii: Vec<f32> = (0..bodies).map(|_| 0.1 + next()).collect();

@@ -561,6 +561,12 @@ impl World {
     /// before takes only theirs.
     pub(crate) fn masses_changed(&mut self) {
         self.bodies_version += 1;
+        // The device's bodies read since the step take the host's new velocities too.
+        if let Some(Ok((_, velocities))) = self.device_bodies.get_mut() {
+            for &i in &self.changed_bodies {
+                velocities[i as usize] = self.velocities[i as usize];
+            }
+        }
         let bodies = &mut self.body_changes.bodies;
         bodies.extend_from_slice(&self.changed_bodies);
         bodies.sort_unstable();
@@ -812,7 +818,9 @@ impl World {
     }
 
     /// One step, reporting a failure of a GPU stage (a buffer past the adapter's limits, a
-    /// lost device) instead of panicking. A failed step leaves the bodies as they were before it.
+    /// lost device) instead of panicking. A failed step leaves the bodies as they were before
+    /// it, but where they stayed on the device ([`Self::bodies_on_device`]) and it failed
+    /// after moving them there: then they are as it moved them.
     pub fn try_step(&mut self) -> Result<(), GpuError> {
         self.try_step_then(|_| {})
     }
@@ -846,8 +854,14 @@ impl World {
             }
             Err(error) => {
                 // Bodies the device holds come back where it still can: the next step starts
-                // from them (where it cannot, the next step reports why).
+                // from them (where it cannot, the next step reports why). Timers the host
+                // holds go to the device again: the failed step may have moved the device's.
                 let _ = self.sync_bodies();
+                if let Some(gpu) = &mut self.gpu
+                    && self.islands.holds_timers()
+                {
+                    gpu.rest_timers_stale();
+                }
                 Err(error)
             }
         }
