@@ -478,8 +478,27 @@ impl World {
 
     /// Restores dumped sleep states: (body, rest time, sleeping island number). Bodies with the
     /// same number are put to sleep as one island; the contacts must be restored first, so
-    /// that the island keeps its pairs.
-    pub fn restore_sleep(&mut self, states: &[(BodyHandle, f32, Option<u32>)]) {
+    /// that the island keeps its pairs. A rest time that is not finite and >= 0 is refused,
+    /// and nothing is restored.
+    pub fn restore_sleep(
+        &mut self,
+        states: &[(BodyHandle, f32, Option<u32>)],
+    ) -> Result<(), BodyError> {
+        if let Some(&(_, timer, _)) = states
+            .iter()
+            .find(|(_, timer, _)| !(timer.is_finite() && *timer >= 0.0))
+        {
+            return Err(if timer.is_finite() {
+                BodyError::Negative {
+                    field: "sleep_timer",
+                    value: timer,
+                }
+            } else {
+                BodyError::NotFinite {
+                    field: "sleep_timer",
+                }
+            });
+        }
         let mut islands: Vec<(u32, u32)> = Vec::new();
         for &(handle, timer, island) in states {
             let Ok(i) = self.check(handle) else { continue };
@@ -503,6 +522,7 @@ impl World {
         }
         self.resting_pairs_changed();
         self.refresh_resting = true;
+        Ok(())
     }
 
     /// Body slot `index`'s sleep state, its rest time wherever it is newest: the device's

@@ -619,7 +619,13 @@ impl Scene {
                 .zip(&self.sleep)
                 .map(|(&handle, state)| (handle, state.timer, state.island))
                 .collect();
-            world.restore_sleep(&states);
+            // The loader checked each rest time above.
+            world
+                .restore_sleep(&states)
+                .map_err(|e| SceneError::Invalid {
+                    field: "bodies[].sleep_timer".into(),
+                    message: e.to_string(),
+                })?;
         }
         Ok(world)
     }

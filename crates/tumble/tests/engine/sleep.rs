@@ -159,3 +159,33 @@ fn a_dump_with_sleeping_islands_resumes_bitwise() {
         Scene::from_world(&resumed).to_json()
     );
 }
+
+#[test]
+fn restoring_a_bad_rest_time_is_refused_and_restores_nothing() {
+    let (mut world, _) = world(true);
+    let bodies = tower(&mut world, 0.0, 2);
+    for (timer, expected) in [
+        (
+            f32::NAN,
+            tumble::BodyError::NotFinite {
+                field: "sleep_timer",
+            },
+        ),
+        (
+            -0.5,
+            tumble::BodyError::Negative {
+                field: "sleep_timer",
+                value: -0.5,
+            },
+        ),
+    ] {
+        // The good state first: nothing of the call may be restored.
+        let states = [(bodies[0], 1.0, Some(0)), (bodies[1], timer, Some(0))];
+        assert_eq!(world.restore_sleep(&states), Err(expected));
+        assert!(!world.is_sleeping(bodies[0]).unwrap());
+    }
+    world
+        .restore_sleep(&[(bodies[0], 1.0, Some(0)), (bodies[1], 1.0, Some(0))])
+        .unwrap();
+    assert!(world.is_sleeping(bodies[0]).unwrap() && world.is_sleeping(bodies[1]).unwrap());
+}
