@@ -1282,9 +1282,9 @@ impl World {
         self.scratch.wake_candidates = candidates;
     }
 
-    /// The rest timers to the device where its solve moves them: the host's, where they
-    /// changed since it took them, or where the host set some since the device moved them,
-    /// the device's with those.
+    /// Gives the device the host's rest timers where they changed since it took them. Where
+    /// the device moved them since and the host set some meanwhile (a velocity set, a body
+    /// added), the device's come over first, with the host's set ones kept.
     fn give_device_rest_timers(&mut self) -> Result<(), GpuError> {
         if self.islands.set_on_host() {
             self.take_device_rest_timers()?;
