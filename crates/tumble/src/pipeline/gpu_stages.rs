@@ -3423,6 +3423,42 @@ mod tests {
         assert!(poses == back.0, "the poses differ");
     }
 
+    /// A full upload of the host's bodies over the device's newer ones is refused with a typed
+    /// error, never made: here a test marks every body changed while the bodies are on the
+    /// device, which the world's own changes never do. The failed step moved nothing and
+    /// brings the device's bodies over, and the next steps go on from them.
+    #[test]
+    fn a_full_upload_over_the_devices_newer_bodies_is_refused() {
+        let _turn = turn();
+        let context = GpuContext::shared()
+            .unwrap_or_else(|error| panic!("GPU tests need an adapter: {error}"));
+        let mut world = awake_gpu_world_on_a_plane(&context);
+        add_block(&mut world, 8);
+        for _ in 0..10 {
+            world.step();
+        }
+        assert!(world.bodies_on_device());
+        let state = |world: &World| {
+            let (poses, velocities) = world.current_bodies().unwrap();
+            let mut bytes = bytemuck::cast_slice::<_, u8>(poses).to_vec();
+            bytes.extend_from_slice(bytemuck::cast_slice(velocities));
+            bytes
+        };
+        let before = state(&world);
+        world.bodies_changed();
+        let failed = world.try_step();
+        assert!(matches!(failed, Err(GpuError::StaleBodies)), "{failed:?}");
+        assert!(
+            !world.bodies_on_device(),
+            "the failed step brought them over"
+        );
+        assert!(state(&world) == before, "the failed step moved the bodies");
+        for _ in 0..10 {
+            world.try_step().unwrap();
+        }
+        assert!(state(&world) != before, "the bodies stopped");
+    }
+
     /// Islands that fall asleep or wake change only their bodies' masses and velocities: the
     /// next step writes only theirs to the device, and the run is bitwise the one that uploads
     /// every body. Six boxes rest apart on a plane and fall asleep one island each; a ball
