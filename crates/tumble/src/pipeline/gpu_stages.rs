@@ -878,15 +878,22 @@ impl GpuStages {
 
     /// Gives the device the host's rest timers where they changed since it took them
     /// (`islands` must hold every timer: see [`Islands::timers_on_device`]), for the solves
-    /// that integrate the bodies while `sleeping` to move them there.
-    pub fn sync_rest_timers(&mut self, islands: &Islands, sleeping: bool) -> Result<(), GpuError> {
+    /// that integrate the bodies while the world is `sleeping` to move them there. Only where
+    /// this step's solve may (`solved_here`: every stage from the rows on on the GPU): a
+    /// step whose host moves the timers changes them every step.
+    pub fn sync_rest_timers(
+        &mut self,
+        islands: &Islands,
+        sleeping: bool,
+        solved_here: bool,
+    ) -> Result<(), GpuError> {
         let version = islands.timers_version();
         debug_assert!(
             islands.holds_timers() || self.rest_version == Some(version),
             "the host's timers are stale and the device's are not the newer"
         );
         self.sleeping = sleeping;
-        if sleeping && self.rest_version != Some(version) {
+        if sleeping && solved_here && self.rest_version != Some(version) {
             self.rest_version = None;
             self.rest.upload(&self.context, &islands.timers())?;
             self.rest_version = Some(version);

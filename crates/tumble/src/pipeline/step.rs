@@ -1289,8 +1289,17 @@ impl World {
         if self.islands.set_on_host() {
             self.take_device_rest_timers()?;
         }
+        let on_gpu = |stage| self.devices.get(stage) == Executor::Gpu;
+        let solved_here = [
+            Stage::Constraints,
+            Stage::Batching,
+            Stage::Solver,
+            Stage::Integrate,
+        ]
+        .into_iter()
+        .all(on_gpu);
         match &mut self.gpu {
-            Some(gpu) => gpu.sync_rest_timers(&self.islands, self.config.sleeping),
+            Some(gpu) => gpu.sync_rest_timers(&self.islands, self.config.sleeping, solved_here),
             None => Ok(()),
         }
     }

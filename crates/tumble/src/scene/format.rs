@@ -650,7 +650,7 @@ impl Scene {
                 let body_a = *index_of.get(&world.handle_of(a))?;
                 let body_b = *index_of.get(&world.handle_of(b))?;
                 // Anchor and axis where body A carries them now; the state keeps the frames.
-                let pose_a = &world.current_bodies_or_host().0[a as usize];
+                let pose_a = &current.0[a as usize];
                 let axis = pose_a.rotation * joint.local_axis_a;
                 let kind = match joint.kind {
                     JointKind::Hinge { limits, motor, .. } => JointKind::Hinge {
