@@ -49,8 +49,8 @@ pub enum GpuError {
     )]
     Unplanned { what: &'static str },
     #[error(
-        "the host's bodies are older than the device's and would overwrite them (a bug in \
-         tumble: the world reads them back first)"
+        "the host's bodies are older than the device's and would overwrite them: an earlier \
+         read-back of the device's failed (see the error before this one), or a bug in tumble"
     )]
     StaleBodies,
 }
