@@ -923,7 +923,9 @@ impl GpuStages {
     }
 
     /// The host took the device's poses and velocities ([`Self::read_bodies`]) into its
-    /// bodies, still at the version the device holds.
+    /// bodies, still at the version the device holds (`bodies` only checks that in debug
+    /// builds).
+    #[cfg_attr(not(debug_assertions), allow(unused_variables))]
     pub fn bodies_read(&mut self, bodies: &BodyInputs) {
         self.bodies.newer = false;
         #[cfg(debug_assertions)]
