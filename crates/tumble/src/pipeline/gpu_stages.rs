@@ -147,6 +147,9 @@ const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
 const SOLVER_ENCODED_AHEAD: SpanPath =
     &["collision", "batching and solver encoded (during the wait)"];
 /// Stages 1–4 in one submission ([`GpuStages::collide`]).
+/// The collision's first submission, the trees' pass (the rest follows it: `collision`,
+/// `submit and wait`).
+const COLLISION_TREES_SUBMIT: SpanPath = &["collision", "submit the trees"];
 const COLLISION: StageSpans = StageSpans {
     upload: &["collision", "copy bodies to gpu"],
     encode: &["collision", "encode"],
@@ -1361,13 +1364,15 @@ impl GpuStages {
                 .then_some(self.pair_copy.as_ref())
                 .flatten()
                 .map(|(_, dispatches)| dispatches);
-            let submit_ms = record_and_submit(
+            let [trees, pairs, lookup, contacts_kernels] = COLLISION_KERNELS;
+            // The trees' pass goes first, on its own: the device is idle until the step's
+            // first submission, and the host records the rest while the trees are built.
+            submit_passes(
                 context,
                 &mut self.profiler,
                 profiler,
-                &COLLISION,
+                (&COLLISION, COLLISION_TREES_SUBMIT),
                 |encoder, timer| {
-                    let [trees, pairs, lookup, contacts_kernels] = COLLISION_KERNELS;
                     encode_pass(encoder, timer, trees, |pass| {
                         if let Some(copies) = copies {
                             encode_all(pass, copies);
@@ -1383,7 +1388,15 @@ impl GpuStages {
                             aabbs,
                         )?;
                         broadphase.encode_trees(context, pass, aabbs)
-                    })?;
+                    })
+                },
+            )?;
+            let submit_ms = record_and_submit(
+                context,
+                &mut self.profiler,
+                profiler,
+                &COLLISION,
+                |encoder, timer| {
                     encode_pass(encoder, timer, pairs, |pass| {
                         broadphase.encode_pairs(context, pass)
                     })?;
