@@ -146,10 +146,10 @@ const SOLVER_BODIES_DOWNLOAD: SpanPath = &["solver", "copy bodies to cpu"];
 /// ([`SolveAhead`]).
 const SOLVER_ENCODED_AHEAD: SpanPath =
     &["collision", "batching and solver encoded (during the wait)"];
-/// Stages 1–4 in one submission ([`GpuStages::collide`]).
 /// The collision's first submission, the trees' pass (the rest follows it: `collision`,
 /// `submit and wait`).
 const COLLISION_TREES_SUBMIT: SpanPath = &["collision", "submit the trees"];
+/// Stages 1–4 in one submission ([`GpuStages::collide`]).
 const COLLISION: StageSpans = StageSpans {
     upload: &["collision", "copy bodies to gpu"],
     encode: &["collision", "encode"],

@@ -1644,7 +1644,6 @@ fn store_joint_impulses(
     any_broke
 }
 
-/// Merges the sorted, disjoint `extra` keys into the sorted `keys`.
 /// `scratch.is_static`, the bodies that are static to a GPU broadphase (static, asleep or
 /// removed: no mass), made again only when the bodies changed since (`version`, the world's
 /// `bodies_version`, which every change of a mass moves): a pass over every body's mass was
@@ -1666,6 +1665,7 @@ fn static_mask(scratch: &mut StepScratch, masses: &[BodyMass], version: u64) {
     );
 }
 
+/// Merges the sorted, disjoint `extra` keys into the sorted `keys`.
 pub(crate) fn merge_sorted(keys: &mut Vec<u64>, extra: &[u64]) {
     keys.extend_from_slice(extra);
     // Two sorted runs: the standard library's stable sort finds them and merges in O(n).
