@@ -2990,6 +2990,16 @@ mod tests {
     use crate::stages::constraints::world_inverse_inertia;
     use crate::{BodyDesc, BodyHandle, Shape, World};
 
+    /// The world's current poses and velocities as bytes (read from the device where they
+    /// stayed there), for bitwise comparisons.
+    fn state_bytes(world: &World) -> (Vec<u8>, Vec<u8>) {
+        let (poses, velocities) = world.current_bodies().unwrap();
+        (
+            bytemuck::cast_slice(poses).to_vec(),
+            bytemuck::cast_slice(velocities).to_vec(),
+        )
+    }
+
     /// One GPU test of this module at a time, as in tests/engine/gpu_common.rs: wgpu's GL
     /// backend locks its context around every call and panics after a second, which a long
     /// dispatch on llvmpipe in a parallel test thread exceeds (seen on a machine with no
@@ -3258,7 +3268,7 @@ mod tests {
                 .map(|line| line.calls_per_frame * report.frames as f64)
                 .sum::<f64>()
                 .round() as usize;
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
+            let poses = state_bytes(&world).0;
             let impulses: Vec<f32> = world
                 .pairs
                 .values()
@@ -3319,9 +3329,7 @@ mod tests {
                     world.bodies_changed();
                 }
             }
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            let velocities =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
+            let (poses, velocities) = state_bytes(&world);
             (poses, velocities, kept)
         };
         let (kept_poses, kept_velocities, kept) = run(false);
@@ -3518,9 +3526,7 @@ mod tests {
                     world.bodies_changed();
                 }
             }
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            let velocities =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
+            let (poses, velocities) = state_bytes(&world);
             let partial = world.gpu.as_ref().unwrap().bodies.partial_uploads;
             (poses, velocities, asleep, partial)
         };
@@ -4143,9 +4149,7 @@ mod tests {
                 let scratch = &world.scratch;
                 listed.push(scratch.wake_listed.then_some(scratch.wake_pair_keys.len()));
             }
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            let velocities =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
+            let (poses, velocities) = state_bytes(&world);
             let gpu = world.gpu.as_ref().unwrap();
             let steps_listed = gpu.wake_candidates_listed;
             let held = [gpu.steps_held, gpu.steps_not_held];
@@ -4231,9 +4235,7 @@ mod tests {
                 world.step();
                 asleep.push(world.stats().sleeping);
             }
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            let velocities =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
+            let (poses, velocities) = state_bytes(&world);
             let reads = world.gpu.as_ref().unwrap().rest_timer_reads;
             (poses, velocities, asleep, dumps, reads)
         };
@@ -4300,9 +4302,7 @@ mod tests {
                 rested >= crate::dynamics::island::TIME_TO_SLEEP,
                 "the table rested {rested} s"
             );
-            let poses = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            let velocities =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().1).to_vec();
+            let (poses, velocities) = state_bytes(&world);
             let gpu = world.gpu.as_ref().unwrap();
             // No joints, the PGS solver: the pairs' summaries stay on the device, unless the
             // host links the islands, which reads them.
@@ -4395,7 +4395,7 @@ mod tests {
         }
         let contacts: Vec<PairContact> = world.contacts().map(|(_, _, c)| *c).collect();
         (
-            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec(),
+            state_bytes(&world).0,
             bytemuck::cast_slice::<_, u8>(&contacts).to_vec(),
             world.stats().max_penetration,
             left_on_device,
@@ -4435,7 +4435,7 @@ mod tests {
         let batches = world.contact_batches().map(|(_, _, batch)| batch).collect();
         let gpu = world.gpu.as_ref().unwrap();
         (
-            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec(),
+            state_bytes(&world).0,
             batches,
             histograms,
             world.stats().sleeping,
@@ -4505,8 +4505,8 @@ mod tests {
             }
             world.step();
         }
-        let mut state = bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-        state.extend_from_slice(bytemuck::cast_slice(world.current_bodies().unwrap().1));
+        let (poses, velocities) = state_bytes(&world);
+        let state = [poses, velocities].concat();
         let gpu = world.gpu.as_ref().unwrap();
         let ahead = [gpu.solves_encoded_ahead, gpu.batchings_encoded_ahead];
         let held = [
@@ -4624,9 +4624,8 @@ mod tests {
                 }
                 world.step();
             }
-            let mut state =
-                bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec();
-            state.extend_from_slice(bytemuck::cast_slice(world.current_bodies().unwrap().1));
+            let (poses, velocities) = state_bytes(&world);
+            let state = [poses, velocities].concat();
             let gpu = world.gpu.as_ref().unwrap();
             (state, gpu.steps_held, gpu.next_solves_submitted)
         };
@@ -4996,9 +4995,7 @@ mod tests {
         assert!(pairs * row_bytes > limit, "{pairs} pairs");
         assert!(rows > 0 && rows * row_bytes <= limit, "{rows}");
         assert_eq!(pairs, reference.stats().pairs);
-        let poses = |world: &World| {
-            bytemuck::cast_slice::<_, u8>(world.current_bodies().unwrap().0).to_vec()
-        };
+        let poses = |world: &World| state_bytes(world).0;
         assert!(poses(&world) == poses(&reference), "the poses differ");
     }
 
