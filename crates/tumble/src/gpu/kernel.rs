@@ -93,7 +93,7 @@ pub struct Kernel {
 
 /// `name` as a `&'static str`, each distinct name leaked once: a process compiles a bounded
 /// set of kernels, and the profile's lines are named by `&'static str`.
-fn intern(name: String) -> &'static str {
+pub(crate) fn intern(name: String) -> &'static str {
     static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
     let mut names = NAMES
         .get_or_init(Mutex::default)
@@ -283,6 +283,12 @@ pub struct Dispatch {
 }
 
 impl Dispatch {
+    /// The dispatch under another line of a profile that times each dispatch
+    /// ([`DispatchTimer`]): for one kernel's dispatches that differ in what they cover.
+    pub fn named(self, name: &'static str) -> Self {
+        Self { name, ..self }
+    }
+
     /// Encodes the dispatch, between two timestamps when the pass is timed dispatch by
     /// dispatch ([`DispatchTimer`]).
     pub fn encode(&self, pass: &mut wgpu::ComputePass<'_>) {

@@ -293,6 +293,12 @@ impl DispatchTimer {
         }
     }
 
+    /// Whether this thread is encoding a pass whose dispatches are timed: a caller may then
+    /// name its dispatches more finely ([`Dispatch::named`](super::kernel::Dispatch::named)).
+    pub fn is_active() -> bool {
+        ACTIVE.with_borrow(Option::is_some)
+    }
+
     /// Writes the first timestamp of a dispatch of kernel `name` when this thread is encoding
     /// a timed pass and queries are left; the caller ends it after the dispatch.
     pub fn begin(pass: &mut wgpu::ComputePass<'_>, name: &'static str) -> Option<TimedDispatch> {

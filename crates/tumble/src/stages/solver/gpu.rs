@@ -33,8 +33,9 @@ use crate::dynamics::body::BODY_WGSL;
 use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{
-    Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, workgroups_for,
+    Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, intern, workgroups_for,
 };
+use crate::gpu::profiler::DispatchTimer;
 use crate::math::Vec3;
 use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
 use crate::stages::constraints::lanes::{Word, lay_out, read_back, with_lanes};
@@ -594,6 +595,9 @@ impl SolverEncoder {
         dispatches.clear();
         // A stage with joints runs the mixed twin of the contact-only kernel, a walk without
         // joints the walk's.
+        // Where each dispatch is timed, a parallel batch's line names its batch: how a
+        // batch's time grows with its size tells launches from bytes.
+        let by_batch = DispatchTimer::is_active();
         let sweep = |dispatches: &mut Vec<Dispatch>, kernels: SweepKernels, variant: Variant| {
             for (stage, &(groups, joints)) in stage_sizes.iter().enumerate() {
                 let kernel = match (joints, stages[stage].mode) {
@@ -603,7 +607,12 @@ impl SolverEncoder {
                     (false, StageMode::Workgroup) => kernels.walk,
                     (false, _) => kernels.batch,
                 };
-                dispatches.push(kernel.dispatch(group(stage, variant), groups));
+                let mut dispatch = kernel.dispatch(group(stage, variant), groups);
+                if by_batch && stages[stage].mode == StageMode::Parallel {
+                    let name = format!("{} / batch {:02}", kernel.name, stages[stage].first);
+                    dispatch = dispatch.named(intern(name));
+                }
+                dispatches.push(dispatch);
             }
         };
         if stage_sizes.iter().any(|&(_, joints)| joints) && self.mixed.is_none() {
