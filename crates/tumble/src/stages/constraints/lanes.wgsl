@@ -1,7 +1,9 @@
 // Contact constraints on the GPU in blocks of CONSTRAINT_LANES, word by word
 // (stages/constraints/lanes.rs): a thread per constraint, a warp reads or writes each word in
 // contiguous memory. The fields are ContactConstraint's (stages/constraints/contact.rs), the
-// header's in their order, a point's arranged so that what a sweep writes shares a word:
+// header's in their order, a point's arranged so that what a sweep writes shares a word (a
+// solve sweep loads header words 0, 1, 4 to 7 and point words 0, 1, 3, and computes the rest:
+// solver.wgsl's load_header):
 //   header word 0   body_a, body_b, pair, point_count (u32)
 //               1   normal, friction
 //               2   tangent1, restitution
@@ -65,6 +67,28 @@ fn inertias_of(words: array<vec4<f32>, 3>) -> array<SymmetricMat3, 2> {
     let a = SymmetricMat3(words[0].xyz, vec3<f32>(words[0].w, words[1].xy));
     let b = SymmetricMat3(vec3<f32>(words[1].zw, words[2].x), words[2].yzw);
     return array<SymmetricMat3, 2>(a, b);
+}
+
+// The effective mass 1/K of the row along `direction` at a point with arms `r_a`, `r_b`, on
+// bodies of inverse masses summing to `inverse_masses` (contact.rs; the rows' build and the
+// solve sweep, which computes it rather than loading it).
+fn row_mass(
+    direction: vec3<f32>,
+    r_a: vec3<f32>,
+    r_b: vec3<f32>,
+    inertias: array<SymmetricMat3, 2>,
+    inverse_masses: f32,
+) -> f32 {
+    let arm_a = cross(r_a, direction);
+    let arm_b = cross(r_b, direction);
+    let k = inverse_masses + moment(arm_a, inertias[0]) + moment(arm_b, inertias[1]);
+    return select(0.0, 1.0 / k, k > 0.0);
+}
+
+// arm · I⁻¹ arm, summed x, y, z (body.wgsl's dot3, which not every kernel with lanes has).
+fn moment(arm: vec3<f32>, inertia: SymmetricMat3) -> f32 {
+    let turn = symmetric_mul(inertia, arm);
+    return arm.x * turn.x + arm.y * turn.y + arm.z * turn.z;
 }
 
 // Header words 5 to 7 holding `a` and `b` (`inertias_of` undone).

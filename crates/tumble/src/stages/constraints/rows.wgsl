@@ -75,21 +75,6 @@ fn world_inverse_inertia(body: u32) -> SymmetricMat3 {
     return SymmetricMat3(vec3<f32>(m[0].x, m[1].y, m[2].z), vec3<f32>(m[1].x, m[2].x, m[2].y));
 }
 
-// The effective mass 1/K of the row along `direction` at a point with arms `r_a`, `r_b`.
-fn row_mass(
-    direction: vec3<f32>,
-    r_a: vec3<f32>,
-    r_b: vec3<f32>,
-    inertias: array<SymmetricMat3, 2>,
-    inverse_masses: f32,
-) -> f32 {
-    let arm_a = cross(r_a, direction);
-    let arm_b = cross(r_b, direction);
-    let k = inverse_masses + dot3(arm_a, symmetric_mul(inertias[0], arm_a))
-        + dot3(arm_b, symmetric_mul(inertias[1], arm_b));
-    return select(0.0, 1.0 / k, k > 0.0);
-}
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn build(
     @builtin(local_invocation_id) id: vec3<u32>,

@@ -112,7 +112,8 @@ struct PointRows {
     adjusted_separation: f32,
     anchor_b: vec3<f32>,
     separation: f32,
-    // The rows' masses: normal, tangent 1, tangent 2.
+    // The rows' masses: normal, tangent 1, tangent 2. Computed by the solve sweep from the
+    // anchors and the header (`point_masses`), not loaded: see `load_header`.
     masses: vec3<f32>,
     // The rows' impulses (normal, tangents) and the largest normal impulse.
     impulses: vec4<f32>,
@@ -127,16 +128,17 @@ fn load_ids(index: u32) -> vec4<u32> {
     return bitcast<vec4<u32>>(contacts[lane_word(index, HEADER_IDS)]);
 }
 
-// Point `k` of constraint `index`, or no point past its count (then never used).
+// Point `k` of constraint `index` but its rows' masses, or no point past its count (then
+// never used).
 fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     if k >= count {
         return no_point();
     }
     let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)];
     let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)];
-    let masses = contacts[point_word(index, k, POINT_MASSES)];
     let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
-    return PointRows(anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, masses.xyz, impulses);
+    return PointRows(anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, vec3<f32>(0.0),
+        impulses);
 }
 
 // Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal
@@ -166,22 +168,28 @@ struct ConstraintHeader {
     mass_a: f32,
     mass_b: f32,
     friction: f32,
-    restitution: f32,
     softness: Softness,
     // The world-frame inverse inertias, A's and B's.
     inertias: array<SymmetricMat3, 2>,
 }
 
-fn load_header(index: u32) -> ConstraintHeader {
+// The header of constraint `index` on bodies `pair`, from 5 of its 8 words. The sweeps are
+// bound by the bytes they load (about a fifth of their time on the settled 100k pile, more at
+// 500k), so what the header's other words hold comes from elsewhere: the tangents from the
+// normal (tangent_basis, as the rows' build made them), the inverse masses from the bodies
+// (prepare_bodies and the rows read the same masses; a static side is both 0), and the
+// restitution, which the restitution sweep alone needs, from its own word there. A solve
+// sweep also computes the rows' masses (`point_masses`) instead of loading a word a point.
+// Each is the same arithmetic as the value it replaces: the results are bitwise the same.
+fn load_header(index: u32, pair: BodyPair) -> ConstraintHeader {
     let normal = contacts[lane_word(index, HEADER_NORMAL)];
-    let tangent1 = contacts[lane_word(index, HEADER_TANGENT1)];
-    let tangent2 = contacts[lane_word(index, HEADER_TANGENT2)];
     let masses = contacts[lane_word(index, HEADER_MASSES)];
     let inertias = inertias_of(array<vec4<f32>, 3>(contacts[lane_word(index, HEADER_INERTIA)],
         contacts[lane_word(index, HEADER_INERTIA + 1u)],
         contacts[lane_word(index, HEADER_INERTIA + 2u)]));
-    return ConstraintHeader(normal.xyz, tangent1.xyz, tangent2.xyz, tangent2.w, masses.x,
-        normal.w, tangent1.w, Softness(masses.y, masses.z, masses.w), inertias);
+    let tangents = tangent_basis(normal.xyz);
+    return ConstraintHeader(normal.xyz, tangents[0], tangents[1], pair[0].inverse_mass,
+        pair[1].inverse_mass, normal.w, Softness(masses.y, masses.z, masses.w), inertias);
 }
 
 fn warm_start_contact(index: u32) {
@@ -202,7 +210,7 @@ fn warm_start_point(h: ConstraintHeader, point: PointRows, pair: BodyPair) -> Bo
 // PGS sweeps load and store them in `bodies`, the Jacobi sweeps (jacobi.wgsl) keep copies.
 fn warm_start_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     let count = load_ids(index).w;
-    let h = load_header(index);
+    let h = load_header(index, start);
     let p0 = load_point(index, 0u, count);
     let p1 = load_point(index, 1u, count);
     let p2 = load_point(index, 2u, count);
@@ -296,14 +304,26 @@ fn solve_friction(h: ConstraintHeader, point: ptr<function, PointRows>, pair: Bo
     return out;
 }
 
+// The rows' masses of `point` (normal, tangents), as the rows' build computed them.
+fn point_masses(h: ConstraintHeader, point: PointRows) -> vec3<f32> {
+    let masses = h.mass_a + h.mass_b;
+    return vec3<f32>(row_mass(h.normal, point.anchor_a, point.anchor_b, h.inertias, masses),
+        row_mass(h.tangent1, point.anchor_a, point.anchor_b, h.inertias, masses),
+        row_mass(h.tangent2, point.anchor_a, point.anchor_b, h.inertias, masses));
+}
+
 // With `store_sums`, it also stores what the impulses add up to (lanes.wgsl's impulse sums).
 fn solve_contact_pair(index: u32, start: BodyPair, store_sums: bool) -> BodyPair {
     let count = load_ids(index).w;
-    let h = load_header(index);
+    let h = load_header(index, start);
     var p0 = load_point(index, 0u, count);
     var p1 = load_point(index, 1u, count);
     var p2 = load_point(index, 2u, count);
     var p3 = load_point(index, 3u, count);
+    p0.masses = point_masses(h, p0);
+    p1.masses = point_masses(h, p1);
+    p2.masses = point_masses(h, p2);
+    p3.masses = point_masses(h, p3);
     var pair = start;
     if count > 0u {
         pair = solve_normal(h, &p0, pair);
@@ -380,7 +400,8 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
     if contacts[lane_word(index, HEADER_TANGENT1)].w == 0.0 {
         return start;
     }
-    let h = load_header(index);
+    let h = load_header(index, start);
+    let restitution = contacts[lane_word(index, HEADER_TANGENT1)].w;
     var pair = start;
     let count = load_ids(index).w;
     for (var k = 0u; k < count; k++) {
@@ -394,7 +415,7 @@ fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
         let arms = Arms(cross(contacts[point_word(index, k, POINT_ANCHOR_A)].xyz, h.normal),
             cross(contacts[point_word(index, k, POINT_ANCHOR_B)].xyz, h.normal));
         let velocity = row_velocity(h.normal, arms, pair);
-        let total = max(impulses.x - (velocity + h.restitution * approach) * masses.x, 0.0);
+        let total = max(impulses.x - (velocity + restitution * approach) * masses.x, 0.0);
         let delta = total - impulses.x;
         store_impulses(index, k, total, impulses.y, impulses.z, max(impulses.w, total));
         pair = apply(h, h.normal, arms, delta, pair);
