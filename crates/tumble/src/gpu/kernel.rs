@@ -92,7 +92,8 @@ pub struct Kernel {
 }
 
 /// `name` as a `&'static str`, each distinct name leaked once: a process compiles a bounded
-/// set of kernels, and the profile's lines are named by `&'static str`.
+/// set of kernels and names a bounded set of dispatches (a kernel's, or a solver batch's,
+/// [`Dispatch::named`]), and the profile's lines are named by `&'static str`.
 pub(crate) fn intern(name: String) -> &'static str {
     static NAMES: OnceLock<Mutex<HashSet<&'static str>>> = OnceLock::new();
     let mut names = NAMES

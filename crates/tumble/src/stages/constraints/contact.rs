@@ -16,14 +16,16 @@
 //! arms and `I⁻¹(r × d)` from the inertia. Storing `I⁻¹(r × d)` per row there (as Bullet's
 //! solver does) was 24 bytes a row, 72 a point: the sweeps, bound by what they load, read a
 //! two-point constraint in 16 words instead of 23 (on an H100 the pile's sweeps took 2.60 ms
-//! a step instead of 2.85). The solve sweeps there compute the `1/K` too, and take the
-//! tangents from the normal and the inverse masses from the bodies, rather than load them
-//! (`load_header` in `solver.wgsl`: 2.51 → 2.40 ms of sweeps on the pile, 19.1 → 18.0 ms a
-//! step at 500k). The CPU keeps each row's `I⁻¹(r × d)` (`Row::angular_a`, computed
+//! a step instead of 2.85). The CPU keeps each row's `I⁻¹(r × d)` (`Row::angular_a`, computed
 //! by the same expression): its sweeps run from the cache and are bound by arithmetic, and
-//! computing it in every sweep made them 12% slower. The Jacobians are fixed at
-//! the start of the step (Box2D v3 does the same across its sub-steps); only the separation is
-//! tracked through the sub-steps, from the bodies' delta positions and rotations:
+//! computing it in every sweep made them 12% slower. The device's solve sweeps compute the
+//! `1/K` too, and take the tangents from the normal and the inverse masses from the bodies,
+//! rather than load them (`load_header` in `solver.wgsl`: 2.51 → 2.40 ms of sweeps on the
+//! pile, 19.1 → 18.0 ms a step at 500k): so a constraint solved there must hold
+//! `tangent_basis(normal)` and its bodies' inverse masses, as every built one does. The
+//! Jacobians are fixed at the start of the step (Box2D v3 does the same across its sub-steps);
+//! only the separation is tracked through the sub-steps, from the bodies' delta positions and
+//! rotations:
 //!
 //! ```text
 //!   s = n·((Δp_a + ΔR_a r_a) − (Δp_b + ΔR_b r_b)) + adjusted_separation,

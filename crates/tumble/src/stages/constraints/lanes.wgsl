@@ -1,9 +1,7 @@
 // Contact constraints on the GPU in blocks of CONSTRAINT_LANES, word by word
 // (stages/constraints/lanes.rs): a thread per constraint, a warp reads or writes each word in
 // contiguous memory. The fields are ContactConstraint's (stages/constraints/contact.rs), the
-// header's in their order, a point's arranged so that what a sweep writes shares a word (a
-// solve sweep loads header words 0, 1, 4 to 7 and point words 0, 1, 3, and computes the rest:
-// solver.wgsl's load_header):
+// header's in their order, a point's arranged so that what a sweep writes shares a word:
 //   header word 0   body_a, body_b, pair, point_count (u32)
 //               1   normal, friction
 //               2   tangent1, restitution
@@ -18,7 +16,10 @@
 //               2   the rows' masses: normal, tangent[0], tangent[1]; approach_velocity
 //               3   the impulses: normal, tangent[0], tangent[1], max_normal_impulse
 // So row r (0: normal, 1, 2: the tangents) has its mass in lane r of word 2 and its impulse
-// in lane r of word 3. Past the points, the impulse sums (impulse_sums in lanes.rs), which
+// in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 4 to 7 and point
+// words 0, 1 and 3 alone: it takes the tangents from the normal and the inverse masses from
+// the bodies, and a solve computes the rows' masses (solver.wgsl's load_header says why); the
+// restitution sweep reads word 2's restitution and point word 2. Past the points, the impulse sums (impulse_sums in lanes.rs), which
 // the warm start by body reads instead of the rows:
 //   SUMS_WORD       Σ d λ over the points' rows, 0
 //               1   Σ I_a⁻¹(r_a × d) λ, inverse_mass_a

@@ -36,10 +36,12 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, intern, workgroups_for,
 };
 use crate::gpu::profiler::DispatchTimer;
-use crate::math::Vec3;
+use crate::math::{Vec3, tangent_basis};
 use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
 use crate::stages::constraints::lanes::{Word, lay_out, read_back, with_lanes};
-use crate::stages::constraints::{CONTACT_CONSTRAINT_WGSL, JOINT_CONSTRAINT_WGSL, JointConstraint};
+use crate::stages::constraints::{
+    CONTACT_CONSTRAINT_WGSL, ContactConstraint, JOINT_CONSTRAINT_WGSL, JointConstraint, STATIC_BODY,
+};
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 
 pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
@@ -232,6 +234,23 @@ fn plan(batch_count: u32, size: impl Fn(u32) -> u32, alone: Option<u32>) -> Vec<
     stages
 }
 
+/// Whether `contacts` hold what the device's contact sweeps take from elsewhere instead of
+/// loading it (`load_header` in `solver.wgsl`): each side's inverse mass is its body's (0 for a
+/// static side), and the tangents are `tangent_basis(normal)`. Every constraint the rows build
+/// does; a hand-made one that does not would be solved differently on the two executors.
+fn derived_fields_hold(bodies: &[SolverBody], contacts: &[ContactConstraint]) -> bool {
+    let mass = |body: u32| match body {
+        STATIC_BODY => Some(0.0),
+        body => bodies.get(body as usize).map(|b| b.inverse_mass),
+    };
+    contacts.iter().all(|c| {
+        let (tangent1, tangent2) = tangent_basis(c.normal);
+        mass(c.body_a) == Some(c.inverse_mass_a)
+            && mass(c.body_b) == Some(c.inverse_mass_b)
+            && [tangent1, tangent2] == c.tangents()
+    })
+}
+
 /// Constraints of batch `batch`: its contacts and its joints.
 fn batch_size(contact_offsets: &[u32], joint_offsets: &[u32], batch: usize) -> u32 {
     contact_offsets[batch + 1] - contact_offsets[batch] + joint_offsets[batch + 1]
@@ -357,6 +376,10 @@ impl HostArrays {
         batched: &mut Batched,
         encode: impl FnOnce(&mut wgpu::ComputePass<'_>, &GpuVec<SolverBody>, &DeviceBatched, bool),
     ) -> Result<(), GpuError> {
+        debug_assert!(
+            derived_fields_hold(bodies, batched.contacts),
+            "the device's contact sweeps take tangents and inverse masses from elsewhere"
+        );
         self.bodies.upload(context, bodies)?;
         lay_out(batched.contacts, &mut self.words);
         self.contacts.upload(context, &self.words)?;
@@ -470,7 +493,7 @@ impl GpuSolver {
     }
 
     /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them) and
-    /// the `batched` constraints. `restitution`: whether any contact bounces (false skips the
+    /// the `batched` constraints, as the rows build them (see [`Self::run`]). `restitution`: whether any contact bounces (false skips the
     /// restitution sweep, which would change nothing). Returns the number of dispatches
     /// encoded.
     pub fn encode(
@@ -486,7 +509,9 @@ impl GpuSolver {
     }
 
     /// The soft step with [`solve`](super::solve)'s signature: uploads the bodies and the
-    /// batched contacts and joints, solves on the GPU, downloads all three.
+    /// batched contacts and joints, solves on the GPU, downloads all three. The contacts must
+    /// be as the rows build them: each side's inverse mass its body's, the tangents
+    /// `tangent_basis(normal)` (the sweeps take them from there; checked in debug builds).
     pub fn run(
         &mut self,
         bodies: &mut [SolverBody],

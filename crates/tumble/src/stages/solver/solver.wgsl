@@ -105,8 +105,8 @@ fn apply(h: ConstraintHeader, direction: vec3<f32>, arms: Arms, impulse: f32, pa
 // 100 µs instead of a few. The order of operations is the CPU's (contact.rs): points 0 to
 // count − 1, normal rows, then friction rows.
 
-// The rows and state of one point as the sweeps read and write them: its four words
-// (lanes.wgsl).
+// The rows and state of one point as the sweeps read and write them: its words (lanes.wgsl)
+// but the one of masses, which a solve sweep computes.
 struct PointRows {
     anchor_a: vec3<f32>,
     adjusted_separation: f32,
@@ -128,7 +128,7 @@ fn load_ids(index: u32) -> vec4<u32> {
     return bitcast<vec4<u32>>(contacts[lane_word(index, HEADER_IDS)]);
 }
 
-// Point `k` of constraint `index` but its rows' masses, or no point past its count (then
+// Point `k` of constraint `index` except its rows' masses, or no point past its count (then
 // never used).
 fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     if k >= count {
@@ -173,14 +173,16 @@ struct ConstraintHeader {
     inertias: array<SymmetricMat3, 2>,
 }
 
-// The header of constraint `index` on bodies `pair`, from 5 of its 8 words. The sweeps are
-// bound by the bytes they load (about a fifth of their time on the settled 100k pile, more at
-// 500k), so what the header's other words hold comes from elsewhere: the tangents from the
-// normal (tangent_basis, as the rows' build made them), the inverse masses from the bodies
-// (prepare_bodies and the rows read the same masses; a static side is both 0), and the
-// restitution, which the restitution sweep alone needs, from its own word there. A solve
-// sweep also computes the rows' masses (`point_masses`) instead of loading a word a point.
-// Each is the same arithmetic as the value it replaces: the results are bitwise the same.
+// The header of constraint `index` on bodies `pair`, from 5 of its 8 words (the ids, word 0,
+// come apart). A sweep's time grows with the bytes it loads (0.3 ns a constraint on an H100,
+// about half the sweeps' time on the settled 100k pile and three quarters at 500k), so what
+// the other words hold comes from elsewhere: the tangents from the normal (tangent_basis, as
+// the rows' build makes them), the inverse masses from the bodies (prepare_bodies and the rows
+// read the same masses; a static side is 0 in both), and the restitution, which the
+// restitution sweep alone needs, from its word there. A solve sweep also computes the rows'
+// masses (`point_masses`) instead of loading a word a point. For rows the device built, each
+// is the arithmetic that made the value it replaces (the results were bitwise the same on
+// lavapipe and an H100); for rows the host built, they agree to rounding, as the executors do.
 fn load_header(index: u32, pair: BodyPair) -> ConstraintHeader {
     let normal = contacts[lane_word(index, HEADER_NORMAL)];
     let masses = contacts[lane_word(index, HEADER_MASSES)];
@@ -320,21 +322,21 @@ fn solve_contact_pair(index: u32, start: BodyPair, store_sums: bool) -> BodyPair
     var p1 = load_point(index, 1u, count);
     var p2 = load_point(index, 2u, count);
     var p3 = load_point(index, 3u, count);
-    p0.masses = point_masses(h, p0);
-    p1.masses = point_masses(h, p1);
-    p2.masses = point_masses(h, p2);
-    p3.masses = point_masses(h, p3);
     var pair = start;
     if count > 0u {
+        p0.masses = point_masses(h, p0);
         pair = solve_normal(h, &p0, pair);
     }
     if count > 1u {
+        p1.masses = point_masses(h, p1);
         pair = solve_normal(h, &p1, pair);
     }
     if count > 2u {
+        p2.masses = point_masses(h, p2);
         pair = solve_normal(h, &p2, pair);
     }
     if count > 3u {
+        p3.masses = point_masses(h, p3);
         pair = solve_normal(h, &p3, pair);
     }
     if count > 0u {
@@ -397,11 +399,11 @@ fn restitution_contact(index: u32) {
 }
 
 fn restitution_contact_pair(index: u32, start: BodyPair) -> BodyPair {
-    if contacts[lane_word(index, HEADER_TANGENT1)].w == 0.0 {
+    let restitution = contacts[lane_word(index, HEADER_TANGENT1)].w;
+    if restitution == 0.0 {
         return start;
     }
     let h = load_header(index, start);
-    let restitution = contacts[lane_word(index, HEADER_TANGENT1)].w;
     var pair = start;
     let count = load_ids(index).w;
     for (var k = 0u; k < count; k++) {
