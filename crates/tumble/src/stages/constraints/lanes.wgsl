@@ -19,8 +19,8 @@
 // in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 4 to 7 and point
 // words 0, 1 and 3 alone: it takes the tangents from the normal and the inverse masses from
 // the bodies, and a solve computes the rows' masses (solver.wgsl's load_header says why); the
-// restitution sweep reads word 2's restitution and point word 2. Past the points, the impulse sums (impulse_sums in lanes.rs), which
-// the warm start by body reads instead of the rows:
+// restitution sweep reads word 2's restitution and point word 2. Past the points, the impulse
+// sums (impulse_sums in lanes.rs), which the warm start by body reads instead of the rows:
 //   SUMS_WORD       Σ d λ over the points' rows, 0
 //               1   Σ I_a⁻¹(r_a × d) λ, inverse_mass_a
 //               2   Σ I_b⁻¹(r_b × d) λ, inverse_mass_b

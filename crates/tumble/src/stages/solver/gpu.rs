@@ -493,9 +493,9 @@ impl GpuSolver {
     }
 
     /// Encodes the whole soft step over device-resident arrays: `bodies` (all of them) and
-    /// the `batched` constraints, as the rows build them (see [`Self::run`]). `restitution`: whether any contact bounces (false skips the
-    /// restitution sweep, which would change nothing). Returns the number of dispatches
-    /// encoded.
+    /// the `batched` constraints, as the rows build them (see [`Self::run`]). `restitution`:
+    /// whether any contact bounces (false skips the restitution sweep, which would change
+    /// nothing). Returns the number of dispatches encoded.
     pub fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
@@ -618,11 +618,11 @@ impl SolverEncoder {
         let body_group = bound.groups[stages.len() * VARIANTS].clone();
         let dispatches = &mut self.dispatches;
         dispatches.clear();
-        // A stage with joints runs the mixed twin of the contact-only kernel, a walk without
-        // joints the walk's.
         // Where each dispatch is timed, a parallel batch's line names its batch: how a
         // batch's time grows with its size tells launches from bytes.
         let by_batch = DispatchTimer::is_active();
+        // A stage with joints runs the mixed twin of the contact-only kernel, a walk without
+        // joints the walk's.
         let sweep = |dispatches: &mut Vec<Dispatch>, kernels: SweepKernels, variant: Variant| {
             for (stage, &(groups, joints)) in stage_sizes.iter().enumerate() {
                 let kernel = match (joints, stages[stage].mode) {
