@@ -34,9 +34,7 @@ use crate::stages::narrowphase::{
 use crate::stages::pairs::gpu::GpuPairDiff;
 use crate::stages::solver::adjacency::{AdjacencyInputs, GpuBodyAdjacency};
 use crate::stages::solver::batched::{BatchedImpulses, BatchedJointImpulses, GpuBatched};
-use crate::stages::solver::gpu::{
-    BatchSizes, BodyInertia, DeviceBatched, GpuSolver, SMALL_BATCH, SolverBodies, host_inertias,
-};
+use crate::stages::solver::gpu::{BatchSizes, DeviceBatched, GpuSolver, SMALL_BATCH};
 use crate::stages::solver::jacobi_gpu::GpuJacobi;
 use crate::stages::solver::{Batched, SolverBody, SolverKind, SolverSettings};
 
@@ -656,10 +654,7 @@ pub(crate) struct GpuStages {
     /// The solver's bodies, constraints in batch order and batch offsets (contacts, then
     /// joints) on the device; [`Self::solve_batched`] uses the offsets and the bodies.
     solver_bodies: GpuVec<SolverBody>,
-    /// Each solver body's inverse inertia, which the contact sweeps read ([`SolverBodies`]).
-    solver_inertias: GpuVec<BodyInertia>,
-    /// Makes `solver_bodies` and `solver_inertias` from the bodies on the device (batched
-    /// solves).
+    /// Makes `solver_bodies` from the velocities and masses on the device (batched solves).
     prepare_bodies: GpuPrepareBodies,
     /// Stage 8 on the device: the motion in `solver_bodies` into the poses and velocities.
     finalize_bodies: GpuFinalizeBodies,
@@ -709,8 +704,6 @@ pub(crate) struct GpuStages {
     collider_data: Vec<ColliderData>,
     downloaded: Vec<PairContact>,
     downloaded_bodies: Vec<SolverBody>,
-    /// `solver_inertias` on the host, on their way up (a host solve's).
-    host_inertias: Vec<BodyInertia>,
     /// `batched_contacts` on the host, on their way up and down.
     constraint_words: Vec<Word>,
     downloaded_joints: Vec<JointConstraint>,
@@ -804,7 +797,6 @@ impl GpuStages {
             jacobi: None,
             batched: GpuBatched::new(&context)?,
             solver_bodies: GpuVec::with_capacity(&context, "solver bodies", 0)?,
-            solver_inertias: GpuVec::with_capacity(&context, "solver inertias", 0)?,
             prepare_bodies: GpuPrepareBodies::new(&context),
             finalize_bodies: GpuFinalizeBodies::new(&context)?,
             batched_contacts: GpuVec::with_capacity(&context, "batched contacts", 0)?,
@@ -833,7 +825,6 @@ impl GpuStages {
             collider_data: Vec::new(),
             downloaded: Vec::new(),
             downloaded_bodies: Vec::new(),
-            host_inertias: Vec::new(),
             constraint_words: Vec::new(),
             downloaded_joints: Vec::new(),
             context,
@@ -2018,8 +2009,6 @@ impl GpuStages {
             )?;
         }
         self.solver_bodies.upload(context, bodies)?;
-        host_inertias(bodies, batched.contacts, &mut self.host_inertias);
-        self.solver_inertias.upload(context, &self.host_inertias)?;
         lay_out(batched.contacts, &mut self.constraint_words);
         self.batched_contacts
             .upload(context, &self.constraint_words)?;
@@ -2042,11 +2031,7 @@ impl GpuStages {
         };
         record_copy(profiler, SOLVER.upload, elapsed_ms(start));
         let restitution = batched.contacts.iter().any(|c| c.restitution > 0.0);
-        let solver = &mut self.solver;
-        let device_bodies = SolverBodies {
-            motion: &self.solver_bodies,
-            inertias: &self.solver_inertias,
-        };
+        let (solver, device_bodies) = (&mut self.solver, &self.solver_bodies);
         let device_batched = DeviceBatched {
             contacts: &self.batched_contacts,
             contact_offsets: &self.batch_offsets,
@@ -2092,7 +2077,7 @@ impl GpuStages {
                 })?;
                 if integrate.is_some() {
                     encode_pass(encoder, timer, SOLVER_INTEGRATE_KERNEL, |pass| {
-                        let motion = (device_bodies.motion, &device.poses, &device.velocities);
+                        let motion = (device_bodies, &device.poses, &device.velocities);
                         finalize.encode(context, pass, motion);
                         Ok(())
                     })?;
@@ -2263,7 +2248,6 @@ impl GpuStages {
             )?;
         }
         self.solver_bodies.resize(context, bodies.len())?;
-        self.solver_inertias.resize(context, bodies.len())?;
         let (joint_order, host_sizes) = match &layout {
             BatchLayout::Host {
                 order,
@@ -2481,7 +2465,6 @@ impl GpuStages {
         let spans = if plan.jacobi { &JACOBI_SOLVER } else { &SOLVER };
         let jacobi = self.jacobi.as_mut().filter(|_| plan.jacobi);
         let solver_bodies = &mut self.solver_bodies;
-        let solver_inertias = &self.solver_inertias;
         let (prepare, finalize) = (&mut self.prepare_bodies, &mut self.finalize_bodies);
         let (rest, roots) = (&mut self.rest, self.island_links.roots());
         let device = &mut self.bodies;
@@ -2498,12 +2481,13 @@ impl GpuStages {
         // Three passes, timed apart: the rows into batch order (and the adjacency), the
         // sweeps, the impulses out.
         encode_pass(encoder, timer, SOLVER_LAYOUT_KERNEL, |pass| {
-            let bodies = SolverBodies {
-                motion: solver_bodies,
-                inertias: solver_inertias,
-            };
-            let inputs = (&device.velocities, &device.masses, &device.poses);
-            prepare.encode(context, pass, inputs, bodies);
+            prepare.encode(
+                context,
+                pass,
+                &device.velocities,
+                &device.masses,
+                solver_bodies,
+            );
             if plan.joints {
                 joint_rows.encode_gather(context, pass);
             }
@@ -2540,15 +2524,21 @@ impl GpuStages {
                     .then_some((&adjacency.starts, &adjacency.entries)),
             };
             let settings = plan.settings;
-            let bodies = SolverBodies {
-                motion: solver_bodies,
-                inertias: solver_inertias,
-            };
             match jacobi {
-                Some(jacobi) => {
-                    jacobi.encode(pass, bodies, &device_batched, settings, plan.restitution)
-                }
-                None => solver.encode(pass, bodies, &device_batched, settings, plan.restitution),
+                Some(jacobi) => jacobi.encode(
+                    pass,
+                    solver_bodies,
+                    &device_batched,
+                    settings,
+                    plan.restitution,
+                ),
+                None => solver.encode(
+                    pass,
+                    solver_bodies,
+                    &device_batched,
+                    settings,
+                    plan.restitution,
+                ),
             };
             Ok(())
         })?;
@@ -2631,7 +2621,6 @@ impl GpuStages {
         let batching_commands = encoder.finish();
         plan.expected = Some(self.expected_batch_sizes);
         self.solver_bodies.resize(&self.context, plan.bodies)?;
-        self.solver_inertias.resize(&self.context, plan.bodies)?;
         let mut encoder =
             self.context
                 .device

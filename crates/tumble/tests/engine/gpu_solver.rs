@@ -780,9 +780,7 @@ fn device_layout_sizes_solve_as_host_offsets() {
     use tumble::gpu::buffer::GpuVec;
     use tumble::stages::batching::MAX_COLORS;
     use tumble::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
-    use tumble::stages::solver::gpu::{
-        BatchSizes, DeviceBatched, SMALL_BATCH, SolverBodies, host_inertias,
-    };
+    use tumble::stages::solver::gpu::{BatchSizes, DeviceBatched, SMALL_BATCH};
 
     let context = context();
     let settings = substeps();
@@ -844,9 +842,6 @@ fn device_layout_sizes_solve_as_host_offsets() {
         let restitution = problem.contacts.iter().any(|c| c.restitution > 0.0);
         let all_walked = vec![0; LAYOUT_BATCHES];
         let all_small_dispatches = vec![SMALL_BATCH; LAYOUT_BATCHES];
-        let mut inertias = Vec::new();
-        host_inertias(&problem.bodies, &problem.contacts, &mut inertias);
-        let inertias = GpuVec::from_slice(&context, "test inertias", &inertias).unwrap();
         for expected in [&all_walked, &all_small_dispatches, &sizes] {
             let mut bodies_on_device =
                 GpuVec::from_slice(&context, "test bodies", &problem.bodies).unwrap();
@@ -861,12 +856,8 @@ fn device_layout_sizes_solve_as_host_offsets() {
                 sizes: BatchSizes::Device { expected },
                 adjacency: None,
             };
-            let bodies = SolverBodies {
-                motion: &bodies_on_device,
-                inertias: &inertias,
-            };
             context.submit_pass("device sizes", |pass| {
-                solver.encode(pass, bodies, &device, settings, restitution)
+                solver.encode(pass, &bodies_on_device, &device, settings, restitution)
             });
             let what = format!("{pairs} pairs, hub {hub}, expected {:?}", &expected[..12]);
             let device_bodies = bodies_on_device.download(&context).unwrap();

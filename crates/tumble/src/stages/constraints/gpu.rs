@@ -21,7 +21,6 @@ use crate::gpu::kernel::{
 use crate::gpu::prims::scan::{Scan, ScanKind};
 use crate::pipeline::config::Softness;
 use crate::stages::narrowphase::{PAIR_CONTACT_WGSL, PairContact};
-use crate::stages::solver::gpu::BODY_INERTIA_WGSL;
 
 const WGSL: &str = include_str!("rows.wgsl");
 const BINDINGS: [Binding; 11] = [
@@ -66,7 +65,6 @@ pub fn wgsl() -> Source {
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
-        .snippet("body_inertia.wgsl", BODY_INERTIA_WGSL)
         .snippet("rows.wgsl", WGSL)
 }
 

@@ -16,11 +16,10 @@
 //               2   the rows' masses: normal, tangent[0], tangent[1]; approach_velocity
 //               3   the impulses: normal, tangent[0], tangent[1], max_normal_impulse
 // So row r (0: normal, 1, 2: the tangents) has its mass in lane r of word 2 and its impulse
-// in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 4 and point
-// words 0, 1 and 3 alone: it takes the tangents from the normal and the inverse masses and
-// inertias from the bodies, and a solve computes the rows' masses (solver.wgsl's load_header
-// says why); the restitution sweep reads word 2's restitution and point word 2. The host reads
-// the words no sweep loads when it takes the device's rows back. Past the points, the impulse
+// in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 4 to 7 and point
+// words 0, 1 and 3 alone: it takes the tangents from the normal and the inverse masses from
+// the bodies, and a solve computes the rows' masses (solver.wgsl's load_header says why); the
+// restitution sweep reads word 2's restitution and point word 2. Past the points, the impulse
 // sums (impulse_sums in lanes.rs), which the warm start by body reads instead of the rows:
 //   SUMS_WORD       Σ d λ over the points' rows, 0
 //               1   Σ I_a⁻¹(r_a × d) λ, inverse_mass_a
@@ -38,8 +37,7 @@ const POINT_MASSES: u32 = 2u;
 const POINT_IMPULSES: u32 = 3u;
 
 // math.rs's SymmetricMat3: [0] the diagonal (xx, yy, zz), [1] the rest (xy, xz, yz). It lives
-// in registers; in memory its 24 bytes are packed into the header's words (`inertia_words`)
-// and into the solver's two words a body (body_inertia.wgsl).
+// in registers; in memory its 24 bytes are packed into the header's words (`inertias_of`).
 // An array, not a struct: no struct without a Rust twin of the same layout (as ImpulseSums).
 alias SymmetricMat3 = array<vec3<f32>, 2>;
 
@@ -65,6 +63,13 @@ fn add_row(sums: ImpulseSums, direction: vec3<f32>, arm_a: vec3<f32>, arm_b: vec
         sums[2] + symmetric_mul(inertias[1], arm_b) * impulse);
 }
 
+// The two inverse inertias, A's and B's, from a constraint's header words 5 to 7.
+fn inertias_of(words: array<vec4<f32>, 3>) -> array<SymmetricMat3, 2> {
+    let a = SymmetricMat3(words[0].xyz, vec3<f32>(words[0].w, words[1].xy));
+    let b = SymmetricMat3(vec3<f32>(words[1].zw, words[2].x), words[2].yzw);
+    return array<SymmetricMat3, 2>(a, b);
+}
+
 // The effective mass 1/K of the row along `direction` at a point with arms `r_a`, `r_b`, on
 // bodies of inverse masses summing to `inverse_masses` (contact.rs; the rows' build and the
 // solve sweep, which computes it rather than loading it).
@@ -87,7 +92,7 @@ fn moment(arm: vec3<f32>, inertia: SymmetricMat3) -> f32 {
     return arm.x * turn.x + arm.y * turn.y + arm.z * turn.z;
 }
 
-// Header words 5 to 7 holding `a` and `b`.
+// Header words 5 to 7 holding `a` and `b` (`inertias_of` undone).
 fn inertia_words(a: SymmetricMat3, b: SymmetricMat3) -> array<vec4<f32>, 3> {
     return array<vec4<f32>, 3>(vec4<f32>(a[0], a[1].x), vec4<f32>(a[1].yz, b[0].xy),
         vec4<f32>(b[0].z, b[1]));

@@ -65,10 +65,14 @@ fn flag(
     }
 }
 
-// Body `body`'s world-frame inverse inertia (body_inertia.wgsl; prepare.wgsl makes the
-// solver's copy with the same function).
-fn body_inverse_inertia(body: u32) -> SymmetricMat3 {
-    return world_inverse_inertia(poses[body].rotation, masses[body].inverse_inertia);
+// R diag(inverse_inertia) Rᵀ: the world-frame inverse inertia (zero for static bodies), by
+// its upper triangle (SymmetricMat3::from_upper).
+fn world_inverse_inertia(body: u32) -> SymmetricMat3 {
+    let r = mat3_from_quat(poses[body].rotation);
+    let d = masses[body].inverse_inertia;
+    let scaled = mat3x3<f32>(r[0] * d.x, r[1] * d.y, r[2] * d.z);
+    let m = scaled * transpose(r);
+    return SymmetricMat3(vec3<f32>(m[0].x, m[1].y, m[2].z), vec3<f32>(m[1].x, m[2].x, m[2].y));
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -111,7 +115,7 @@ fn build(
     constraints[lane_word(place, HEADER_MASSES)] = vec4<f32>(mass_b, softness.xyz);
     let center_a = poses[a].position;
     let center_b = poses[b].position;
-    let inertias = array<SymmetricMat3, 2>(body_inverse_inertia(a), body_inverse_inertia(b));
+    let inertias = array<SymmetricMat3, 2>(world_inverse_inertia(a), world_inverse_inertia(b));
     // Word by word, not in a loop: an array indexed by a loop variable goes to local memory.
     let inertia = inertia_words(inertias[0], inertias[1]);
     constraints[lane_word(place, HEADER_INERTIA)] = inertia[0];

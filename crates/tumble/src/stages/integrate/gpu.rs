@@ -2,9 +2,7 @@
 //! makes the solver's bodies from the velocities and masses the step already has on the
 //! device, and [`finalize_bodies`](super::finalize_bodies) (`finalize.wgsl`) moves the poses
 //! and sets the velocities there, so the bodies stay on the device from step to step. The
-//! prepared bodies are bit for bit the CPU's (the same selects, no arithmetic); beside them
-//! goes each body's world-frame inverse inertia, computed as the rows' build computes it, which
-//! the contact sweeps read there ([`SolverBodies`]). The finalization
+//! preparation is bit for bit the CPU's (the same selects, no arithmetic); the finalization
 //! writes glam's quaternion product and normalization in its order of operations, but a GPU
 //! may fuse a multiply and an add, so it agrees with the CPU to rounding.
 
@@ -17,10 +15,9 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, WORKGROUP_SIZE, encode_all, workgroups_for,
 };
 use crate::stages::constraints::CONTACT_CONSTRAINT_WGSL;
-use crate::stages::constraints::lanes::with_lanes;
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 use crate::stages::solver::SolverBody;
-use crate::stages::solver::gpu::{BODY_INERTIA_WGSL, SOLVER_BODY_WGSL, SolverBodies};
+use crate::stages::solver::gpu::SOLVER_BODY_WGSL;
 
 const PREPARE_WGSL: &str = include_str!("prepare.wgsl");
 const FINALIZE_WGSL: &str = include_str!("finalize.wgsl");
@@ -38,12 +35,11 @@ pub struct BodyCount {
 
 /// A body kernel's source: the body structs, `body_count.wgsl`, then the kernel file.
 fn wgsl(file: &str, text: &str) -> Source {
-    with_lanes(Source::new())
+    Source::new()
         .constant_f32("MAX_ROTATION_PER_STEP", MAX_ROTATION_PER_STEP)
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
         .snippet("solver_body.wgsl", SOLVER_BODY_WGSL)
-        .snippet("body_inertia.wgsl", BODY_INERTIA_WGSL)
         .snippet("body_count.wgsl", BODY_COUNT_WGSL)
         .snippet(file, text)
 }
@@ -109,7 +105,7 @@ impl<const N: usize> BodyKernel<N> {
     }
 }
 
-pub struct GpuPrepareBodies(BodyKernel<5>);
+pub struct GpuPrepareBodies(BodyKernel<3>);
 
 impl GpuPrepareBodies {
     pub fn new(context: &GpuContext) -> Self {
@@ -122,30 +118,22 @@ impl GpuPrepareBodies {
                 Binding::StorageRead,
                 Binding::StorageRead,
                 Binding::StorageReadWrite,
-                Binding::StorageRead,
-                Binding::StorageReadWrite,
             ],
         ))
     }
 
-    /// Encodes `bodies.motion[i]` = the solver body of velocity `i` and mass `i`, and
-    /// `bodies.inertias[i]` its inverse inertia at pose `i`, for `bodies.motion.len()` bodies
-    /// (velocities, masses, poses and inertias hold at least as many).
+    /// Encodes `bodies[i]` = the solver body of velocity `i` and mass `i`, for `bodies.len()`
+    /// bodies (velocities and masses hold at least as many).
     pub fn encode(
         &mut self,
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
-        (velocities, masses, poses): (&GpuVec<BodyVelocity>, &GpuVec<BodyMass>, &GpuVec<BodyPose>),
-        bodies: SolverBodies,
+        velocities: &GpuVec<BodyVelocity>,
+        masses: &GpuVec<BodyMass>,
+        bodies: &GpuVec<SolverBody>,
     ) {
-        let buffers = [
-            velocities.buffer(),
-            masses.buffer(),
-            bodies.motion.buffer(),
-            poses.buffer(),
-            bodies.inertias.buffer(),
-        ];
-        self.0.encode(context, pass, buffers, bodies.motion.len());
+        let buffers = [velocities.buffer(), masses.buffer(), bodies.buffer()];
+        self.0.encode(context, pass, buffers, bodies.len());
     }
 }
 

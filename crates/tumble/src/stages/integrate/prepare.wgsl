@@ -1,17 +1,12 @@
 // integrate::prepare_bodies on the device: the solver's bodies at the start of the step, from
 // the bodies' velocities and masses already there (stages/integrate/gpu.rs), so the step
 // uploads no solver body. Dynamic bodies keep their velocities, the rest get none; no motion
-// yet. Each body's world-frame inverse inertia goes beside it, for the contact sweeps
-// (body_inertia.wgsl). Needs body.wgsl, solver_body.wgsl, body_count.wgsl, lanes.wgsl and
-// body_inertia.wgsl.
+// yet. Needs body.wgsl, solver_body.wgsl and body_count.wgsl.
 
 @group(0) @binding(0) var<uniform> params: BodyCount;
 @group(0) @binding(1) var<storage, read> velocities: array<BodyVelocity>;
 @group(0) @binding(2) var<storage, read> masses: array<BodyMass>;
 @group(0) @binding(3) var<storage, read_write> bodies: array<SolverBody>;
-@group(0) @binding(4) var<storage, read> poses: array<BodyPose>;
-// Two words a body (BodyInertia).
-@group(0) @binding(5) var<storage, read_write> inertias: array<vec4<f32>>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn prepare_bodies(
@@ -30,9 +25,4 @@ fn prepare_bodies(
     body.inverse_mass = inverse_mass;
     body.angular_velocity = select(vec3<f32>(0.0), velocities[index].angular, dynamic);
     bodies[index] = body;
-    // As the rows' build computes it (rows.wgsl), zero for a body without mass.
-    let inertia = world_inverse_inertia(poses[index].rotation, masses[index].inverse_inertia);
-    let words = body_inertia_words(inertia);
-    inertias[2u * index] = words[0];
-    inertias[2u * index + 1u] = words[1];
 }

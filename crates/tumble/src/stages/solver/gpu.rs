@@ -36,7 +36,7 @@ use crate::gpu::kernel::{
     Binding, Dispatch, Kernel, Source, UniformSlots, encode_all, intern, workgroups_for,
 };
 use crate::gpu::profiler::DispatchTimer;
-use crate::math::{SymmetricMat3, Vec3, tangent_basis};
+use crate::math::{Vec3, tangent_basis};
 use crate::stages::batching::layout::{LAYOUT_BATCHES, USED_END};
 use crate::stages::constraints::lanes::{Word, lay_out, read_back, with_lanes};
 use crate::stages::constraints::{
@@ -45,29 +45,26 @@ use crate::stages::constraints::{
 use crate::stages::integrate::MAX_ROTATION_PER_STEP;
 
 pub(crate) const SOLVER_BODY_WGSL: &str = include_str!("solver_body.wgsl");
-pub(crate) const BODY_INERTIA_WGSL: &str = include_str!("body_inertia.wgsl");
 const SOLVER_WGSL: &str = include_str!("solver.wgsl");
 const SOLVER_JOINT_WGSL: &str = include_str!("solver_joint.wgsl");
 const WARM_START_BODIES_WGSL: &str = include_str!("warm_start_bodies.wgsl");
-/// Parameters, bodies, contacts, contact offsets, joints, joint offsets, the bodies' inertias.
-const BINDINGS: [Binding; 7] = [
+/// Parameters, bodies, contacts, contact offsets, joints, joint offsets.
+const BINDINGS: [Binding; 6] = [
     Binding::Uniform,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageRead,
     Binding::StorageReadWrite,
     Binding::StorageRead,
-    Binding::StorageRead,
 ];
 /// [`BINDINGS`] and a body adjacency's starts and entries: `warm_start_bodies`.
-const ADJACENCY_BINDINGS: [Binding; 9] = [
+const ADJACENCY_BINDINGS: [Binding; 8] = [
     BINDINGS[0],
     BINDINGS[1],
     BINDINGS[2],
     BINDINGS[3],
     BINDINGS[4],
     BINDINGS[5],
-    BINDINGS[6],
     Binding::StorageRead,
     Binding::StorageRead,
 ];
@@ -124,52 +121,6 @@ const _: () = assert!(size_of::<SolverParams>() == 64);
 /// [`SolverParams::overflow_batch`] when no walk holds the overflow batch.
 pub const NO_BATCH: u32 = u32::MAX;
 
-/// A body's world-frame inverse inertia at the step's start, as the solver keeps it beside the
-/// bodies (`body_inertia_words` in `lanes.wgsl`): the diagonal and xy, then xz, yz and two
-/// zeros. The contact sweeps read it by body, 32 bytes a side that stay in the cache, rather
-/// than 48 bytes of each constraint streamed from memory at every sweep.
-pub type BodyInertia = [[f32; 4]; 2];
-
-/// `inertia` as a [`BodyInertia`].
-pub fn body_inertia(inertia: &SymmetricMat3) -> BodyInertia {
-    let (d, o) = (inertia.diagonal, inertia.off_diagonal);
-    [[d.x, d.y, d.z, o.x], [o.y, o.z, 0.0, 0.0]]
-}
-
-/// The inertias of `bodies` as `contacts` have them (zero for a body without one), for a solve
-/// of the host's constraints, which must hold what the device's sweeps take from the bodies
-/// and the normal (checked in debug builds, [`derived_fields_hold`]).
-pub fn host_inertias(
-    bodies: &[SolverBody],
-    contacts: &[ContactConstraint],
-    out: &mut Vec<BodyInertia>,
-) {
-    out.clear();
-    out.resize(bodies.len(), [[0.0; 4]; 2]);
-    for c in contacts {
-        for (body, inertia) in [
-            (c.body_a, &c.inverse_inertia_a),
-            (c.body_b, &c.inverse_inertia_b),
-        ] {
-            if let Some(slot) = out.get_mut(body as usize) {
-                *slot = body_inertia(inertia);
-            }
-        }
-    }
-    debug_assert!(
-        derived_fields_hold(bodies, out, contacts),
-        "the device's contact sweeps take tangents, inverse masses and inertias from elsewhere"
-    );
-}
-
-/// The solver's bodies on the device: their velocities and motion, and each one's inverse
-/// inertia ([`BodyInertia`]), as many.
-#[derive(Clone, Copy)]
-pub struct SolverBodies<'a> {
-    pub motion: &'a GpuVec<SolverBody>,
-    pub inertias: &'a GpuVec<BodyInertia>,
-}
-
 /// [`wgsl`] with the warm start by body (`warm_start_bodies`; the Jacobi solver's extra
 /// bindings are others).
 fn solver_wgsl() -> Source {
@@ -188,7 +139,6 @@ pub fn wgsl() -> Source {
         .snippet("contact_constraint.wgsl", CONTACT_CONSTRAINT_WGSL)
         .snippet("joint_constraint.wgsl", JOINT_CONSTRAINT_WGSL)
         .snippet("solver_body.wgsl", SOLVER_BODY_WGSL)
-        .snippet("body_inertia.wgsl", BODY_INERTIA_WGSL)
         .snippet("solver.wgsl", SOLVER_WGSL)
         .snippet("solver_joint.wgsl", SOLVER_JOINT_WGSL)
 }
@@ -285,28 +235,18 @@ fn plan(batch_count: u32, size: impl Fn(u32) -> u32, alone: Option<u32>) -> Vec<
 }
 
 /// Whether `contacts` hold what the device's contact sweeps take from elsewhere instead of
-/// loading it (`load_header` in `solver.wgsl`): each side's inverse mass is its body's and its
-/// inverse inertia the one in `inertias` ([`host_inertias`]; a static side has zero for both),
-/// and the tangents are `tangent_basis(normal)`. Every constraint the rows build does (all
-/// the constraints on a body have its inertia at the step's start); a hand-made one that does
-/// not would be solved differently on the two executors.
-fn derived_fields_hold(
-    bodies: &[SolverBody],
-    inertias: &[BodyInertia],
-    contacts: &[ContactConstraint],
-) -> bool {
-    let side = |body: u32, mass: f32, inertia: &SymmetricMat3| match body {
-        STATIC_BODY => mass == 0.0 && body_inertia(inertia) == [[0.0; 4]; 2],
-        body => {
-            let i = body as usize;
-            bodies.get(i).map(|b| b.inverse_mass) == Some(mass)
-                && inertias.get(i) == Some(&body_inertia(inertia))
-        }
+/// loading it (`load_header` in `solver.wgsl`): each side's inverse mass is its body's (0 for a
+/// static side), and the tangents are `tangent_basis(normal)`. Every constraint the rows build
+/// does; a hand-made one that does not would be solved differently on the two executors.
+fn derived_fields_hold(bodies: &[SolverBody], contacts: &[ContactConstraint]) -> bool {
+    let mass = |body: u32| match body {
+        STATIC_BODY => Some(0.0),
+        body => bodies.get(body as usize).map(|b| b.inverse_mass),
     };
     contacts.iter().all(|c| {
         let (tangent1, tangent2) = tangent_basis(c.normal);
-        side(c.body_a, c.inverse_mass_a, &c.inverse_inertia_a)
-            && side(c.body_b, c.inverse_mass_b, &c.inverse_inertia_b)
+        mass(c.body_a) == Some(c.inverse_mass_a)
+            && mass(c.body_b) == Some(c.inverse_mass_b)
             && [tangent1, tangent2] == c.tangents()
     })
 }
@@ -344,7 +284,7 @@ const VARIANTS: usize = 3;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
 type Key = (
-    [wgpu::Buffer; 6],
+    [wgpu::Buffer; 5],
     Option<[wgpu::Buffer; 2]>,
     usize,
     Vec<(u32, u32, StageMode)>,
@@ -406,9 +346,6 @@ pub struct GpuSolver {
 /// step, download.
 pub(crate) struct HostArrays {
     bodies: GpuVec<SolverBody>,
-    inertias: GpuVec<BodyInertia>,
-    /// The bodies' inertias on the host, on their way up ([`host_inertias`]).
-    host_inertias: Vec<BodyInertia>,
     contacts: GpuVec<Word>,
     /// The host's constraints in blocks of lanes, on their way to and from `contacts`.
     words: Vec<Word>,
@@ -421,8 +358,6 @@ impl HostArrays {
     pub(crate) fn new(context: &GpuContext) -> Result<Self, GpuError> {
         Ok(Self {
             bodies: GpuVec::with_capacity(context, "solver bodies", 0)?,
-            inertias: GpuVec::with_capacity(context, "solver inertias", 0)?,
-            host_inertias: Vec::new(),
             contacts: GpuVec::with_capacity(context, "solver contacts", 0)?,
             words: Vec::new(),
             contact_offsets: GpuVec::with_capacity(context, "solver contact batch offsets", 0)?,
@@ -439,11 +374,13 @@ impl HostArrays {
         label: &str,
         bodies: &mut [SolverBody],
         batched: &mut Batched,
-        encode: impl FnOnce(&mut wgpu::ComputePass<'_>, SolverBodies, &DeviceBatched, bool),
+        encode: impl FnOnce(&mut wgpu::ComputePass<'_>, &GpuVec<SolverBody>, &DeviceBatched, bool),
     ) -> Result<(), GpuError> {
-        host_inertias(bodies, batched.contacts, &mut self.host_inertias);
+        debug_assert!(
+            derived_fields_hold(bodies, batched.contacts),
+            "the device's contact sweeps take tangents and inverse masses from elsewhere"
+        );
         self.bodies.upload(context, bodies)?;
-        self.inertias.upload(context, &self.host_inertias)?;
         lay_out(batched.contacts, &mut self.words);
         self.contacts.upload(context, &self.words)?;
         self.contact_offsets
@@ -463,12 +400,8 @@ impl HostArrays {
             },
             adjacency: None,
         };
-        let solver_bodies = SolverBodies {
-            motion: &self.bodies,
-            inertias: &self.inertias,
-        };
         context.submit_pass(label, |pass| {
-            encode(pass, solver_bodies, &device, restitution)
+            encode(pass, &self.bodies, &device, restitution)
         });
         bodies.copy_from_slice(&self.bodies.download(context)?);
         self.contacts.download_into(context, &mut self.words)?;
@@ -566,7 +499,7 @@ impl GpuSolver {
     pub fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
@@ -577,9 +510,8 @@ impl GpuSolver {
 
     /// The soft step with [`solve`](super::solve)'s signature: uploads the bodies and the
     /// batched contacts and joints, solves on the GPU, downloads all three. The contacts must
-    /// be as the rows build them: each side's inverse mass its body's, the inertias of a body
-    /// the same in all its constraints, the tangents `tangent_basis(normal)` (the sweeps take
-    /// them from the bodies and the normal; checked in debug builds).
+    /// be as the rows build them: each side's inverse mass its body's, the tangents
+    /// `tangent_basis(normal)` (the sweeps take them from there; checked in debug builds).
     pub fn run(
         &mut self,
         bodies: &mut [SolverBody],
@@ -605,7 +537,7 @@ impl SolverEncoder {
     fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
@@ -625,17 +557,16 @@ impl SolverEncoder {
         };
         let key: Key = (
             [
-                bodies.motion.buffer().clone(),
+                bodies.buffer().clone(),
                 batched.contacts.buffer().clone(),
                 batched.contact_offsets.buffer().clone(),
                 batched.joints.buffer().clone(),
                 batched.joint_offsets.buffer().clone(),
-                bodies.inertias.buffer().clone(),
             ],
             batched
                 .adjacency
                 .map(|(starts, entries)| [starts.buffer().clone(), entries.buffer().clone()]),
-            bodies.motion.len(),
+            bodies.len(),
             stages.iter().map(|s| (s.first, s.end, s.mode)).collect(),
             [
                 settings.dt.to_bits(),
@@ -656,7 +587,7 @@ impl SolverEncoder {
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
         };
-        let body_groups = workgroups_for(bodies.motion.len(), SOLVER_WORKGROUP);
+        let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
         // Per stage: its workgroups, and whether its batches hold joints.
         let stage_sizes: Vec<(u32, bool)> = stages
             .iter()
@@ -778,7 +709,7 @@ impl SolverEncoder {
         &self,
         key: Key,
         stages: &[Stage],
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
         overflow_batch: u32,
@@ -793,7 +724,7 @@ impl SolverEncoder {
             moved: 0,
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
-            body_count: bodies.motion.len() as u32,
+            body_count: bodies.len() as u32,
             overflow_batch,
             ..SolverParams::zeroed()
         };
@@ -823,12 +754,11 @@ impl SolverEncoder {
                     &self.context,
                     &[
                         slots.binding(slot),
-                        bodies.motion.whole(),
+                        bodies.whole(),
                         batched.contacts.whole(),
                         batched.contact_offsets.whole(),
                         batched.joints.whole(),
                         batched.joint_offsets.whole(),
-                        bodies.inertias.whole(),
                     ],
                 )
             })
@@ -838,12 +768,11 @@ impl SolverEncoder {
                 &self.context,
                 &[
                     slots.binding(blocks.len() - 1),
-                    bodies.motion.whole(),
+                    bodies.whole(),
                     batched.contacts.whole(),
                     batched.contact_offsets.whole(),
                     batched.joints.whole(),
                     batched.joint_offsets.whole(),
-                    bodies.inertias.whole(),
                     starts.whole(),
                     entries.whole(),
                 ],

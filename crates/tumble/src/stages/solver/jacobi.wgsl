@@ -1,6 +1,6 @@
 // The Jacobi sweeps of the soft step: the GPU twin of stages/solver/jacobi.rs (which explains
 // the method and the relaxation factor), in its order of operations. Needs solver.wgsl (the
-// bindings 0..6, the row functions *_pair, the integration kernels) and, for the joint
+// bindings 0..5, the row functions *_pair, the integration kernels) and, for the joint
 // kernels, solver_joint.wgsl.
 //
 // A sweep is two or three dispatches, whatever the number of batches:
@@ -20,12 +20,12 @@ struct VelocityDelta {
 
 // Word 0: the contacts C, word 1: the joints J (in a buffer, so the bind groups serve every
 // step).
-@group(0) @binding(7) var<storage, read> jacobi_counts: array<u32>;
+@group(0) @binding(6) var<storage, read> jacobi_counts: array<u32>;
 // Body b's delta slots are adjacency[adjacency_offsets[b] .. adjacency_offsets[b + 1]], in
 // constraint order; static bodies and bodies of zero inverse mass have none.
-@group(0) @binding(8) var<storage, read> adjacency_offsets: array<u32>;
-@group(0) @binding(9) var<storage, read> adjacency: array<u32>;
-@group(0) @binding(10) var<storage, read_write> deltas: array<VelocityDelta>;
+@group(0) @binding(7) var<storage, read> adjacency_offsets: array<u32>;
+@group(0) @binding(8) var<storage, read> adjacency: array<u32>;
+@group(0) @binding(9) var<storage, read_write> deltas: array<VelocityDelta>;
 
 // Constraints on a body (0 for a static body).
 fn constraints_on(body: u32) -> u32 {

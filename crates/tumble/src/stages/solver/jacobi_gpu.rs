@@ -17,9 +17,7 @@
 
 use bytemuck::Zeroable;
 
-use super::gpu::{
-    DeviceBatched, HostArrays, NO_BATCH, SOLVER_WORKGROUP, SolverBodies, SolverParams,
-};
+use super::gpu::{DeviceBatched, HostArrays, NO_BATCH, SOLVER_WORKGROUP, SolverParams};
 use super::jacobi::{Adjacency, VelocityDelta};
 use super::{Batched, SolverBody, SolverSettings};
 use crate::gpu::buffer::GpuVec;
@@ -29,15 +27,14 @@ use crate::gpu::kernel::{
 };
 
 const JACOBI_WGSL: &str = include_str!("jacobi.wgsl");
-/// The PGS solver's seven (parameters, bodies, contacts, contact offsets, joints, joint
-/// offsets, the bodies' inertias), then counts, adjacency offsets, adjacency, deltas.
-const BINDINGS: [Binding; 11] = [
+/// The PGS solver's six (parameters, bodies, contacts, contact offsets, joints, joint
+/// offsets), then counts, adjacency offsets, adjacency, deltas.
+const BINDINGS: [Binding; 10] = [
     Binding::Uniform,
     Binding::StorageReadWrite,
     Binding::StorageReadWrite,
     Binding::StorageRead,
     Binding::StorageReadWrite,
-    Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
     Binding::StorageRead,
@@ -69,7 +66,7 @@ enum Variant {
 const VARIANTS: usize = 3;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
-type Key = ([wgpu::Buffer; 10], usize, [u32; 7]);
+type Key = ([wgpu::Buffer; 9], usize, [u32; 7]);
 
 struct Bound {
     key: Key,
@@ -167,7 +164,7 @@ impl GpuJacobi {
     pub fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
@@ -240,15 +237,14 @@ impl JacobiEncoder {
     fn encode(
         &mut self,
         pass: &mut wgpu::ComputePass<'_>,
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
         restitution: bool,
     ) -> usize {
         let key: Key = (
             [
-                bodies.motion.buffer().clone(),
-                bodies.inertias.buffer().clone(),
+                bodies.buffer().clone(),
                 batched.contacts.buffer().clone(),
                 batched.contact_offsets.buffer().clone(),
                 batched.joints.buffer().clone(),
@@ -258,7 +254,7 @@ impl JacobiEncoder {
                 self.adjacency_entries.buffer().clone(),
                 self.deltas.buffer().clone(),
             ],
-            bodies.motion.len(),
+            bodies.len(),
             [
                 settings.dt.to_bits(),
                 settings.substeps,
@@ -275,7 +271,7 @@ impl JacobiEncoder {
         let Some(bound) = &self.bound else {
             unreachable!("bound just above")
         };
-        let body_groups = workgroups_for(bodies.motion.len(), SOLVER_WORKGROUP);
+        let body_groups = workgroups_for(bodies.len(), SOLVER_WORKGROUP);
         let contact_groups = workgroups_for(self.contact_count, WORKGROUP_SIZE);
         let joint_groups = workgroups_for(self.joint_count, WORKGROUP_SIZE);
         let joints = self.joint_kernels.as_ref().filter(|_| self.joint_count > 0);
@@ -351,7 +347,7 @@ impl JacobiEncoder {
     fn bind(
         &self,
         key: Key,
-        bodies: SolverBodies,
+        bodies: &GpuVec<SolverBody>,
         batched: &DeviceBatched,
         settings: SolverSettings,
     ) -> Bound {
@@ -365,7 +361,7 @@ impl JacobiEncoder {
             moved: 0,
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
-            body_count: bodies.motion.len() as u32,
+            body_count: bodies.len() as u32,
             overflow_batch: NO_BATCH,
             ..SolverParams::zeroed()
         };
@@ -385,12 +381,11 @@ impl JacobiEncoder {
                 &self.context,
                 &[
                     slots.binding(slot),
-                    bodies.motion.whole(),
+                    bodies.whole(),
                     batched.contacts.whole(),
                     batched.contact_offsets.whole(),
                     batched.joints.whole(),
                     batched.joint_offsets.whole(),
-                    bodies.inertias.whole(),
                     self.counts.whole(),
                     self.adjacency_offsets.whole(),
                     self.adjacency_entries.whole(),

@@ -45,23 +45,12 @@ struct SolverParams {
 @group(0) @binding(3) var<storage, read> offsets: array<u32>;
 @group(0) @binding(4) var<storage, read_write> joints: array<JointConstraint>;
 @group(0) @binding(5) var<storage, read> joint_offsets: array<u32>;
-// Each body's world-frame inverse inertia at the step's start, two words a body
-// (lanes.wgsl's body_inertia_words): prepare.wgsl's, or the host's from its constraints.
-@group(0) @binding(6) var<storage, read> inertias: array<vec4<f32>>;
 
 fn load_body(index: u32) -> SolverBody {
     if index == STATIC_BODY {
         return static_solver_body();
     }
     return bodies[index];
-}
-
-// Body `index`'s inverse inertia, zero for a static side.
-fn load_inertia(index: u32) -> SymmetricMat3 {
-    if index == STATIC_BODY {
-        return SymmetricMat3();
-    }
-    return body_inertia_of(array<vec4<f32>, 2>(inertias[2u * index], inertias[2u * index + 1u]));
 }
 
 // The velocities of `body` into body `index`: a sweep changes nothing else of a body (its
@@ -184,25 +173,22 @@ struct ConstraintHeader {
     inertias: array<SymmetricMat3, 2>,
 }
 
-// The header of constraint `index` on bodies `pair`, from 3 of its 8 words (the ids, word 0;
-// the normal and friction, word 1; the softness, word 4). A sweep's time grows with the bytes it loads (0.3 ns
-// a constraint on an H100, about half the sweeps' time on the settled 100k pile and three
-// quarters at 500k), so what the other words hold comes from elsewhere:
-//   - the tangents from the normal (tangent_basis, as the rows' build makes them);
-//   - the inverse masses from the bodies (prepare_bodies and the rows read the same masses; a
-//     static side is 0 in both);
-//   - the inverse inertias from the bodies' inertias beside them (`inertias`, made from the
-//     same poses by the same function as the rows' build's), 32 bytes a side that the cache
-//     keeps, where the constraint's three words come from memory at every sweep;
-//   - the restitution, which the restitution sweep alone needs, from its word there.
-// A solve sweep also computes the rows' masses (`point_masses`) instead of loading a word a
-// point. For rows the device built, each is the arithmetic that made the value it replaces;
-// for rows the host built, they agree to rounding, as the executors do.
+// The header of constraint `index` on bodies `pair`, from 5 of its 8 words (the ids, word 0,
+// come apart). A sweep's time grows with the bytes it loads (0.3 ns a constraint on an H100,
+// about half the sweeps' time on the settled 100k pile and three quarters at 500k), so what
+// the other words hold comes from elsewhere: the tangents from the normal (tangent_basis, as
+// the rows' build makes them), the inverse masses from the bodies (prepare_bodies and the rows
+// read the same masses; a static side is 0 in both), and the restitution, which the
+// restitution sweep alone needs, from its word there. A solve sweep also computes the rows'
+// masses (`point_masses`) instead of loading a word a point. For rows the device built, each
+// is the arithmetic that made the value it replaces (the results were bitwise the same on
+// lavapipe and an H100); for rows the host built, they agree to rounding, as the executors do.
 fn load_header(index: u32, pair: BodyPair) -> ConstraintHeader {
-    let ids = load_ids(index);
     let normal = contacts[lane_word(index, HEADER_NORMAL)];
     let masses = contacts[lane_word(index, HEADER_MASSES)];
-    let inertias = array<SymmetricMat3, 2>(load_inertia(ids.x), load_inertia(ids.y));
+    let inertias = inertias_of(array<vec4<f32>, 3>(contacts[lane_word(index, HEADER_INERTIA)],
+        contacts[lane_word(index, HEADER_INERTIA + 1u)],
+        contacts[lane_word(index, HEADER_INERTIA + 2u)]));
     let tangents = tangent_basis(normal.xyz);
     return ConstraintHeader(normal.xyz, tangents[0], tangents[1], pair[0].inverse_mass,
         pair[1].inverse_mass, normal.w, Softness(masses.y, masses.z, masses.w), inertias);

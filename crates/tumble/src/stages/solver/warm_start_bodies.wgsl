@@ -5,8 +5,8 @@
 
 // Body b's constraints: adjacency_entries[adjacency_starts[b] .. adjacency_starts[b + 1]],
 // each 2 × (batch place) + side.
-@group(0) @binding(7) var<storage, read> adjacency_starts: array<u32>;
-@group(0) @binding(8) var<storage, read> adjacency_entries: array<u32>;
+@group(0) @binding(6) var<storage, read> adjacency_starts: array<u32>;
+@group(0) @binding(7) var<storage, read> adjacency_entries: array<u32>;
 
 // Constraint `index`'s warm start on its side `side` (0: A, 1: B), the body of that side:
 // the impulse sums the rows' build or the last relax sweep left (lanes.wgsl), two words where
