@@ -460,14 +460,14 @@ fn solver_structs_match_rust() {
                     end_batch,
                     sequential,
                     use_bias,
-                    moved,
                     max_push_velocity,
                     restitution_threshold,
                     body_count,
                     overflow_batch,
                     _pad0,
                     _pad1,
-                    _pad2
+                    _pad2,
+                    _pad3
                 }),
                 rust_layout!(JointFrame {
                     local_anchor_a,

@@ -105,7 +105,6 @@ pub struct SolverParams {
     pub end_batch: u32,
     pub sequential: u32,
     pub use_bias: u32,
-    pub moved: u32,
     pub max_push_velocity: f32,
     pub restitution_threshold: f32,
     pub body_count: u32,
@@ -115,6 +114,7 @@ pub struct SolverParams {
     pub _pad0: u32,
     pub _pad1: u32,
     pub _pad2: u32,
+    pub _pad3: u32,
 }
 const _: () = assert!(size_of::<SolverParams>() == 64);
 
@@ -273,14 +273,12 @@ pub fn dispatch_count(
 /// Parameter slots of a stage: which sweep it runs.
 #[derive(Clone, Copy)]
 enum Variant {
-    /// Solve with bias, recomputing separations (the first solve of a step).
-    SolveMoved = 0,
-    /// Solve with bias on the separations of the last sweep; also warm start and restitution.
-    Solve = 1,
-    /// Relax: no bias, positions moved since the solve.
-    Relax = 2,
+    /// Solve with bias; also warm start and restitution.
+    Solve = 0,
+    /// Relax: no bias.
+    Relax = 1,
 }
-const VARIANTS: usize = 3;
+const VARIANTS: usize = 2;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
 type Key = (
@@ -659,7 +657,7 @@ impl SolverEncoder {
             .by_body
             .as_ref()
             .filter(|_| stage_sizes.iter().all(|&(_, joints)| !joints));
-        for substep in 0..settings.substeps {
+        for _ in 0..settings.substeps {
             match by_body {
                 Some(group) => {
                     dispatches.push(self.warm_start_bodies.dispatch(group.clone(), body_groups))
@@ -672,15 +670,8 @@ impl SolverEncoder {
                     sweep(dispatches, warm_start, Variant::Solve);
                 }
             }
-            for iteration in 0..settings.iterations {
-                // As on the CPU: only the first solve of the step starts from positions no
-                // sweep has seen; later ones reuse the last relax sweep's separations.
-                let variant = if substep == 0 && iteration == 0 {
-                    Variant::SolveMoved
-                } else {
-                    Variant::Solve
-                };
-                sweep(dispatches, solve, variant);
+            for _ in 0..settings.iterations {
+                sweep(dispatches, solve, Variant::Solve);
             }
             dispatches.push(
                 self.integrate_positions
@@ -721,7 +712,6 @@ impl SolverEncoder {
             end_batch: 0,
             sequential: 0,
             use_bias: 1,
-            moved: 0,
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
             body_count: bodies.len() as u32,
@@ -737,11 +727,9 @@ impl SolverEncoder {
                 ..base
             };
             // In the order of `Variant`.
-            blocks.push(SolverParams { moved: 1, ..params });
             blocks.push(params);
             blocks.push(SolverParams {
                 use_bias: 0,
-                moved: 1,
                 ..params
             });
         }

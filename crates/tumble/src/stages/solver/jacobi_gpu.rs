@@ -56,14 +56,12 @@ pub fn dispatch_count(settings: &SolverSettings, has_joints: bool, restitution: 
 /// Parameter slots: which sweep a dispatch runs (as in [`gpu`](super::gpu)).
 #[derive(Clone, Copy)]
 enum Variant {
-    /// Solve with bias, recomputing separations (the first solve of a step).
-    SolveMoved = 0,
     /// Solve with bias; also warm start, restitution and the body kernels.
-    Solve = 1,
-    /// Relax: no bias, positions moved since the solve.
-    Relax = 2,
+    Solve = 0,
+    /// Relax: no bias.
+    Relax = 1,
 }
-const VARIANTS: usize = 3;
+const VARIANTS: usize = 2;
 
 /// What the bind groups were built for; rebuilt when any of it changes.
 type Key = ([wgpu::Buffer; 9], usize, [u32; 7]);
@@ -290,7 +288,7 @@ impl JacobiEncoder {
             dispatches.push(apply.dispatch(group.clone(), body_groups));
         };
         let body_group = &bound.groups[Variant::Solve as usize];
-        for substep in 0..settings.substeps {
+        for _ in 0..settings.substeps {
             dispatches.push(
                 self.integrate_velocities
                     .dispatch(body_group.clone(), body_groups),
@@ -301,17 +299,12 @@ impl JacobiEncoder {
                 joints.map(|j| &j.warm_start),
                 Variant::Solve,
             );
-            for iteration in 0..settings.iterations {
-                let variant = if substep == 0 && iteration == 0 {
-                    Variant::SolveMoved
-                } else {
-                    Variant::Solve
-                };
+            for _ in 0..settings.iterations {
                 sweep(
                     dispatches,
                     (&self.solve, contact_groups),
                     joints.map(|j| &j.solve),
-                    variant,
+                    Variant::Solve,
                 );
             }
             dispatches.push(
@@ -358,7 +351,6 @@ impl JacobiEncoder {
             end_batch: 0,
             sequential: 0,
             use_bias: 1,
-            moved: 0,
             max_push_velocity: settings.max_push_velocity,
             restitution_threshold: settings.restitution_threshold,
             body_count: bodies.len() as u32,
@@ -367,11 +359,9 @@ impl JacobiEncoder {
         };
         // In the order of `Variant`.
         let blocks = [
-            SolverParams { moved: 1, ..solve },
             solve,
             SolverParams {
                 use_bias: 0,
-                moved: 1,
                 ..solve
             },
         ];

@@ -26,8 +26,6 @@ struct SolverParams {
     sequential: u32,
     // Remove position errors (solve) or not (relax); 1 or 0.
     use_bias: u32,
-    // The bodies moved since the last sweep: recompute the separations; 1 or 0.
-    moved: u32,
     max_push_velocity: f32,
     restitution_threshold: f32,
     body_count: u32,
@@ -36,6 +34,7 @@ struct SolverParams {
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
+    _pad3: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SolverParams;
@@ -106,12 +105,12 @@ fn apply(h: ConstraintHeader, direction: vec3<f32>, arms: Arms, impulse: f32, pa
 // count − 1, normal rows, then friction rows.
 
 // The rows and state of one point as the sweeps read and write them: its words (lanes.wgsl)
-// but the one of masses, which a solve sweep computes.
+// but the one of masses, which a solve sweep computes, and the separation, which it computes
+// from the bodies' motion (`solve_normal`).
 struct PointRows {
     anchor_a: vec3<f32>,
     adjusted_separation: f32,
     anchor_b: vec3<f32>,
-    separation: f32,
     // The rows' masses: normal, tangent 1, tangent 2. Computed by the solve sweep from the
     // anchors and the header (`point_masses`), not loaded: see `load_header`.
     masses: vec3<f32>,
@@ -120,7 +119,7 @@ struct PointRows {
 }
 
 fn no_point() -> PointRows {
-    return PointRows(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec4<f32>(0.0));
+    return PointRows(vec3<f32>(0.0), 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec4<f32>(0.0));
 }
 
 // Body A, body B, the pair slot and the point count of constraint `index`.
@@ -137,8 +136,7 @@ fn load_point(index: u32, k: u32, count: u32) -> PointRows {
     let anchor_a = contacts[point_word(index, k, POINT_ANCHOR_A)];
     let anchor_b = contacts[point_word(index, k, POINT_ANCHOR_B)];
     let impulses = contacts[point_word(index, k, POINT_IMPULSES)];
-    return PointRows(anchor_a.xyz, anchor_a.w, anchor_b.xyz, anchor_b.w, vec3<f32>(0.0),
-        impulses);
+    return PointRows(anchor_a.xyz, anchor_a.w, anchor_b.xyz, vec3<f32>(0.0), impulses);
 }
 
 // Stores the impulses of point `k` of constraint `index`: the rows' and the largest normal
@@ -148,14 +146,10 @@ fn store_impulses(index: u32, k: u32, normal: f32, tangent1: f32, tangent2: f32,
         vec4<f32>(normal, tangent1, tangent2, max_normal);
 }
 
-// Stores what a solve sweep changed of point `k`: its separation (when recomputed) and its
-// impulses.
+// Stores what a solve sweep changed of point `k`: its impulses.
 fn store_point(index: u32, k: u32, count: u32, point: PointRows) {
     if k >= count {
         return;
-    }
-    if params.moved != 0u {
-        contacts[point_word(index, k, POINT_ANCHOR_B)].w = point.separation;
     }
     contacts[point_word(index, k, POINT_IMPULSES)] = point.impulses;
 }
@@ -256,18 +250,18 @@ fn solve_contact(index: u32) {
     store_body(ids.y, pair[1]);
 }
 
-// The bodies with one point's non-penetration row solved; `point` gets its new separation and
-// impulse.
+// The bodies with one point's non-penetration row solved; `point` gets its new impulse. The
+// separation is computed from the bodies' motion in every sweep, where the CPU computes it
+// only after the positions moved and keeps it in the constraint (contact.rs, `Sweep::moved`):
+// the same value to the bit (the same arithmetic on the same motion), but storing it cost
+// more than the arithmetic (each point's store dirtied a word of its own, in 9 of the 16
+// sweeps of a step). So the device's rows keep the separation the rows' build gave them.
 fn solve_normal(h: ConstraintHeader, point: ptr<function, PointRows>, pair: BodyPair)
     -> BodyPair {
-    var separation = (*point).separation;
-    if params.moved != 0u {
-        let moved = (pair[0].delta_position + quat_rotate(pair[0].delta_rotation,
-            (*point).anchor_a)) - (pair[1].delta_position
-            + quat_rotate(pair[1].delta_rotation, (*point).anchor_b));
-        separation = dot(h.normal, moved) + (*point).adjusted_separation;
-        (*point).separation = separation;
-    }
+    let moved = (pair[0].delta_position + quat_rotate(pair[0].delta_rotation,
+        (*point).anchor_a)) - (pair[1].delta_position
+        + quat_rotate(pair[1].delta_rotation, (*point).anchor_b));
+    let separation = dot(h.normal, moved) + (*point).adjusted_separation;
     let terms = bias_terms(separation, h.softness);
     let arms = arms_of(*point, h.normal);
     let velocity = row_velocity(h.normal, arms, pair);
