@@ -253,9 +253,10 @@ fn solve_contact(index: u32) {
 // The bodies with one point's non-penetration row solved; `point` gets its new impulse. The
 // separation is computed from the bodies' motion in every sweep, where the CPU computes it
 // only after the positions moved and keeps it in the constraint (contact.rs, `Sweep::moved`):
-// the same value to the bit (the same arithmetic on the same motion), but storing it cost
-// more than the arithmetic (each point's store dirtied a word of its own, in 9 of the 16
-// sweeps of a step). So the device's rows keep the separation the rows' build gave them.
+// the same value to the bit (the same arithmetic on the same motion). Storing it cost more
+// than the arithmetic: each point's store dirtied a word of its own in 9 of a step's 16
+// sweeps, and without the stores the settled 100k pile's sweeps took 2.332 ms a step on an
+// H100 against 2.362. So the device's rows keep the separation the rows' build gave them.
 fn solve_normal(h: ConstraintHeader, point: ptr<function, PointRows>, pair: BodyPair)
     -> BodyPair {
     let moved = (pair[0].delta_position + quat_rotate(pair[0].delta_rotation,
