@@ -34,6 +34,8 @@ pub const SHARED_WGSL: &str = include_str!("shared.wgsl");
 #[must_use]
 pub struct Source {
     text: String,
+    /// See [`Source::every_loop_ends`].
+    loops_end: bool,
 }
 
 impl Source {
@@ -42,6 +44,20 @@ impl Source {
         Self::default()
             .constant_u32("WORKGROUP_SIZE", WORKGROUP_SIZE)
             .snippet("shared.wgsl", SHARED_WGSL)
+    }
+
+    /// Says that every loop of this source ends whatever its buffers hold: each counts up by
+    /// one to a bound, or strides to a bound it cannot wrap past, or is capped. Its kernels
+    /// are then compiled without naga's loop bounding (wgpu's `force_loop_bounding`), a
+    /// 64-bit counter in every loop that exists only to keep a compiler from treating an
+    /// endless loop as unreachable. The counters cost: without them, on an H100, the
+    /// narrowphase's kernels took 15% less time on the settled 100k pile and the batching's
+    /// 9% (BENCHMARKS.md, session 29). Only for sources whose every loop, snippets included,
+    /// was read for it; not for one that spins on another workgroup (the scans' look-backs)
+    /// or walks links that corrupt data could close into a cycle (the trees, the islands).
+    pub fn every_loop_ends(mut self) -> Self {
+        self.loops_end = true;
+        self
     }
 
     /// Adds `const NAME: u32 = value;`.
@@ -136,7 +152,7 @@ impl Kernel {
         bindings: &[Binding],
     ) -> Self {
         let mut hasher = DefaultHasher::new();
-        (source.text(), entry, bindings).hash(&mut hasher);
+        (source.text(), source.loops_end, entry, bindings).hash(&mut hasher);
         let key = hasher.finish();
         // A poisoned lock only means another thread panicked while inserting; the map is
         // still a valid cache.
@@ -194,10 +210,19 @@ impl Kernel {
             label: Some(label),
             entries: &entries,
         });
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        let descriptor = wgpu::ShaderModuleDescriptor {
             label: Some(label),
             source: wgpu::ShaderSource::Wgsl(source.text().into()),
-        });
+        };
+        let module = if source.loops_end {
+            let mut checks = wgpu::ShaderRuntimeChecks::checked();
+            checks.force_loop_bounding = false;
+            // SAFETY: the source's every loop ends for any buffer contents
+            // (`Source::every_loop_ends`, whose callers vouch for it); every other check stays.
+            unsafe { device.create_shader_module_trusted(descriptor, checks) }
+        } else {
+            device.create_shader_module(descriptor)
+        };
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some(label),
             bind_group_layouts: &[Some(&layout)],

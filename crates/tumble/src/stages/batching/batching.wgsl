@@ -294,12 +294,16 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
     if workgroupUniformLoad(&rest_done) != 0u {
         return;
     }
-    for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+    let count = tally.count;
+    for (var i = local; i < count; i += WORKGROUP_SIZE) {
         if colors[i] == UNBATCHED {
             let slot = atomicAdd(&rest_count, 1u);
             if slot < REST_LIST {
                 rest_list[slot] = i;
             }
+        }
+        if ends_stride(i, count) {
+            break;
         }
     }
     workgroupBarrier();
@@ -311,7 +315,7 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
     }
     let listed = workgroupUniformLoad(&rest_listed);
     if listed > REST_LIST {
-        rest_rounds_over_all(local);
+        rest_rounds_over_all(local, count);
         return;
     }
     // Which constraint a thread takes changes no color: a round's claims are minima, and its
@@ -339,8 +343,15 @@ fn rest_rounds(@builtin(local_invocation_index) local: u32) {
     }
 }
 
-// `rest_rounds` over every constraint, round by round.
-fn rest_rounds_over_all(local: u32) {
+// Whether index `i` of a loop over 0..count by strides of WORKGROUP_SIZE is its last: the loop
+// stops there rather than step past u32::MAX, so it ends whatever `count` holds (the
+// kernels' source promises that every loop ends: gpu.rs).
+fn ends_stride(i: u32, count: u32) -> bool {
+    return count - i <= WORKGROUP_SIZE;
+}
+
+// `rest_rounds` over every one of the `count` constraints, round by round.
+fn rest_rounds_over_all(local: u32, count: u32) {
     for (var round = params.round; round < MAX_ROUNDS; round++) {
         if local == 0u {
             rest_done = u32(all_batched());
@@ -348,12 +359,18 @@ fn rest_rounds_over_all(local: u32) {
         if workgroupUniformLoad(&rest_done) != 0u {
             break;
         }
-        for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+        for (var i = local; i < count; i += WORKGROUP_SIZE) {
             claim_one(i, round);
+            if ends_stride(i, count) {
+                break;
+            }
         }
         storageBarrier();
-        for (var i = local; i < tally.count; i += WORKGROUP_SIZE) {
+        for (var i = local; i < count; i += WORKGROUP_SIZE) {
             commit_and_count(i, round);
+            if ends_stride(i, count) {
+                break;
+            }
         }
         storageBarrier();
     }

@@ -56,6 +56,8 @@ pub fn wgsl() -> Source {
         .constant_u32("LOCK_SLOTS", LOCK_SLOTS as u32)
         .constant_u32("REST_LIST", REST_LIST)
         .snippet("batching.wgsl", WGSL)
+        // Read for it (session 29): counted loops, and strides that stop before wrapping.
+        .every_loop_ends()
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,

@@ -54,6 +54,8 @@ pub fn wgsl() -> Source {
     Source::new()
         .constant_u32("LAYOUT_BATCHES", LAYOUT_BATCHES as u32)
         .snippet("layout.wgsl", WGSL)
+        // Read for it (session 29): counted loops over constant bounds, and a count down.
+        .every_loop_ends()
 }
 
 /// What the cached dispatches were built for: tally, colors, order, and the blocks covered.

@@ -34,6 +34,10 @@ fn update_contacts(
     let count = misses[0];
     for (var slot = first; slot < count; slot += stride) {
         update_pair(misses[1u + slot]);
+        // Never past u32::MAX, whatever the count: the loop ends (gpu.rs, every_loop_ends).
+        if count - slot <= stride {
+            break;
+        }
     }
 }
 

@@ -244,6 +244,8 @@ pub fn move_wgsl() -> Source {
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
         .snippet("move.wgsl", include_str!("move.wgsl"))
+        // Read for it (session 29): counted loops and a binary search.
+        .every_loop_ends()
 }
 
 /// Threads per workgroup of `update_contacts`, and the most workgroups it is dispatched with
@@ -280,6 +282,10 @@ pub fn wgsl(shape_kinds: u32) -> Source {
         .snippet("contact_hull.wgsl", include_str!("contact_hull.wgsl"))
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
         .snippet("collide.wgsl", include_str!("collide.wgsl"))
+        // Read for it (session 29): the pair functions' loops count to bounds their bodies
+        // do not move, the binary search shrinks, and the listed pairs' stride stops before
+        // it could wrap.
+        .every_loop_ends()
 }
 
 /// The stage's device-resident inputs.

@@ -47,6 +47,8 @@ pub fn wgsl() -> Source {
     Source::new()
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("summary.wgsl", WGSL)
+        // Read for it (session 29): one loop, over a manifold's points.
+        .every_loop_ends()
 }
 
 /// The summary kernel and its output.
