@@ -52,10 +52,15 @@ impl Source {
     /// 64-bit counter in every loop that exists only to keep a compiler from treating an
     /// endless loop as unreachable. The counters cost: without them, on an H100, the
     /// narrowphase's kernels took 15% less time on the settled 100k pile and the batching's
-    /// 9% (BENCHMARKS.md, session 29). Only for sources whose every loop, snippets included,
-    /// was read for it; not for one that spins on another workgroup (the scans' look-backs)
-    /// or walks links that corrupt data could close into a cycle (the trees, the islands).
-    pub fn every_loop_ends(mut self) -> Self {
+    /// 9% (BENCHMARKS.md, session 29).
+    ///
+    /// # Safety
+    ///
+    /// Every loop of the source, snippets included, must end whatever its buffers hold: a
+    /// compiler may treat an endless loop as unreachable and miscompile what surrounds it.
+    /// So not for a source that spins on another workgroup (the scans' look-backs) or walks
+    /// links that corrupt data could close into a cycle (the trees, the islands).
+    pub unsafe fn every_loop_ends(mut self) -> Self {
         self.loops_end = true;
         self
     }
@@ -217,8 +222,8 @@ impl Kernel {
         let module = if source.loops_end {
             let mut checks = wgpu::ShaderRuntimeChecks::checked();
             checks.force_loop_bounding = false;
-            // SAFETY: the source's every loop ends for any buffer contents
-            // (`Source::every_loop_ends`, whose callers vouch for it); every other check stays.
+            // SAFETY: every loop of the source ends for any buffer contents, as the caller of
+            // `Source::every_loop_ends` promised; every other check stays.
             unsafe { device.create_shader_module_trusted(descriptor, checks) }
         } else {
             device.create_shader_module(descriptor)

@@ -47,7 +47,7 @@ pub struct BatchParams {
 }
 
 pub fn wgsl() -> Source {
-    Source::new()
+    let source = Source::new()
         .constant_u32("MAX_COLORS", MAX_COLORS as u32)
         .constant_u32("MAX_ROUNDS", MAX_ROUNDS as u32)
         .constant_u32("STATIC_BODY", STATIC_BODY)
@@ -55,9 +55,10 @@ pub fn wgsl() -> Source {
         .constant_u32("BATCHER_COLORS", Batcher::Colors as u32)
         .constant_u32("LOCK_SLOTS", LOCK_SLOTS as u32)
         .constant_u32("REST_LIST", REST_LIST)
-        .snippet("batching.wgsl", WGSL)
-        // Read for it (session 29): counted loops, and strides that stop before wrapping.
-        .every_loop_ends()
+        .snippet("batching.wgsl", WGSL);
+    // SAFETY: every loop was read for it (session 29): counted ones, and strides over a count
+    // that stop before they could wrap.
+    unsafe { source.every_loop_ends() }
 }
 
 /// What the cached dispatches were built for: the buffers (bodies, colors, locks, masks,

@@ -51,11 +51,12 @@ pub struct LayoutParams {
 }
 
 pub fn wgsl() -> Source {
-    Source::new()
+    let source = Source::new()
         .constant_u32("LAYOUT_BATCHES", LAYOUT_BATCHES as u32)
-        .snippet("layout.wgsl", WGSL)
-        // Read for it (session 29): counted loops over constant bounds, and a count down.
-        .every_loop_ends()
+        .snippet("layout.wgsl", WGSL);
+    // SAFETY: every loop was read for it (session 29): counted ones over constant bounds, and
+    // a count down to zero.
+    unsafe { source.every_loop_ends() }
 }
 
 /// What the cached dispatches were built for: tally, colors, order, and the blocks covered.

@@ -234,7 +234,7 @@ const _: () = {
 /// The source of the kernels that clear the list and move the cached manifolds (`move.wgsl`):
 /// body and contact structs and the stage's bindings, without the pair functions.
 pub fn move_wgsl() -> Source {
-    Source::new()
+    let source = Source::new()
         .constant_f32("CACHE_TOLERANCE", CACHE_TOLERANCE)
         .constant_u32("CONTACT_WORDS", CONTACT_WORDS)
         .constant_u32("POINTS_WORD", POINTS_WORD)
@@ -243,9 +243,9 @@ pub fn move_wgsl() -> Source {
         .snippet("body.wgsl", BODY_WGSL)
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
-        .snippet("move.wgsl", include_str!("move.wgsl"))
-        // Read for it (session 29): counted loops and a binary search.
-        .every_loop_ends()
+        .snippet("move.wgsl", include_str!("move.wgsl"));
+    // SAFETY: every loop was read for it (session 29): counted ones and a binary search.
+    unsafe { source.every_loop_ends() }
 }
 
 /// Threads per workgroup of `update_contacts`, and the most workgroups it is dispatched with
@@ -261,7 +261,7 @@ const PAIR_FUNCTION_GROUPS: u32 = 4096;
 /// The source of the pair functions' kernel for a world of the shape kinds `shape_kinds`
 /// ([`shape_kinds`]): body and contact structs, the stage's bindings, the pair functions.
 pub fn wgsl(shape_kinds: u32) -> Source {
-    wgsl_constants(Source::new())
+    let source = wgsl_constants(Source::new())
         .constant_u32("SHAPE_KINDS", shape_kinds)
         .constant_f32("MATCH_DISTANCE", MATCH_DISTANCE)
         .constant_f32("CACHE_TOLERANCE", CACHE_TOLERANCE)
@@ -281,11 +281,11 @@ pub fn wgsl(shape_kinds: u32) -> Source {
         .snippet("contact_box_box.wgsl", include_str!("contact_box_box.wgsl"))
         .snippet("contact_hull.wgsl", include_str!("contact_hull.wgsl"))
         .snippet("narrowphase.wgsl", include_str!("narrowphase.wgsl"))
-        .snippet("collide.wgsl", include_str!("collide.wgsl"))
-        // Read for it (session 29): the pair functions' loops count to bounds their bodies
-        // do not move, the binary search shrinks, and the listed pairs' stride stops before
-        // it could wrap.
-        .every_loop_ends()
+        .snippet("collide.wgsl", include_str!("collide.wgsl"));
+    // SAFETY: every loop was read for it (session 29): the pair functions' count up to bounds
+    // their bodies do not move, the binary search shrinks, and the listed pairs' stride stops
+    // before it could wrap.
+    unsafe { source.every_loop_ends() }
 }
 
 /// The stage's device-resident inputs.

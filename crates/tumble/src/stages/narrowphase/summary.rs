@@ -44,11 +44,11 @@ impl PairSummary {
 }
 
 pub fn wgsl() -> Source {
-    Source::new()
+    let source = Source::new()
         .snippet("pair_contact.wgsl", PAIR_CONTACT_WGSL)
-        .snippet("summary.wgsl", WGSL)
-        // Read for it (session 29): one loop, over a manifold's points.
-        .every_loop_ends()
+        .snippet("summary.wgsl", WGSL);
+    // SAFETY: its one loop counts up to a manifold's point count (read for it, session 29).
+    unsafe { source.every_loop_ends() }
 }
 
 /// The summary kernel and its output.
