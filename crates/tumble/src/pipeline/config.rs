@@ -174,4 +174,9 @@ impl Softness {
             impulse_scale: a3,
         }
     }
+
+    /// As a WGSL `vec4<f32>` of a uniform block: (bias_rate, mass_scale, impulse_scale, 0).
+    pub fn words(self) -> [f32; 4] {
+        [self.bias_rate, self.mass_scale, self.impulse_scale, 0.0]
+    }
 }

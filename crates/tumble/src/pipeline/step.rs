@@ -62,6 +62,7 @@ impl RowSoftness {
 
 /// The solver's settings of a step of `config`.
 fn solver_settings(config: &StepConfig) -> SolverSettings {
+    let softness = RowSoftness::new(config);
     SolverSettings {
         dt: config.dt,
         substeps: config.substeps,
@@ -69,6 +70,8 @@ fn solver_settings(config: &StepConfig) -> SolverSettings {
         gravity: config.gravity,
         max_push_velocity: config.max_push_velocity,
         restitution_threshold: config.restitution_threshold,
+        contact_softness: softness.contacts,
+        static_softness: softness.statics,
     }
 }
 
@@ -981,16 +984,11 @@ impl World {
             && device_layout
             && on_gpu(Stage::Integrate)
             && (self.islands.sleeping_count() == 0 || !gpu.lists_wake_candidates_on_host()))
-        .then(|| {
-            let softness = RowSoftness::new(&config);
-            StepPlan {
-                softness: softness.contacts,
-                static_softness: softness.statics,
-                link_islands: config.sleeping && self.islands.may_rest(&self.masses, config.dt),
-                settings: solver_settings(&config),
-                batcher: config.batcher,
-                bodies: self.poses.len(),
-            }
+        .then(|| StepPlan {
+            link_islands: config.sleeping && self.islands.may_rest(&self.masses, config.dt),
+            settings: solver_settings(&config),
+            batcher: config.batcher,
+            bodies: self.poses.len(),
         });
         gpu.plan_step(step_plan);
         profiler.begin("collision");

@@ -464,10 +464,8 @@ fn solver_structs_match_rust() {
                     restitution_threshold,
                     body_count,
                     overflow_batch,
-                    _pad0,
-                    _pad1,
-                    _pad2,
-                    _pad3
+                    softness,
+                    static_softness
                 }),
                 rust_layout!(JointFrame {
                     local_anchor_a,

@@ -169,8 +169,8 @@ fn problem(
         masses: &masses,
         colliders: &colliders,
         inverse_inertia: &inverse_inertia,
-        softness: Softness::new(30.0, 3.0, h),
-        static_softness: Softness::new(60.0, 3.0, h),
+        softness: contact_softness(),
+        static_softness: static_softness(),
     };
     let mut constraints = Vec::new();
     build_constraints(
@@ -566,6 +566,16 @@ fn check_kind(
     }
 }
 
+/// The contact rows' softness of every problem, between dynamic bodies and against a static
+/// one: what the solver settings must say too (the device's sweeps take it from them).
+fn contact_softness() -> Softness {
+    Softness::new(30.0, 3.0, 1.0 / 60.0)
+}
+
+fn static_softness() -> Softness {
+    Softness::new(60.0, 3.0, 1.0 / 60.0)
+}
+
 fn one_iteration() -> SolverSettings {
     SolverSettings {
         dt: 1.0 / 60.0,
@@ -574,6 +584,8 @@ fn one_iteration() -> SolverSettings {
         gravity: Vec3::new(0.0, -9.81, 0.0),
         max_push_velocity: 3.0,
         restitution_threshold: 1.0,
+        contact_softness: contact_softness(),
+        static_softness: static_softness(),
     }
 }
 

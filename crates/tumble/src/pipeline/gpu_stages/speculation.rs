@@ -30,7 +30,6 @@ use crate::gpu::buffer::GpuVec;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::kernel::{Binding, Dispatch, Kernel, Source, encode_all};
 use crate::gpu::profiler::SpanPath;
-use crate::pipeline::config::Softness;
 use crate::profile::{Profiler, SpanKind};
 use crate::stages::batching::Batcher;
 use crate::stages::constraints::gpu::GpuRowInputs;
@@ -65,8 +64,6 @@ const NEXT_SOLVE_RECORDED: SpanPath = &["solver", "next step's solve encoded (du
 /// while bodies sleep): everything they are recorded from but the counts the collision finds.
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct StepPlan {
-    pub softness: Softness,
-    pub static_softness: Softness,
     /// The islands' links made with the rows.
     pub link_islands: bool,
     pub settings: SolverSettings,
@@ -232,8 +229,8 @@ impl GpuStages {
             velocities: &device.velocities,
             masses: &device.masses,
             colliders: &device.colliders,
-            softness: plan.softness,
-            static_softness: plan.static_softness,
+            softness: plan.settings.contact_softness,
+            static_softness: plan.settings.static_softness,
         };
         let (rows, timer) = (&mut self.rows, &mut self.ahead_batching_profiler);
         encode_pass(&mut encoder, timer, CONSTRAINTS.kernel, |pass| {

@@ -51,15 +51,6 @@ pub struct RowParams {
     pub _pad2: u32,
 }
 
-fn softness_vec(softness: Softness) -> [f32; 4] {
-    [
-        softness.bias_rate,
-        softness.mass_scale,
-        softness.impulse_scale,
-        0.0,
-    ]
-}
-
 pub fn wgsl() -> Source {
     with_lanes(Source::new())
         .snippet("body.wgsl", BODY_WGSL)
@@ -160,8 +151,8 @@ impl GpuRows {
             self.live.buffer().clone(),
         ];
         let params = RowParams {
-            softness: softness_vec(inputs.softness),
-            static_softness: softness_vec(inputs.static_softness),
+            softness: inputs.softness.words(),
+            static_softness: inputs.static_softness.words(),
             slots: slots as u32,
             _pad0: 0,
             _pad1: 0,

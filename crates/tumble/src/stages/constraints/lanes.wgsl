@@ -16,9 +16,10 @@
 //               2   the rows' masses: normal, tangent[0], tangent[1]; approach_velocity
 //               3   the impulses: normal, tangent[0], tangent[1], max_normal_impulse
 // So row r (0: normal, 1, 2: the tangents) has its mass in lane r of word 2 and its impulse
-// in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 4 to 7 and point
-// words 0, 1 and 3 alone: it takes the tangents from the normal and the inverse masses from
-// the bodies, and a solve computes the rows' masses (solver.wgsl's load_header says why); the
+// in lane r of word 3. A solve or warm-start sweep loads header words 0, 1 and 5 to 7 and point
+// words 0, 1 and 3 alone: it takes the tangents from the normal, the inverse masses from the
+// bodies and the softness from its parameters, and a solve computes the rows' masses
+// (solver.wgsl's load_header says why); the
 // restitution sweep reads word 2's restitution and point word 2. Past the points, the impulse
 // sums (impulse_sums in lanes.rs), which the warm start by body reads instead of the rows:
 //   SUMS_WORD       Σ d λ over the points' rows, 0

@@ -111,12 +111,32 @@ pub struct SolverParams {
     /// The overflow batch, when a [`StageMode::Workgroup`] walk may hold it (a device layout's),
     /// else [`NO_BATCH`].
     pub overflow_batch: u32,
-    pub _pad0: u32,
-    pub _pad1: u32,
-    pub _pad2: u32,
-    pub _pad3: u32,
+    /// [`SolverSettings::contact_softness`] and `static_softness` ([`Softness::words`]).
+    pub softness: [f32; 4],
+    pub static_softness: [f32; 4],
 }
-const _: () = assert!(size_of::<SolverParams>() == 64);
+const _: () = assert!(size_of::<SolverParams>() == 80);
+
+impl SolverParams {
+    /// A solve sweep's parameters over every batch, for `settings` and `body_count` bodies;
+    /// the stages set the batches and the sweep.
+    pub fn new(settings: &SolverSettings, body_count: usize, overflow_batch: u32) -> Self {
+        Self {
+            gravity: settings.gravity,
+            h: settings.dt / settings.substeps as f32,
+            first_batch: 0,
+            end_batch: 0,
+            sequential: 0,
+            use_bias: 1,
+            max_push_velocity: settings.max_push_velocity,
+            restitution_threshold: settings.restitution_threshold,
+            body_count: u32::try_from(body_count).expect("body count fits in u32"),
+            overflow_batch,
+            softness: settings.contact_softness.words(),
+            static_softness: settings.static_softness.words(),
+        }
+    }
+}
 
 /// [`SolverParams::overflow_batch`] when no walk holds the overflow batch.
 pub const NO_BATCH: u32 = u32::MAX;
@@ -236,9 +256,14 @@ fn plan(batch_count: u32, size: impl Fn(u32) -> u32, alone: Option<u32>) -> Vec<
 
 /// Whether `contacts` hold what the device's contact sweeps take from elsewhere instead of
 /// loading it (`load_header` in `solver.wgsl`): each side's inverse mass is its body's (0 for a
-/// static side), and the tangents are `tangent_basis(normal)`. Every constraint the rows build
-/// does; a hand-made one that does not would be solved differently on the two executors.
-fn derived_fields_hold(bodies: &[SolverBody], contacts: &[ContactConstraint]) -> bool {
+/// static side), the tangents are `tangent_basis(normal)`, and the softness is `settings`' for
+/// those masses. Every constraint the rows build with the step's softness does; a hand-made
+/// one that does not would be solved differently on the two executors.
+fn derived_fields_hold(
+    bodies: &[SolverBody],
+    contacts: &[ContactConstraint],
+    settings: &SolverSettings,
+) -> bool {
     let mass = |body: u32| match body {
         STATIC_BODY => Some(0.0),
         body => bodies.get(body as usize).map(|b| b.inverse_mass),
@@ -248,6 +273,7 @@ fn derived_fields_hold(bodies: &[SolverBody], contacts: &[ContactConstraint]) ->
         mass(c.body_a) == Some(c.inverse_mass_a)
             && mass(c.body_b) == Some(c.inverse_mass_b)
             && [tangent1, tangent2] == c.tangents()
+            && c.softness == settings.contact_softness_of(c.inverse_mass_a, c.inverse_mass_b)
     })
 }
 
@@ -372,11 +398,12 @@ impl HostArrays {
         label: &str,
         bodies: &mut [SolverBody],
         batched: &mut Batched,
+        settings: &SolverSettings,
         encode: impl FnOnce(&mut wgpu::ComputePass<'_>, &GpuVec<SolverBody>, &DeviceBatched, bool),
     ) -> Result<(), GpuError> {
         debug_assert!(
-            derived_fields_hold(bodies, batched.contacts),
-            "the device's contact sweeps take tangents and inverse masses from elsewhere"
+            derived_fields_hold(bodies, batched.contacts, settings),
+            "the device's contact sweeps take tangents, inverse masses and softness from elsewhere"
         );
         self.bodies.upload(context, bodies)?;
         lay_out(batched.contacts, &mut self.words);
@@ -509,7 +536,8 @@ impl GpuSolver {
     /// The soft step with [`solve`](super::solve)'s signature: uploads the bodies and the
     /// batched contacts and joints, solves on the GPU, downloads all three. The contacts must
     /// be as the rows build them: each side's inverse mass its body's, the tangents
-    /// `tangent_basis(normal)` (the sweeps take them from there; checked in debug builds).
+    /// `tangent_basis(normal)`, the softness `settings`' (the sweeps take them from there;
+    /// checked in debug builds).
     pub fn run(
         &mut self,
         bodies: &mut [SolverBody],
@@ -523,6 +551,7 @@ impl GpuSolver {
             "solver",
             bodies,
             batched,
+            &settings,
             |pass, bodies, device, restitution| {
                 encoder.encode(pass, bodies, device, settings, restitution);
             },
@@ -705,19 +734,7 @@ impl SolverEncoder {
         settings: SolverSettings,
         overflow_batch: u32,
     ) -> Bound {
-        let base = SolverParams {
-            gravity: settings.gravity,
-            h: settings.dt / settings.substeps as f32,
-            first_batch: 0,
-            end_batch: 0,
-            sequential: 0,
-            use_bias: 1,
-            max_push_velocity: settings.max_push_velocity,
-            restitution_threshold: settings.restitution_threshold,
-            body_count: bodies.len() as u32,
-            overflow_batch,
-            ..SolverParams::zeroed()
-        };
+        let base = SolverParams::new(&settings, bodies.len(), overflow_batch);
         let mut blocks = Vec::with_capacity(stages.len() * VARIANTS + 1);
         for stage in stages {
             let params = SolverParams {

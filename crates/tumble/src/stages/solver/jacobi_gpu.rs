@@ -15,8 +15,6 @@
 //! deterministic, since each thread writes its own slots and each body sums its slots in a
 //! fixed order.
 
-use bytemuck::Zeroable;
-
 use super::gpu::{DeviceBatched, HostArrays, NO_BATCH, SOLVER_WORKGROUP, SolverParams};
 use super::jacobi::{Adjacency, VelocityDelta};
 use super::{Batched, SolverBody, SolverSettings};
@@ -191,6 +189,7 @@ impl GpuJacobi {
             "jacobi solver",
             bodies,
             batched,
+            &settings,
             |pass, bodies, device, restitution| {
                 encoder.encode(pass, bodies, device, settings, restitution);
             },
@@ -344,19 +343,7 @@ impl JacobiEncoder {
         batched: &DeviceBatched,
         settings: SolverSettings,
     ) -> Bound {
-        let solve = SolverParams {
-            gravity: settings.gravity,
-            h: settings.dt / settings.substeps as f32,
-            first_batch: 0,
-            end_batch: 0,
-            sequential: 0,
-            use_bias: 1,
-            max_push_velocity: settings.max_push_velocity,
-            restitution_threshold: settings.restitution_threshold,
-            body_count: bodies.len() as u32,
-            overflow_batch: NO_BATCH,
-            ..SolverParams::zeroed()
-        };
+        let solve = SolverParams::new(&settings, bodies.len(), NO_BATCH);
         // In the order of `Variant`.
         let blocks = [
             solve,

@@ -38,6 +38,7 @@ pub mod jacobi_gpu;
 mod joint;
 
 use crate::math::{Quat, Vec3};
+use crate::pipeline::config::Softness;
 use crate::stages::constraints::{ContactConstraint, JointConstraint, STATIC_BODY};
 use crate::stages::integrate::{clamp_rotation, integrate_rotation};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -128,6 +129,23 @@ pub struct SolverSettings {
     pub max_push_velocity: f32,
     /// Approach speed above which restitution applies (m/s).
     pub restitution_threshold: f32,
+    /// The contact rows' softness between two dynamic bodies and against a static one, as
+    /// the rows were built with (each row carries its own too). The device's sweeps read it
+    /// from here rather than load it with every constraint (`load_header` in solver.wgsl).
+    pub contact_softness: Softness,
+    pub static_softness: Softness,
+}
+
+impl SolverSettings {
+    /// The softness of a contact row between bodies of inverse masses `mass_a` and `mass_b`
+    /// (`build_constraints`' choice: against a static body when either is 0).
+    pub fn contact_softness_of(&self, mass_a: f32, mass_b: f32) -> Softness {
+        if mass_a == 0.0 || mass_b == 0.0 {
+            self.static_softness
+        } else {
+            self.contact_softness
+        }
+    }
 }
 
 /// The constraints of a step laid out batch after batch: batch `i` is
@@ -597,6 +615,8 @@ mod tests {
                 gravity: Vec3::ZERO,
                 max_push_velocity: 3.0,
                 restitution_threshold: 1.0,
+                contact_softness: Softness::RIGID,
+                static_softness: Softness::RIGID,
             },
         }
     }

@@ -31,10 +31,10 @@ struct SolverParams {
     body_count: u32,
     // The overflow batch when a walk may hold it, else 0xffffffff.
     overflow_batch: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-    _pad3: u32,
+    // The contact rows' softness between dynamic bodies and against a static one, as
+    // (bias_rate, mass_scale, impulse_scale, unused): load_header takes it from here.
+    softness: vec4<f32>,
+    static_softness: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> params: SolverParams;
@@ -167,25 +167,29 @@ struct ConstraintHeader {
     inertias: array<SymmetricMat3, 2>,
 }
 
-// The header of constraint `index` on bodies `pair`, from 5 of its 8 words (the ids, word 0,
+// The header of constraint `index` on bodies `pair`, from 4 of its 8 words (the ids, word 0,
 // come apart). A sweep's time grows with the bytes it loads (0.3 ns a constraint on an H100,
 // about half the sweeps' time on the settled 100k pile and three quarters at 500k), so what
 // the other words hold comes from elsewhere: the tangents from the normal (tangent_basis, as
 // the rows' build makes them), the inverse masses from the bodies (prepare_bodies and the rows
-// read the same masses; a static side is 0 in both), and the restitution, which the
-// restitution sweep alone needs, from its word there. A solve sweep also computes the rows'
+// read the same masses; a static side is 0 in both), the softness from the parameters (the
+// rows' two, chosen as the build chooses: by a zero inverse mass), and the restitution, which
+// the restitution sweep alone needs, from its word there. A solve sweep also computes the rows'
 // masses (`point_masses`) instead of loading a word a point. For rows the device built, each
 // is the arithmetic that made the value it replaces (the results were bitwise the same on
 // lavapipe and an H100); for rows the host built, they agree to rounding, as the executors do.
 fn load_header(index: u32, pair: BodyPair) -> ConstraintHeader {
     let normal = contacts[lane_word(index, HEADER_NORMAL)];
-    let masses = contacts[lane_word(index, HEADER_MASSES)];
+    var softness = params.softness;
+    if pair[0].inverse_mass == 0.0 || pair[1].inverse_mass == 0.0 {
+        softness = params.static_softness;
+    }
     let inertias = inertias_of(array<vec4<f32>, 3>(contacts[lane_word(index, HEADER_INERTIA)],
         contacts[lane_word(index, HEADER_INERTIA + 1u)],
         contacts[lane_word(index, HEADER_INERTIA + 2u)]));
     let tangents = tangent_basis(normal.xyz);
     return ConstraintHeader(normal.xyz, tangents[0], tangents[1], pair[0].inverse_mass,
-        pair[1].inverse_mass, normal.w, Softness(masses.y, masses.z, masses.w), inertias);
+        pair[1].inverse_mass, normal.w, Softness(softness.x, softness.y, softness.z), inertias);
 }
 
 fn warm_start_contact(index: u32) {
