@@ -103,7 +103,8 @@ pub struct GpuBatched {
     count: GpuVec<u32>,
     order: GpuVec<u32>,
     /// The constraints in batch order, in blocks of lanes
-    /// ([`lanes`](crate::stages::constraints::lanes)): what the solver sweeps.
+    /// ([`lanes`](crate::stages::constraints::lanes)): what the solver sweeps. Only the words
+    /// a kernel reads are gathered (`gather_rows.wgsl`); the others hold whatever they held.
     pub constraints: GpuVec<Word>,
     pub impulses: GpuVec<BatchedImpulses>,
     /// The impulses of the joints in batch order, as the solver left them.

@@ -1,7 +1,8 @@
 // The rows' contact constraints into batch order (stages/solver/batched.rs), both in blocks of
 // lanes (lanes.wgsl), a 16-byte word a thread: word `slot` of batched place `place` is word
 // `slot` of row order[place]. A thread takes the word at its own index of the output, so a
-// warp's stores are 512 contiguous bytes (its loads are those of 32 rows in any order).
+// warp's stores are 512 contiguous bytes (its loads are those of 32 rows in any order). Words
+// that no kernel reads stay behind (`swept`, and the points past a constraint's count).
 
 // Word 0: the number of contact constraints.
 @group(0) @binding(0) var<storage, read> count: array<u32>;
@@ -22,8 +23,26 @@ fn gather_words(
     let within = word - block * CONSTRAINT_WORDS * CONSTRAINT_LANES;
     let slot = within / CONSTRAINT_LANES;
     let place = block * CONSTRAINT_LANES + within % CONSTRAINT_LANES;
-    if place >= count[0] {
+    if place >= count[0] || !swept(slot) {
         return;
     }
-    batched[word] = rows[lane_word(order[place], slot)];
+    let row = order[place];
+    // A point's words past the constraint's count hold nothing (the build leaves them), and
+    // no kernel reads them: about half the point words of a pile's constraints. The count
+    // word is the one each of the constraint's threads loads, so it mostly comes from cache.
+    if slot >= HEADER_WORDS && slot < SUMS_WORD {
+        let points = rows[lane_word(row, HEADER_IDS)].w;
+        if (slot - HEADER_WORDS) / POINT_WORDS >= points {
+            return;
+        }
+    }
+    batched[word] = rows[lane_word(row, slot)];
+}
+
+// Whether a kernel reads word `slot` of a batched constraint: all but the header's second
+// tangent and masses words, whose fields the sweeps take from elsewhere (load_header in
+// solver.wgsl: the tangents from the normal, the inverse masses from the bodies, the softness
+// from the parameters). Nothing reads the batched constraints back to the host.
+fn swept(slot: u32) -> bool {
+    return slot != HEADER_TANGENT2 && slot != HEADER_MASSES;
 }
