@@ -2495,8 +2495,8 @@ impl GpuStages {
                 context,
                 pass,
                 &rows.constraints,
-                &joint_rows.batched,
-                &joint_rows.impulses,
+                (&joint_rows.batched, &joint_rows.impulses),
+                plan.restitution,
             );
             if plan.by_body {
                 let inputs = AdjacencyInputs {

@@ -109,11 +109,13 @@ pub struct GpuBatched {
     pub impulses: GpuVec<BatchedImpulses>,
     /// The impulses of the joints in batch order, as the solver left them.
     pub joint_impulses: GpuVec<BatchedJointImpulses>,
-    /// `gather_rows.wgsl`, on [`BINDINGS`]' first four.
+    /// `gather_rows.wgsl`, on [`BINDINGS`]' first four: with the words only the restitution
+    /// sweep reads, and without them.
     gather: Kernel,
+    gather_still: Kernel,
     read_impulses: Kernel,
     read_joint_impulses: Kernel,
-    cached: Option<(Key, [Dispatch; 3])>,
+    cached: Option<(Key, [Dispatch; 4])>,
     scatter_pair_impulses: Kernel,
     /// For the contacts buffer and the constraint capacity it was built for.
     scattered: LastTwo<(wgpu::Buffer, wgpu::Buffer, usize), Dispatch>,
@@ -134,6 +136,13 @@ impl GpuBatched {
                 "gather_words",
                 &gather_rows_wgsl(),
                 "gather_words",
+                &BINDINGS[..4],
+            ),
+            gather_still: Kernel::new(
+                context,
+                "gather_words_still",
+                &gather_rows_wgsl(),
+                "gather_words_still",
                 &BINDINGS[..4],
             ),
             read_impulses: kernel("read_impulses"),
@@ -190,7 +199,8 @@ impl GpuBatched {
         &self.order
     }
 
-    /// Encodes the gather of `rows` (the rows' constraints) into [`Self::constraints`].
+    /// Encodes the gather of `rows` (the rows' constraints) into [`Self::constraints`], with
+    /// the words only the restitution sweep reads when the solve has one (`restitution`).
     /// `joints` are the joints in batch order that the solver will sweep, `slot_impulses` the
     /// joint rows' warm start by slot ([`Self::encode_read_impulses`] writes both).
     pub fn encode_gather(
@@ -198,8 +208,8 @@ impl GpuBatched {
         context: &GpuContext,
         pass: &mut wgpu::ComputePass<'_>,
         rows: &GpuVec<Word>,
-        joints: &GpuVec<JointConstraint>,
-        slot_impulses: &GpuVec<BatchedJointImpulses>,
+        (joints, slot_impulses): (&GpuVec<JointConstraint>, &GpuVec<BatchedJointImpulses>),
+        restitution: bool,
     ) {
         let key: Key = (
             [
@@ -246,13 +256,15 @@ impl GpuBatched {
             let words = workgroups_for(word_count(key.1), WORKGROUP_SIZE);
             let joint_groups = workgroups_for(key.2, WORKGROUP_SIZE);
             let dispatches = [
-                self.gather.dispatch(gather_group, words),
+                self.gather.dispatch(gather_group.clone(), words),
+                self.gather_still.dispatch(gather_group, words),
                 self.read_impulses.dispatch(group.clone(), groups),
                 self.read_joint_impulses.dispatch(group, joint_groups),
             ];
             self.cached = Some((key, dispatches));
         }
-        if let Some((_, [gather, ..])) = &self.cached {
+        if let Some((_, [gather, gather_still, ..])) = &self.cached {
+            let gather = if restitution { gather } else { gather_still };
             encode_all(pass, std::slice::from_ref(gather));
         }
     }
@@ -261,7 +273,7 @@ impl GpuBatched {
     /// [`Self::joint_impulses`] (after [`Self::encode_gather`] and the solve, in the same
     /// pass).
     pub fn encode_read_impulses(&self, pass: &mut wgpu::ComputePass<'_>) {
-        if let Some((_, [_, read @ ..])) = &self.cached {
+        if let Some((_, [_, _, read @ ..])) = &self.cached {
             encode_all(pass, read);
         }
     }
