@@ -82,9 +82,12 @@ pub fn wgsl() -> Source {
         .snippet("batched.wgsl", WGSL)
 }
 
-/// The gather of the rows into batch order, a word a thread.
-fn gather_rows_wgsl() -> Source {
-    with_lanes(Source::new()).snippet("gather_rows.wgsl", GATHER_ROWS_WGSL)
+/// The gather of the rows into batch order, a word a thread, with the words only the
+/// restitution sweep reads when `bouncing`.
+fn gather_rows_wgsl(bouncing: bool) -> Source {
+    with_lanes(Source::new())
+        .constant_u32("BOUNCING", u32::from(bouncing))
+        .snippet("gather_rows.wgsl", GATHER_ROWS_WGSL)
 }
 
 /// The scatter of the contacts' impulses to their pairs, for the layout test.
@@ -134,15 +137,15 @@ impl GpuBatched {
             gather: Kernel::new(
                 context,
                 "gather_words",
-                &gather_rows_wgsl(),
+                &gather_rows_wgsl(true),
                 "gather_words",
                 &BINDINGS[..4],
             ),
             gather_still: Kernel::new(
                 context,
                 "gather_words_still",
-                &gather_rows_wgsl(),
-                "gather_words_still",
+                &gather_rows_wgsl(false),
+                "gather_words",
                 &BINDINGS[..4],
             ),
             read_impulses: kernel("read_impulses"),

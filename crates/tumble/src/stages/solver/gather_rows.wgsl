@@ -11,34 +11,22 @@
 @group(0) @binding(2) var<storage, read> rows: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> batched: array<vec4<u32>>;
 
-// With the restitution sweep to come: every word a kernel reads.
+// BOUNCING (from Rust: 1 or 0) tells whether the solve has a restitution sweep, whose words
+// are gathered only then (`swept`): the kernel is built twice, gather_words and
+// gather_words_still.
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn gather_words(
     @builtin(local_invocation_index) local: u32,
     @builtin(workgroup_id) workgroup: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    gather(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local, true);
-}
-
-// Without it: not the words only the restitution sweep reads either.
-@compute @workgroup_size(WORKGROUP_SIZE)
-fn gather_words_still(
-    @builtin(local_invocation_index) local: u32,
-    @builtin(workgroup_id) workgroup: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    gather(flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local, false);
-}
-
-// Output word `word`, when a kernel reads it (`swept`).
-fn gather(word: u32, bouncing: bool) {
+    let word = flat_workgroup(workgroup, groups) * WORKGROUP_SIZE + local;
     // The inverse of lane_word: block, word of the constraint, lane.
     let block = word / (CONSTRAINT_WORDS * CONSTRAINT_LANES);
     let within = word - block * CONSTRAINT_WORDS * CONSTRAINT_LANES;
     let slot = within / CONSTRAINT_LANES;
     let place = block * CONSTRAINT_LANES + within % CONSTRAINT_LANES;
-    if place >= count[0] || !swept(slot, bouncing) {
+    if place >= count[0] || !swept(slot) {
         return;
     }
     let row = order[place];
@@ -57,15 +45,15 @@ fn gather(word: u32, bouncing: bool) {
 // Whether a kernel reads word `slot` of a batched constraint. Not the header's second tangent
 // and masses words, whose fields the sweeps take from elsewhere (load_header in solver.wgsl:
 // the tangents from the normal, the inverse masses from the bodies, the softness from the
-// parameters); and unless the step has a restitution sweep (`bouncing`), not the words it
+// parameters); and unless the step has a restitution sweep (BOUNCING), not the words it
 // alone reads: the header's first tangent word (the restitution) and each point's masses
 // word (the normal mass and the approach speed). Nothing reads the batched constraints back
 // to the host.
-fn swept(slot: u32, bouncing: bool) -> bool {
+fn swept(slot: u32) -> bool {
     if slot == HEADER_TANGENT2 || slot == HEADER_MASSES {
         return false;
     }
     let point_masses = slot >= HEADER_WORDS && slot < SUMS_WORD
         && (slot - HEADER_WORDS) % POINT_WORDS == POINT_MASSES;
-    return bouncing || !(slot == HEADER_TANGENT1 || point_masses);
+    return BOUNCING == 1u || !(slot == HEADER_TANGENT1 || point_masses);
 }
